@@ -1,0 +1,304 @@
+"""The RV reducer design: geometry, stiffnesses, inertias and ratings.
+
+A design is plain, frozen data in SI units, checked once when it is built.
+Files speak the units of MODEL.md section 1 and carry the unit in the key
+(`R_p_mm`, `mesh_stiffness_N_per_m`); `DESIGN_FIELDS` is the one table that
+maps a file key to a field and its scale.  A design file is either complete
+or names a shipped preset (`preset = "RV-40E-121"`) and overrides any field by
+its file key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .checks import InputError, finite_number, integer, non_negative, positive
+from .units import DEG, GPA, MM
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    """How one design field is written in files and what values it takes."""
+
+    field: str
+    file_key: str
+    scale: float  # file value * scale = SI value
+    kind: str  # "int", "positive", "signed", "non_negative", "fraction"
+    doc: str
+
+
+DESIGN_FIELDS = (
+    FieldSpec("z_s", "z_s", 1, "int", "sun teeth"),
+    FieldSpec("z_pl", "z_pl", 1, "int", "planet teeth"),
+    FieldSpec("m", "m_mm", MM, "positive", "stage-1 module"),
+    FieldSpec("pressure_angle", "pressure_angle_deg", DEG, "positive", "stage-1 pressure angle"),
+    FieldSpec("gear_width", "gear_width_mm", MM, "positive", "sun/planet face width"),
+    FieldSpec("z_p", "z_p", 1, "int", "pins"),
+    FieldSpec("z_c", "z_c", 1, "int", "disc lobes (z_p - 1)"),
+    FieldSpec("R_p", "R_p_mm", MM, "positive", "pin circle radius"),
+    FieldSpec("r_rp", "r_rp_mm", MM, "positive", "pin radius"),
+    FieldSpec("e", "e_mm", MM, "positive", "eccentricity"),
+    FieldSpec("d_rp", "d_rp_mm", MM, "signed", "shift (move-distance) modification"),
+    FieldSpec("d_rrp", "d_rrp_mm", MM, "signed", "equidistant modification"),
+    FieldSpec("disc_width", "disc_width_mm", MM, "positive", "face width of one disc"),
+    FieldSpec("n_c", "n_c", 1, "int", "crankshafts"),
+    FieldSpec("pin_disc_stiffness", "pin_disc_stiffness_N_per_m", 1.0, "positive",
+              "one pin against one disc, along the contact normal"),
+    FieldSpec("mesh_stiffness", "mesh_stiffness_N_per_m", 1.0, "positive",
+              "sun-planet mesh, along the line of action"),
+    FieldSpec("crank_disc_bearing_stiffness", "crank_disc_bearing_stiffness_N_per_m", 1.0,
+              "positive", "needle bearing between one cam and its disc hole, radial"),
+    FieldSpec("crank_carrier_bearing_stiffness", "crank_carrier_bearing_stiffness_N_per_m", 1.0,
+              "positive", "support bearings of one crankshaft in the carrier, radial"),
+    FieldSpec("main_bearing_stiffness", "main_bearing_stiffness_N_per_m", 1.0, "positive",
+              "carrier main bearings, radial"),
+    FieldSpec("sun_support_stiffness", "sun_support_stiffness_N_per_m", 1.0, "positive",
+              "input shaft radial support of the sun"),
+    FieldSpec("damping_ratio", "damping_ratio", 1.0, "fraction",
+              "modal damping ratio of meshes and bearings"),
+    FieldSpec("sun_mass", "sun_mass_kg", 1.0, "positive", "sun gear with input shaft"),
+    FieldSpec("sun_inertia", "sun_inertia_kg_m2", 1.0, "positive", "sun gear with input shaft"),
+    FieldSpec("crank_mass", "crank_mass_kg", 1.0, "positive", "one planet with its crankshaft"),
+    FieldSpec("crank_inertia", "crank_inertia_kg_m2", 1.0, "positive",
+              "one planet with its crankshaft"),
+    FieldSpec("disc_mass", "disc_mass_kg", 1.0, "positive", "one cycloid disc"),
+    FieldSpec("disc_inertia", "disc_inertia_kg_m2", 1.0, "positive", "one cycloid disc"),
+    FieldSpec("carrier_mass", "carrier_mass_kg", 1.0, "positive", "carrier (output flange)"),
+    FieldSpec("carrier_inertia", "carrier_inertia_kg_m2", 1.0, "positive",
+              "carrier (output flange)"),
+    FieldSpec("rated_torque", "rated_torque_Nm", 1.0, "positive", "catalogue rated output torque"),
+    FieldSpec("youngs_modulus", "youngs_modulus_GPa", GPA, "positive", "steel of the parts"),
+    FieldSpec("poisson_ratio", "poisson_ratio", 1.0, "fraction", "steel of the parts"),
+)
+
+_BY_KEY = {spec.file_key: spec for spec in DESIGN_FIELDS}
+PRESET_NAMES = ("RV-40E-121", "RV-40E-81", "RV-20E", "RV-110E")
+
+
+@dataclass(frozen=True)
+class RVDesign:
+    """An RV reducer (MODEL.md sections 2, 3 and 6), SI units throughout.
+
+    Build it with `RVDesign(**fields)`, `load_design(...)` or `preset(...)`;
+    the constructor checks every field and every relation between fields.
+    """
+
+    name: str
+    z_s: int
+    z_pl: int
+    m: float
+    pressure_angle: float
+    gear_width: float
+    z_p: int
+    z_c: int
+    R_p: float
+    r_rp: float
+    e: float
+    d_rp: float
+    d_rrp: float
+    disc_width: float
+    n_c: int
+    pin_disc_stiffness: float
+    mesh_stiffness: float
+    crank_disc_bearing_stiffness: float
+    crank_carrier_bearing_stiffness: float
+    main_bearing_stiffness: float
+    sun_support_stiffness: float
+    damping_ratio: float
+    sun_mass: float
+    sun_inertia: float
+    crank_mass: float
+    crank_inertia: float
+    disc_mass: float
+    disc_inertia: float
+    carrier_mass: float
+    carrier_inertia: float
+    rated_torque: float
+    youngs_modulus: float
+    poisson_ratio: float
+
+    def __post_init__(self):
+        for spec in DESIGN_FIELDS:
+            object.__setattr__(self, spec.field, _checked(spec, getattr(self, spec.field), self.name))
+        _check_relations(self)
+
+    # -- derived quantities (MODEL.md section 2) --------------------------------
+    @property
+    def ratio(self) -> float:
+        """Reduction ratio with fixed housing and carrier output, i = 1 + z_pl/z_s * z_p."""
+        return 1.0 + self.z_pl / self.z_s * self.z_p
+
+    @property
+    def crank_circle_radius(self) -> float:
+        """Stage-1 centre distance m*(z_s + z_pl)/2 [m]: where the crank axes sit."""
+        return self.m * (self.z_s + self.z_pl) / 2.0
+
+    @property
+    def sun_base_radius(self) -> float:
+        return self.m * self.z_s / 2.0 * math.cos(self.pressure_angle)
+
+    @property
+    def planet_base_radius(self) -> float:
+        return self.m * self.z_pl / 2.0 * math.cos(self.pressure_angle)
+
+    @property
+    def tip_root_clearance(self) -> float:
+        """Radial pin clearance at every lobe tip and root, d_rrp - d_rp [m] (MODEL.md section 3)."""
+        return self.d_rrp - self.d_rp
+
+    def with_fields(self, **changes) -> "RVDesign":
+        """A copy with some SI fields changed (checked again)."""
+        return dataclasses.replace(self, **changes)
+
+    def file_values(self) -> dict:
+        """The design as a design file would write it (file keys and units)."""
+        values = {"name": self.name}
+        for spec in DESIGN_FIELDS:
+            value = getattr(self, spec.field)
+            values[spec.file_key] = value if spec.kind == "int" else value / spec.scale
+        return values
+
+
+def _checked(spec: FieldSpec, value, where: str):
+    if spec.kind == "int":
+        return integer(spec.file_key, value, 1, where=where)
+    # Checks are made on the file value so that the message shows what the user wrote.
+    shown = value / spec.scale if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+    if spec.kind == "positive":
+        positive(spec.file_key, shown, where)
+    elif spec.kind == "non_negative":
+        non_negative(spec.file_key, shown, where)
+    elif spec.kind == "fraction":
+        shown = finite_number(spec.file_key, shown, where)
+        if not 0.0 <= shown < 1.0:
+            raise InputError(spec.file_key, shown, "must be from 0 to below 1", where)
+    else:
+        finite_number(spec.file_key, shown, where)
+    return float(value)
+
+
+def _check_relations(d: RVDesign) -> None:
+    where = d.name
+    if d.z_c != d.z_p - 1:
+        raise InputError("z_c", d.z_c, f"must be z_p - 1 = {d.z_p - 1}", where)
+    if d.z_p % 2:
+        raise InputError("z_p", d.z_p, "must be even: disc 1 is disc 0 turned by 180 deg, "
+                         "which is conjugate only for even z_p (MODEL.md section 4)", where)
+    if d.z_p < 6:
+        raise InputError("z_p", d.z_p, "must be >= 6", where)
+    if d.n_c not in (2, 3):
+        raise InputError("n_c", d.n_c, "must be 2 or 3 crankshafts", where)
+    if d.z_s < 6 or d.z_pl < 6:
+        field, value = ("z_s", d.z_s) if d.z_s < 6 else ("z_pl", d.z_pl)
+        raise InputError(field, value, "must be >= 6 teeth", where)
+    if d.z_s % d.n_c:
+        raise InputError("z_s", d.z_s, f"must be divisible by n_c = {d.n_c} so that all planets, "
+                         "fixed to cranks turning together, mesh in phase", where)
+    e_max = d.R_p / d.z_p
+    if d.e >= e_max:
+        raise InputError("e_mm", d.e / MM, f"must be < R_p/z_p = {e_max / MM:.4g} mm "
+                         "(otherwise the trochoid loops and the disc cannot be made)", where)
+    pin_gap = 2.0 * d.R_p * math.sin(math.pi / d.z_p)
+    if 2.0 * d.r_rp >= pin_gap:
+        raise InputError("r_rp_mm", d.r_rp / MM,
+                         f"must be < {pin_gap / 2 / MM:.4g} mm: neighbouring pins overlap", where)
+    rho_min = min_trochoid_curvature_radius(d.R_p, d.e, d.z_p)
+    if d.r_rp + d.d_rrp >= rho_min:
+        raise InputError("r_rp_mm", d.r_rp / MM,
+                         f"with d_rrp must stay below the smallest convex radius of curvature "
+                         f"of the pin path, {rho_min / MM:.4g} mm (else the profile undercuts)", where)
+    if abs(d.d_rp) > 0.01 * d.R_p or abs(d.d_rrp) > 0.5 * d.r_rp:
+        field, value = ("d_rp_mm", d.d_rp) if abs(d.d_rp) > 0.01 * d.R_p else ("d_rrp_mm", d.d_rrp)
+        raise InputError(field, value / MM, "is too large for a profile modification "
+                         "(|d_rp| <= 1 % of R_p, |d_rrp| <= half the pin radius)", where)
+    a = d.crank_circle_radius
+    planet_tip = d.m * (d.z_pl + 2) / 2.0
+    if d.n_c > 1 and 2.0 * a * math.sin(math.pi / d.n_c) <= 2.0 * planet_tip:
+        raise InputError("z_pl", d.z_pl, f"planets of tip radius {planet_tip / MM:.4g} mm collide "
+                         f"on a crank circle of {a / MM:.4g} mm with {d.n_c} cranks", where)
+    if not 0.0 < d.pressure_angle < math.radians(45):
+        raise InputError("pressure_angle_deg", math.degrees(d.pressure_angle),
+                         "must be between 0 and 45 deg", where)
+
+
+def min_trochoid_curvature_radius(R_p: float, e: float, z_p: int) -> float:
+    """Smallest radius of curvature of the convex part of the pin-centre path [m].
+
+    The path in the disc frame is C(t) = (R cos t - e cos z t, R sin t - e sin z t) with
+    z = z_p.  With u = cos((z - 1) t):  |C'|^2 = R^2 + e^2 z^2 - 2 R e z u  and
+    C' x C'' = R^2 + e^2 z^3 - R e z (z + 1) u, so the radius |C'|^3 / (C' x C'') depends
+    on u alone; the inward offset by the pin radius undercuts where that radius, on the
+    convex part (C' x C'' > 0), is smaller than the pin radius.
+    """
+    u = np.linspace(-1.0, 1.0, 4001)
+    speed = np.sqrt(R_p * R_p + e * e * z_p * z_p - 2.0 * R_p * e * z_p * u)
+    cross = R_p * R_p + e * e * z_p ** 3 - R_p * e * z_p * (z_p + 1) * u
+    convex = cross > 0
+    return float(np.min(speed[convex] ** 3 / cross[convex]))
+
+
+def design_from_file_values(values: dict, where: str = "design") -> RVDesign:
+    """Build a design from file keys; `preset` (optional) supplies the missing ones."""
+    values = dict(values)
+    values.pop("sources", None)  # inputs of engineering estimates, for the reader and the tests
+    base = {}
+    preset_name = values.pop("preset", None)
+    if preset_name is not None:
+        base = _preset_values(preset_name, where)
+    unknown = [key for key in values if key not in _BY_KEY and key != "name"]
+    if unknown:
+        known = ", ".join(["preset", "name"] + [spec.file_key for spec in DESIGN_FIELDS])
+        raise InputError(unknown[0], values[unknown[0]], f"is not a design key; known keys: {known}", where)
+    merged = {**base, **values}
+    name = merged.get("name", preset_name or where)
+    if "name" not in values and preset_name is not None and len(values) > 0:
+        name = f"{preset_name} (modified)"
+    missing = [spec.file_key for spec in DESIGN_FIELDS if spec.file_key not in merged]
+    if missing:
+        raise InputError(missing[0], None, "is missing (give it, or name a preset to take it from)", where)
+    fields = {}
+    for spec in DESIGN_FIELDS:
+        raw = merged[spec.file_key]
+        if spec.kind == "int":
+            fields[spec.field] = integer(spec.file_key, raw, 1, where=where)
+        else:
+            fields[spec.field] = finite_number(spec.file_key, raw, where) * spec.scale
+    return RVDesign(name=str(name), **fields)
+
+
+def _preset_values(name, where):
+    if name not in PRESET_NAMES:
+        raise InputError("preset", name, f"must be one of {', '.join(PRESET_NAMES)}", where)
+    text = resources.files("rvfmu.core.presets").joinpath(f"{name}.toml").read_text()
+    values = tomllib.loads(text)
+    values.pop("sources", None)
+    values.setdefault("name", name)
+    return values
+
+
+def preset(name: str) -> RVDesign:
+    """The shipped preset `name` (one of PRESET_NAMES)."""
+    return design_from_file_values({"preset": name}, where=f"preset {name}")
+
+
+def load_design(spec: str | Path) -> RVDesign:
+    """A preset name or the path of a design TOML file."""
+    text = str(spec)
+    if text in PRESET_NAMES:
+        return preset(text)
+    path = Path(spec)
+    if not path.is_file():
+        raise InputError("design", text, f"is neither a preset ({', '.join(PRESET_NAMES)}) "
+                         "nor a readable TOML file")
+    try:
+        values = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError("design", text, f"is not valid TOML ({exc})") from None
+    return design_from_file_values(values, where=path.name)

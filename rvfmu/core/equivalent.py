@@ -1,0 +1,258 @@
+"""The equivalent error model: every contact of the reducer as a spring on small displacements.
+
+The question: given the pose that the input angle sets and the manufacturing
+errors, how far does every part move, and so how far does the carrier lag or
+lead?  Errors are micrometres and deflections are micrometres, while the parts
+are centimetres, so the directions and lever arms of every contact are those
+of the exact, error-free pose (seed 003's equivalent error model R Y = P over
+seed 002's degrees of freedom).  Each error enters as an equivalent
+displacement along its contact normal; the model is linear in the unknowns but
+for the unilateral pin contacts and the bearing clearances.
+
+Degrees of freedom (small displacements from the nominal pose, fixed frame):
+sun x, y; per crank x, y and rotation; per disc x, y and rotation; carrier x,
+y and rotation.  The input angle is held (the sun does not rotate).  Every
+rotation is stored as arc length at the pin circle radius R_p [m] so that all
+unknowns have one unit and one size.
+
+Nothing here is solved: `EquivalentModel` gives, for a set of input angles,
+the Jacobian of every element (shared by all reducers of a batch) and, for
+any (reducer, angle) pairs, the offsets that the errors put on each element.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .design import RVDesign
+from .errors import CLEARANCES, ErrorSet
+
+
+def dof_names(n_c: int) -> list[str]:
+    names = ["sun_x", "sun_y"]
+    for i in range(n_c):
+        names += [f"crank{i}_x", f"crank{i}_y", f"crank{i}_rot"]
+    for j in range(2):
+        names += [f"disc{j}_x", f"disc{j}_y", f"disc{j}_rot"]
+    return names + ["carrier_x", "carrier_y", "carrier_rot"]
+
+
+def _perp(v):
+    """k x v for vectors stored as (..., 2)."""
+    return np.stack([-v[..., 1], v[..., 0]], axis=-1)
+
+
+def _unit(angle):
+    return np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+
+
+def _c2v(z):
+    return np.stack([z.real, z.imag], axis=-1)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Nominal kinematics (MODEL.md section 2) at input angles theta_in, shape (A,)."""
+
+    theta_in: np.ndarray
+    theta_out: np.ndarray   # carrier angle, theta_in / i
+    beta: np.ndarray        # crank angle relative to the carrier
+    psi: np.ndarray         # (A, 2) direction of disc j's centre from the pin circle centre
+
+    @classmethod
+    def at(cls, design: RVDesign, theta_in) -> "Pose":
+        theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
+        theta_out = theta_in / design.ratio
+        beta = -(design.z_s / design.z_pl) * (theta_in - theta_out)
+        psi = (theta_out + beta)[:, None] + np.array([0.0, np.pi])
+        return cls(theta_in, theta_out, beta, psi)
+
+
+class EquivalentModel:
+    """Element Jacobians at A input angles and error offsets for (reducer, angle) pairs.
+
+    Elements, each with its stiffness:
+    - `linear`: sun-planet meshes (one per crank, along the line of action of the
+      loaded flank) and the sun support (x, y): bilateral springs, rows (A, m, n);
+    - `bearings`: per crank its support in the carrier, per crank and disc the
+      cam needle bearing, and the carrier main bearing: isotropic 2-D springs with
+      a radial clearance, rows (A, nb, 2, n);
+    - `pins`: pin k against disc j, unilateral along the contact normal, rows
+      (A, 2, z_p, 3) over that disc's own three unknowns.
+    A positive element deflection is compression (interference).
+    `flank` is +1 when the sun drives the planets forward (a resisting load or
+    none), -1 when the load drives the output.
+    """
+
+    def __init__(self, design: RVDesign, theta_in, flank: int = 1):
+        self.design = design
+        self.pose = Pose.at(design, theta_in)
+        self.flank = 1 if flank >= 0 else -1
+        self.names = dof_names(design.n_c)
+        self.n_dof = len(self.names)
+        self.index = {name: k for k, name in enumerate(self.names)}
+        self.scale = design.R_p  # rotation unknowns are arc lengths at R_p
+        self._build_geometry()
+
+    # -- indices -------------------------------------------------------------------
+    def _dofs(self, body: str) -> list[int]:
+        return [k for k, name in enumerate(self.names) if name.startswith(body + "_")]
+
+    @property
+    def carrier_rot(self) -> int:
+        return self.index["carrier_rot"]
+
+    @property
+    def pin_dofs(self) -> np.ndarray:
+        """(2, 3) unknowns of disc j: x, y, rotation."""
+        return np.array([self._dofs("disc0"), self._dofs("disc1")])
+
+    # -- geometry ------------------------------------------------------------------
+    def _build_geometry(self):
+        d, p = self.design, self.pose
+        A, n, n_c = p.theta_in.size, self.n_dof, d.n_c
+        a = d.crank_circle_radius
+        r_s, r_pl = d.m * d.z_s / 2.0, d.m * d.z_pl / 2.0
+        crank_dir = p.theta_out[:, None] + 2.0 * np.pi * np.arange(n_c) / n_c     # (A, n_c)
+        e_i, t_i = _unit(crank_dir), _perp(_unit(crank_dir))                      # (A, n_c, 2)
+        self._crank_dir = crank_dir
+
+        # Sun-planet meshes: compression = w . (u_sun(C) - u_planet(C)) at the pitch point C.
+        alpha = d.pressure_angle
+        w = self.flank * np.cos(alpha) * t_i + np.sin(alpha) * e_i                 # (A, n_c, 2)
+        mesh = np.zeros((A, n_c, n))
+        sun = self._dofs("sun")
+        for i in range(n_c):
+            cx, cy, cr = self._dofs(f"crank{i}")
+            mesh[:, i, sun[0]], mesh[:, i, sun[1]] = w[:, i, 0], w[:, i, 1]
+            mesh[:, i, cx], mesh[:, i, cy] = -w[:, i, 0], -w[:, i, 1]
+            # planet point C - O_p = -r_pl e_i turns with the crank: u = rot * k x (C - O_p)
+            lever = _perp(-r_pl * e_i[:, i])
+            mesh[:, i, cr] = -np.einsum("ax,ax->a", w[:, i], lever) / self.scale
+        support = np.zeros((A, 2, n))
+        support[:, 0, sun[0]] = 1.0
+        support[:, 1, sun[1]] = 1.0
+        self.linear_rows = np.concatenate([mesh, support], axis=1)
+        self.linear_k = np.array([d.mesh_stiffness] * n_c + [d.sun_support_stiffness] * 2)
+        self._mesh_w = w
+
+        # Bearings: deflection d = (inner part) - (outer part), 2-D.
+        rows, stiff, kinds = [], [], []
+        car = self._dofs("carrier")
+        for i in range(n_c):  # crank axis in its carrier seat
+            cx, cy, _ = self._dofs(f"crank{i}")
+            r = np.zeros((A, 2, n))
+            r[:, 0, cx], r[:, 1, cy] = 1.0, 1.0
+            r[:, 0, car[0]], r[:, 1, car[1]] = -1.0, -1.0
+            r[:, :, car[2]] = -_perp(a * e_i[:, i]) / self.scale
+            rows.append(r), stiff.append(d.crank_carrier_bearing_stiffness), kinds.append(
+                "crank_carrier_clearance")
+        psi_dir = _unit(p.psi)                                                      # (A, 2, 2)
+        for i in range(n_c):  # cam j of crank i in hole i of disc j
+            cx, cy, cr = self._dofs(f"crank{i}")
+            for j in range(2):
+                dx, dy, dr = self._dofs(f"disc{j}")
+                r = np.zeros((A, 2, n))
+                r[:, 0, cx], r[:, 1, cy] = 1.0, 1.0
+                r[:, :, cr] = _perp(d.e * psi_dir[:, j]) / self.scale
+                r[:, 0, dx], r[:, 1, dy] = -1.0, -1.0
+                r[:, :, dr] = -_perp(a * e_i[:, i]) / self.scale
+                rows.append(r), stiff.append(d.crank_disc_bearing_stiffness), kinds.append(
+                    "crank_disc_clearance")
+        r = np.zeros((A, 2, n))
+        r[:, 0, car[0]], r[:, 1, car[1]] = 1.0, 1.0
+        rows.append(r), stiff.append(d.main_bearing_stiffness), kinds.append("main_bearing_clearance")
+        self.bearing_rows = np.stack(rows, axis=1)                                 # (A, nb, 2, n)
+        self.bearing_k = np.array(stiff)
+        self.bearing_kind = kinds
+
+        # Pins: normal through the pitch point z_p e (cos psi, sin psi) (instant centre).
+        pin_angle = 2.0 * np.pi * np.arange(d.z_p) / d.z_p
+        pin_pos = d.R_p * _unit(pin_angle)                                          # (z_p, 2)
+        pitch = d.z_p * d.e * psi_dir                                               # (A, 2, 2)
+        centre = d.e * psi_dir
+        normal = pin_pos[None, None] - pitch[:, :, None]                            # (A, 2, z_p, 2)
+        normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+        contact = pin_pos[None, None] - d.r_rp * normal
+        arm = contact - centre[:, :, None]
+        lever = arm[..., 0] * normal[..., 1] - arm[..., 1] * normal[..., 0]         # (A, 2, z_p)
+        self.pin_rows = np.concatenate([normal, (lever / self.scale)[..., None]], axis=-1)
+        self.pin_k = d.pin_disc_stiffness
+        radial = _unit(pin_angle)
+        self._pin_radial_dot = np.einsum("ajkx,kx->ajk", normal, radial)            # n . e_k
+        self._pin_tangent_dot = np.einsum("ajkx,kx->ajk", normal, _perp(radial))    # n . t_k
+        self._pin_lever = lever
+        # Lobe of each contact point, in the disc frame (disc 1 is disc 0 turned by pi).
+        disc_angle = np.arctan2(arm[..., 1], arm[..., 0]) - p.theta_out[:, None, None]
+        disc_angle -= np.array([0.0, np.pi])[None, :, None]
+        self._lobe = np.floor(np.mod(disc_angle, 2.0 * np.pi) * d.z_c / (2.0 * np.pi)).astype(int)
+        self._lobe = np.minimum(self._lobe, d.z_c - 1)
+        # Profile modifications as gaps (MODEL.md section 3): d_rrp opens every normal, d_rp
+        # moves the generating pin circle out, closing the gap by d_rp (n . e_k).
+        self._pin_gap = d.d_rrp - d.d_rp * self._pin_radial_dot                     # (A, 2, z_p)
+
+    # -- loads -----------------------------------------------------------------------
+    def load_vector(self) -> np.ndarray:
+        """Generalised force (n,) of a unit output torque tau_load = 1 N*m."""
+        g = np.zeros(self.n_dof)
+        g[self.carrier_rot] = 1.0 / self.scale
+        return g
+
+    def clearance_halves(self, errors: ErrorSet) -> np.ndarray:
+        """(S, nb) free radial play of each bearing [m]: half the radial clearance.
+
+        A bearing's radial clearance is the total radial travel of one ring against
+        the other (ISO 5753), so the centre moves freely within half of it.
+        """
+        by_kind = {name: getattr(errors, name) for name in CLEARANCES}
+        return 0.5 * np.stack([by_kind[kind] for kind in self.bearing_kind], axis=1)
+
+    # -- error offsets ---------------------------------------------------------------
+    def offsets(self, errors: ErrorSet, sample, angle):
+        """Offsets of every element for the pairs (errors[sample[b]], angle[b]), b < B.
+
+        Returns (linear (B, m), bearings (B, nb, 2), pins (B, 2, z_p)) [m]:
+        the deflection of each element with all unknowns zero.
+        """
+        d, p = self.design, self.pose
+        th_in = p.theta_in[angle]
+        th_out = p.theta_out[angle]
+        crank_abs = th_out + p.beta[angle]           # crank frame: cam 0 direction
+        rot_in = np.exp(1j * th_in)[:, None]
+        rot_out = np.exp(1j * th_out)[:, None]
+        rot_crank = np.exp(1j * crank_abs)[:, None]
+        n_c = d.n_c
+
+        # Meshes: the sun pitch centre is off by its eccentricity (turning with the sun),
+        # the planet pitch centre by its eccentricity (turning with the crank).
+        sun_ecc = errors.sun_eccentricity[sample][:, None] * rot_in                 # (B, 1)
+        planet_ecc = errors.planet_eccentricity[sample] * rot_crank                  # (B, n_c)
+        w = self._mesh_w[angle]                                                      # (B, n_c, 2)
+        mesh = np.einsum("bix,bix->bi", w, _c2v(sun_ecc - planet_ecc))
+        assembly = _c2v(errors.sun_assembly[sample])                                # (B, 2)
+        linear = np.concatenate([mesh, -assembly], axis=1)
+
+        # Bearings, in the order of _build_geometry.
+        seat = errors.carrier_crank_hole[sample] * rot_out                           # (B, n_c)
+        cam = errors.crank_cam_eccentricity[sample] * rot_crank[..., None]           # (B, n_c, 2)
+        hole = np.swapaxes(errors.disc_crank_hole[sample], 1, 2) * rot_out[..., None]  # (B, n_c, 2)
+        parts = [-seat] + [(cam - hole)[:, i, j][:, None] for i in range(n_c) for j in range(2)]
+        parts.append(-errors.carrier_assembly[sample][:, None])
+        bearings = _c2v(np.concatenate([parts[0]] + parts[1:], axis=1))
+
+        # Pins: pin centre moved by its radial/pitch error, radius error, disc lobe
+        # profile (+ material) and pitch (lobe turned about the disc centre).
+        nr, nt = self._pin_radial_dot[angle], self._pin_tangent_dot[angle]          # (B, 2, z_p)
+        pins = (-self._pin_gap[angle]
+                + errors.pin_radius[sample][:, None]
+                - errors.pin_radial[sample][:, None] * nr
+                - errors.pin_pitch[sample][:, None] * nt)
+        lobe = self._lobe[angle]                                                     # (B, 2, z_p)
+        disc = np.arange(2)[None, :, None]
+        s = np.asarray(sample)[:, None, None]
+        pitch_radius = d.R_p * d.z_c / d.z_p
+        pins = pins + errors.disc_profile[s, disc, lobe]
+        pins = pins + errors.disc_pitch[s, disc, lobe] / pitch_radius * self._pin_lever[angle]
+        return linear, bearings, pins

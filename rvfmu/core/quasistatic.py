@@ -1,0 +1,188 @@
+"""The quasi-static TE model: TE curves, windup, lost motion and torsional rigidity.
+
+For each input angle the reducer is in static equilibrium under the output
+torque (`solver`), with the input held at that angle; the carrier's rotation
+away from theta_in / i is the TE of MODEL.md section 5.  One call evaluates a
+whole batch of reducers: arrays are shaped (samples, angles).
+
+Zero load means the no-load limit of MODEL.md section 5, not a singular solve:
+the equilibrium under a resisting probe torque of NO_LOAD_PROBE times the
+rated torque, taken back to zero along its own load path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import metrics
+from .checks import InputError, finite_number, integer
+from .design import RVDesign
+from .equivalent import EquivalentModel
+from .errors import ErrorSet, zero_errors
+from .solver import solve_pairs
+from .units import ARCMIN, rad_to_arcsec
+
+NO_LOAD_PROBE = 1e-4     # of the rated torque: 0.04 N*m on an RV-40E, deflections of ~1e-4 um
+POINTS_PER_PIN_PASS = 8  # default sampling: 8 points per pin-passing period (order z_p*z_c)
+LOST_MOTION_FRACTION = 0.03                      # catalogue: windup span at +-3 % rated torque
+RIGIDITY_FRACTIONS = (0.5, 1.0)                  # catalogue: slope between 50 % and 100 %
+
+
+def default_points(design: RVDesign) -> int:
+    """Points per output revolution that resolve the pin-passing order z_p * z_c."""
+    return POINTS_PER_PIN_PASS * design.z_p * design.z_c
+
+
+@dataclass(frozen=True)
+class TECurve:
+    """TE of S reducers over one output revolution at one output torque.
+
+    theta_in: (A,) [rad], input angles, evenly over one output revolution;
+    theta_out: (S, A) [rad]; te: (S, A) [rad] = theta_out - theta_in / i;
+    tau_load: [N*m] (MODEL.md sign: negative resists); converged: (S,) bool.
+    """
+
+    design: RVDesign
+    tau_load: float
+    theta_in: np.ndarray
+    theta_out: np.ndarray
+    te: np.ndarray
+    converged: np.ndarray
+    pin_force_max: np.ndarray = field(repr=False)  # (S, A) largest pin force [N]
+
+    @property
+    def points(self) -> int:
+        return self.theta_in.size
+
+    @property
+    def te_arcsec(self):
+        return rad_to_arcsec(self.te)
+
+    @property
+    def te_pp_arcsec(self):
+        return metrics.te_pp(self.te_arcsec)
+
+    @property
+    def rms_arcsec(self):
+        return metrics.te_rms(self.te_arcsec)
+
+    @property
+    def mean_arcsec(self):
+        return metrics.te_mean(self.te_arcsec)
+
+    def spectrum_arcsec(self):
+        """(orders (K,), amplitudes (S, K) [arcsec])."""
+        return metrics.order_spectrum(self.te_arcsec)
+
+
+def input_angles(design: RVDesign, points: int) -> np.ndarray:
+    """(points,) input angles evenly over one output revolution, end excluded [rad]."""
+    return 2.0 * np.pi * design.ratio * np.arange(points) / points
+
+
+def _checked_errors(design, errors):
+    if errors is None:
+        return zero_errors(design)
+    return errors.check(design)
+
+
+def equilibrium_te(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None):
+    """TE [rad] and largest pin force [N] at every (sample, angle, load) of the grid.
+
+    theta_in: (A,) [rad]; tau_load: (T,) [N*m].  Returns te (S, T, A),
+    pin_force_max (S, T, A), converged (S, T, A).
+    """
+    theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
+    tau_load = np.atleast_1d(np.asarray(tau_load, dtype=float))
+    S, T, A = errors.samples, tau_load.size, theta_in.size
+    te = np.empty((S, T, A))
+    force = np.empty((S, T, A))
+    ok = np.empty((S, T, A), dtype=bool)
+    probe = NO_LOAD_PROBE * design.rated_torque
+    for flank in (1, -1):
+        loads = np.flatnonzero((tau_load <= 0) if flank == 1 else (tau_load > 0))
+        if loads.size == 0:
+            continue
+        model = EquivalentModel(design, theta_in, flank=flank)
+        s, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
+        eq = solve_pairs(model, errors, s, a, tau_load[t], no_load_probe=probe, progress=progress)
+        te[s, t, a] = eq.q[:, model.carrier_rot] / model.scale
+        force[s, t, a] = eq.pin_force.max(axis=(1, 2))
+        ok[s, t, a] = eq.converged
+    return te, force, ok
+
+
+def te_curve(design: RVDesign, errors: ErrorSet | None = None, tau_load: float = 0.0,
+             points: int | None = None, progress=None) -> TECurve:
+    """TE over one output revolution of every reducer in `errors` at output torque `tau_load`.
+
+    tau_load [N*m] follows MODEL.md: a resisting load T is tau_load = -T; 0 gives
+    the no-load TE.  points: per output revolution (default `default_points`).
+    """
+    errors = _checked_errors(design, errors)
+    tau_load = finite_number("tau_load", tau_load)
+    points = default_points(design) if points is None else integer("points", points, 8)
+    theta_in = input_angles(design, points)
+    te, force, ok = equilibrium_te(design, errors, theta_in, [tau_load], progress)
+    theta_out = theta_in / design.ratio + te[:, 0]
+    return TECurve(design, tau_load, theta_in, theta_out, te[:, 0], ok[:, 0].all(axis=-1),
+                   force[:, 0])
+
+
+@dataclass(frozen=True)
+class Windup:
+    """Output windup against output torque with the input locked (catalogue test).
+
+    tau_load: (T,) [N*m]; theta_in: (P,) input positions [rad];
+    windup: (S, T, P) [rad], output rotation from its nominal place.
+    """
+
+    design: RVDesign
+    tau_load: np.ndarray
+    theta_in: np.ndarray
+    windup: np.ndarray
+
+    def lost_motion_arcmin(self):
+        """(S,) windup span at +-3 % rated torque, mean over the positions [arcmin]."""
+        rated = self.design.rated_torque
+        plus = self._at(LOST_MOTION_FRACTION * rated)
+        minus = self._at(-LOST_MOTION_FRACTION * rated)
+        return (plus - minus).mean(axis=-1) / ARCMIN
+
+    def torsional_rigidity_Nm_per_arcmin(self):
+        """(S,) torque / windup slope between 50 % and 100 % rated torque, both senses [N*m/arcmin]."""
+        rated = self.design.rated_torque
+        lo, hi = (f * rated for f in RIGIDITY_FRACTIONS)
+        slope_plus = (self._at(hi) - self._at(lo)) / (hi - lo)
+        slope_minus = (self._at(-lo) - self._at(-hi)) / (hi - lo)
+        compliance = 0.5 * (slope_plus + slope_minus).mean(axis=-1)  # rad per N*m
+        return 1.0 / (compliance / ARCMIN)
+
+    def _at(self, torque):
+        k = int(np.argmin(np.abs(self.tau_load - torque)))
+        if not np.isclose(self.tau_load[k], torque):
+            raise ValueError(f"windup was not computed at {torque} N*m")
+        return self.windup[:, k]
+
+
+def catalogue_torques(design: RVDesign) -> np.ndarray:
+    """Output torques [N*m] of the catalogue hysteresis test, from -rated to +rated."""
+    fractions = np.array([-1.0, -0.75, -0.5, -0.25, -LOST_MOTION_FRACTION, -0.01,
+                          0.01, LOST_MOTION_FRACTION, 0.25, 0.5, 0.75, 1.0])
+    return fractions * design.rated_torque
+
+
+def windup(design: RVDesign, errors: ErrorSet | None = None, tau_load=None,
+           positions: int = 8) -> Windup:
+    """Windup curves with the input locked at `positions` angles over one output revolution."""
+    errors = _checked_errors(design, errors)
+    positions = integer("positions", positions, 1)
+    tau_load = catalogue_torques(design) if tau_load is None else np.asarray(tau_load, dtype=float)
+    if np.any(tau_load == 0.0):
+        raise InputError("tau_load", 0.0, "windup needs nonzero torques (the curve has a jump at 0)")
+    # Offset by half a pin pitch of the output so that positions do not all sit on a pin.
+    theta_in = input_angles(design, positions) + np.pi * design.ratio / (design.z_p * positions)
+    te, _, _ = equilibrium_te(design, errors, theta_in, tau_load)
+    return Windup(design, tau_load, theta_in, te)

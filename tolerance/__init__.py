@@ -1,0 +1,1 @@
+"""Tolerance studies: sampling manufacturing errors, Monte Carlo, Sobol ranking, allocation."""
