@@ -192,6 +192,10 @@ class EquivalentModel:
         # Profile modifications as gaps (MODEL.md section 3): d_rrp opens every normal, d_rp
         # moves the generating pin circle out, closing the gap by d_rp (n . e_k).
         self._pin_gap = d.d_rrp - d.d_rp * self._pin_radial_dot                     # (A, 2, z_p)
+        # Everything the error offsets need per angle, gathered in one take.
+        self._pin_geometry = np.stack([self._pin_gap, self._pin_radial_dot,
+                                       self._pin_tangent_dot, self._pin_lever], axis=1)
+        self._lobe_flat = self._lobe + d.z_c * np.arange(2)[None, :, None]
 
     # -- loads -----------------------------------------------------------------------
     def load_vector(self) -> np.ndarray:
@@ -238,21 +242,17 @@ class EquivalentModel:
         seat = errors.carrier_crank_hole[sample] * rot_out                           # (B, n_c)
         cam = errors.crank_cam_eccentricity[sample] * rot_crank[..., None]           # (B, n_c, 2)
         hole = np.swapaxes(errors.disc_crank_hole[sample], 1, 2) * rot_out[..., None]  # (B, n_c, 2)
-        parts = [-seat] + [(cam - hole)[:, i, j][:, None] for i in range(n_c) for j in range(2)]
-        parts.append(-errors.carrier_assembly[sample][:, None])
-        bearings = _c2v(np.concatenate([parts[0]] + parts[1:], axis=1))
+        bearings = _c2v(np.concatenate([-seat, (cam - hole).reshape(len(sample), 2 * n_c),
+                                        -errors.carrier_assembly[sample][:, None]], axis=1))
 
         # Pins: pin centre moved by its radial/pitch error, radius error, disc lobe
         # profile (+ material) and pitch (lobe turned about the disc centre).
-        nr, nt = self._pin_radial_dot[angle], self._pin_tangent_dot[angle]          # (B, 2, z_p)
-        pins = (-self._pin_gap[angle]
-                + errors.pin_radius[sample][:, None]
+        gap, nr, nt, lever = np.moveaxis(self._pin_geometry[angle], 1, 0)          # each (B, 2, z_p)
+        pins = (errors.pin_radius[sample][:, None] - gap
                 - errors.pin_radial[sample][:, None] * nr
                 - errors.pin_pitch[sample][:, None] * nt)
-        lobe = self._lobe[angle]                                                     # (B, 2, z_p)
-        disc = np.arange(2)[None, :, None]
-        s = np.asarray(sample)[:, None, None]
-        pitch_radius = d.R_p * d.z_c / d.z_p
-        pins = pins + errors.disc_profile[s, disc, lobe]
-        pins = pins + errors.disc_pitch[s, disc, lobe] / pitch_radius * self._pin_lever[angle]
+        # Flat index of (sample, disc, lobe) into the (S, 2, z_c) lobe arrays.
+        flat = self._lobe_flat[angle] + (2 * d.z_c) * np.asarray(sample)[:, None, None]
+        pins += np.take(errors.disc_profile, flat)
+        pins += np.take(errors.disc_pitch, flat) * (lever / (d.R_p * d.z_c / d.z_p))
         return linear, bearings, pins

@@ -25,13 +25,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from .equivalent import EquivalentModel
-from .errors import ErrorSet
+from .errors import ErrorSet, zero_errors
 
 CHUNK = 4096           # pairs per chunk: ~40 MB of work arrays
-MAX_ITERATIONS = 60
+MAX_ITERATIONS = 400
 STEP_TOLERANCE = 1e-14   # m: converged when a Newton step moves less (1e-8 um)
-REGULARISATION = 1e-8    # relative to the pin stiffness: keeps floating parts determinate
+REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
 GAP_TOLERANCE = 1e-12    # m: an interference smaller than this is contact, not preload
+SHRINK_FRACTION = 0.25   # drop converged pairs from the work arrays once a quarter are done
+CONTINUATION = (1e3, 1e2, 1e1, 1.0)  # no load with bearing clearance: probe multiples, large to small
+CANDIDATE_MARGIN = 4     # pins per disc iterated on beyond the half that the load closes
 
 
 @dataclass(frozen=True)
@@ -110,6 +113,16 @@ class ReducedSystem:
         mode[:, rest] = -np.linalg.solve(kfull[:, rest][:, :, rest], kfull[:, rest][:, :, [c]])[..., 0]
         self.mode = mode
         self.pin_rate = np.einsum("ajkx,ajx->ajk", model.pin_rows, mode[:, model.pin_dofs])
+        # Candidate pins: those the load closes (about half) and a margin of the nearly
+        # square ones; the others are checked after the solve and taken in if they touch.
+        keep = min(model.design.z_p, model.design.z_p // 2 + CANDIDATE_MARGIN)
+        self.candidates = {
+            direction: np.sort(np.argsort(-self.pin_rate * direction, axis=-1)[..., :keep], axis=-1)
+            for direction in (-1.0, 1.0)}
+        self.candidate_rows = {
+            direction: np.take_along_axis(model.pin_rows, cand[..., None], axis=2)
+            for direction, cand in self.candidates.items()}
+        self.candidate_products = {d: _products(rows) for d, rows in self.candidate_rows.items()}
         if not self.nl_bearings.size:
             # Shape of the linear parts with the mode held: [K_red m; m^T 0] bordered solve.
             mN = mode[:, N]
@@ -121,13 +134,15 @@ class ReducedSystem:
 
     # -- one chunk -------------------------------------------------------------------------
     def solve(self, errors: ErrorSet, sample, angle, tau_load, half_clearance, probe,
-              first_active=None) -> Equilibrium:
+              first_count=None) -> Equilibrium:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
         tau_load == 0 gives the no-load limit; where it needs an elastic solve
         (interference, bearing clearance) a resisting probe torque `probe` is used
         and the result taken back to zero load along its tangent.
-        first_active: (B, 2, z_p) bool, optional guess of the touching pins.
+        first_count: (B, 2) int, optional: how many pins of each disc probably touch
+        (from the error-free reducer); the first guess takes that many, those the
+        load closes first.
         """
         model = self.model
         B = len(angle)
@@ -151,30 +166,81 @@ class ReducedSystem:
                 qz, rigid = self._first_contact(angle[z], f0[z], pin_b[z])
                 qn[z] = qz
                 elastic[z[~rigid]] = True
-        tau_solve = np.where(zero, -probe, tau)
-        todo = np.flatnonzero(elastic)
-        if todo.size:
-            f = f0[todo] - tau_solve[todo, None] * self.g_red[angle[todo]]
-            if first_active is None:
-                direction = np.where(tau_solve[todo] > 0, 1.0, -1.0)
-                guess = (self.pin_rate[angle[todo]] * direction[:, None, None]) > 0
-            else:
-                guess = first_active[todo]
-            work = _Work(self, angle[todo], f, pin_b[todo], brg_off[todo], c_half[todo])
-            q_e, conv_e, iterations = _newton(work, guess)
-            back = zero[todo]
-            if np.any(back):
+        iterations = 0
+        groups = [np.flatnonzero(elastic & ~zero), np.flatnonzero(elastic & zero)]
+        for group, at_zero in zip(groups, (False, True)):
+            if group.size == 0:
+                continue
+            loads = tau[group]
+            q_start = None
+            if at_zero:
+                # Resisting probe torques, from large to small when parts float in bearing
+                # clearances (each solve starts from the last), the last one the probe itself.
+                steps = CONTINUATION if self.nl_bearings.size else (1.0,)
+                for scale in steps:
+                    loads = np.full(group.size, -probe * scale)
+                    q_start, conv, its = self._solve_group(
+                        group, angle, f0, pin_b, brg_off, c_half, loads, first_count, q_start)
+                    iterations += its
                 # From tau = -probe back to tau = 0 along the tangent at that contact state.
-                part = work.subset(back)
-                dq = np.linalg.solve(part.hessian(q_e[back], None), part.load_direction()[..., None])
-                q_e[back] += probe * dq[..., 0]
-            qn[todo], converged[todo] = q_e, conv_e
+                a = angle[group]
+                part = _Work(self, a, f0[group] + probe * self.g_red[a], model.pin_rows[a],
+                             pin_b[group], brg_off[group], c_half[group])
+                dq = np.linalg.solve(part.hessian(q_start, None), part.load_direction()[..., None])
+                qn[group] = q_start + probe * dq[..., 0]
+            else:
+                qn[group], conv, its = self._solve_group(
+                    group, angle, f0, pin_b, brg_off, c_half, loads, first_count, None)
+                iterations += its
+            converged[group] = conv
         q = np.empty((B, model.n_dof))
         q[:, self.N] = qn
         q[:, self.L] = -(np.einsum("aln,an->al", self.G[angle], qn)
                          + np.einsum("alm,am->al", self.H[angle], b_lin)) + tau[:, None] * self.gl[angle]
         delta = _pin_delta(model.pin_rows[angle], qn[:, self.pin_local], pin_b)
         return Equilibrium(q, model.pin_k * np.maximum(delta, 0.0), converged, iterations)
+
+    def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count, q0):
+        a = angle[group]
+        f = f0[group] - loads[:, None] * self.g_red[a]
+        direction = np.where(loads > 0, 1.0, -1.0)
+        count = None if first_count is None else first_count[group]
+        return self._elastic(a, f, pin_b[group], brg_off[group], c_half[group], direction, count, q0)
+
+    def _elastic(self, angle, f, pin_b, brg_off, c_half, direction, count, q0=None):
+        """Newton solve of the pairs on their candidate pins, then on all pins where needed."""
+        model = self.model
+        forward = direction > 0
+        cand = self.candidates[-1.0][angle]                                         # (B, 2, Kc)
+        rows = self.candidate_rows[-1.0][angle]                                     # (B, 2, Kc, 3)
+        products = self.candidate_products[-1.0][angle]                             # (B, 2, Kc, 6)
+        if np.any(forward):
+            cand[forward] = self.candidates[1.0][angle[forward]]
+            rows[forward] = self.candidate_rows[1.0][angle[forward]]
+            products[forward] = self.candidate_products[1.0][angle[forward]]
+        pb = np.take_along_axis(pin_b, cand, axis=2)
+        closing = np.take_along_axis(self.pin_rate[angle], cand, axis=2) * direction[:, None, None]
+        if count is None:
+            guess = closing > 0
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                travel = np.where(closing > 0, -pb / closing, np.inf)
+            rank = np.argsort(np.argsort(travel, axis=-1), axis=-1)
+            guess = rank < np.maximum(count, 1)[..., None]
+        work = _Work(self, angle, f, rows, pb, brg_off, c_half, products)
+        q, converged, iterations = _newton(work, guess, q0)
+        # Any pin left out that touches at the solution: solve those pairs on all pins.
+        outside = np.ones(pin_b.shape, dtype=bool)
+        np.put_along_axis(outside, cand, False, axis=2)
+        delta = _pin_delta(model.pin_rows[angle], q[:, self.pin_local], pin_b)
+        redo = np.flatnonzero(np.any(outside & (delta > GAP_TOLERANCE), axis=(1, 2)))
+        if redo.size:
+            full = _Work(self, angle[redo], f[redo], model.pin_rows[angle[redo]], pin_b[redo],
+                         brg_off[redo], c_half[redo])
+            first = (self.pin_rate[angle[redo]] * direction[redo, None, None]) > 0
+            q[redo], converged[redo], more = _newton(full, first, None if q0 is None else q0[redo])
+            iterations = max(iterations, more)
+        return q, converged, iterations
 
     def _first_contact(self, angle, f, pin_b):
         """No-load limit by kinematics: (q_N (B, nN), rigid (B,) bool).
@@ -198,50 +264,71 @@ class ReducedSystem:
         return q0 + mu[:, None] * self.mode[angle][:, self.N], rigid
 
 
-def _newton(work, first_active):
+def _newton(work, first_active, q0=None):
     """Active-set Newton on the reduced energy; returns (q (B, nN), converged (B,), iterations).
 
     The first step solves the linear system with the guessed pins in contact at
     their real gaps (a primal-dual active-set step), so it closes those gaps in one
-    go; later steps are semismooth Newton steps on the true energy.  Every step is
-    followed by an exact line search on the true energy, which makes each one a descent.
+    go; later steps are semismooth Newton steps on the true energy.  A full step is
+    taken where it lowers the true energy; elsewhere an exact line search on the
+    true energy chooses the step length, so every step is a descent.
     """
     B, nN = work.f.shape
     result = np.zeros((B, nN))
     converged = np.zeros(B, dtype=bool)
     ids = np.arange(B)
-    q = np.zeros((B, nN))
+    warm = q0 is not None
+    q = np.zeros((B, nN)) if q0 is None else q0.copy()
+    energy, _ = work.energy(q)
+    smooth = work.brg_rows is None  # piecewise quadratic: a consistent active set is exact
     iterations = 0
     for iterations in range(1, MAX_ITERATIONS + 1):
-        if iterations == 1:
-            hess = work.hessian(q, first_active, bearings_engaged=True)
-            step = -np.linalg.solve(hess, work.gradient(q, first_active)[..., None])[..., 0]
-        else:
-            hess = work.hessian(q, None)
-            step = -np.linalg.solve(hess, work.gradient(q)[..., None])[..., 0]
-        alpha = work.line_search(q, step)
+        first = iterations == 1 and not warm
+        guess = first_active if first else None
+        grad, hess, true_grad, used = work.gradient_hessian(q, guess, bearings_engaged=first)
+        step = -np.linalg.solve(hess, grad[..., None])[..., 0]
+        trial, delta = work.energy(q + step)
+        slope = np.einsum("bi,bi->b", true_grad, step)
+        full = trial <= energy + 1e-4 * slope + 1e-13 * np.abs(energy)
+        alpha = np.ones(len(q))
+        if not np.all(full):
+            short = np.flatnonzero(~full)
+            alpha[short] = work.subset(short).line_search(q[short], step[short])
         move = alpha[:, None] * step
+        move[converged[ids]] = 0.0  # pairs already done but still in the arrays stay put
         q = q + move
+        energy = trial if np.all(full) else np.where(full, trial, work.energy(q)[0])
         result[ids] = q
-        if iterations == 1:
-            continue
+        # Done when a full step landed where exactly the pins it assumed touch (the
+        # minimiser of that piece of the energy), or when a step no longer moves.
         done = np.max(np.abs(move), axis=1) <= STEP_TOLERANCE + 1e-12 * np.max(np.abs(q), axis=1)
+        if smooth:
+            consistent = np.where(used, delta >= -GAP_TOLERANCE, delta <= GAP_TOLERANCE)
+            done |= full & np.all(consistent, axis=(1, 2))
+        elif first:
+            done[:] = False
+        done |= converged[ids]
         converged[ids[done]] = True
         if np.all(done):
             break
-        if np.any(done):
-            keep = ~done
-            work, q, ids = work.subset(keep), q[keep], ids[keep]
+        if np.count_nonzero(done) > SHRINK_FRACTION * len(done):
+            keep = np.flatnonzero(~done)
+            work, q, ids, energy = work.subset(keep), q[keep], ids[keep], energy[keep]
     return result, converged, iterations
 
 
 class _Work:
-    """Per-pair arrays of the Newton iteration, gathered once and shrunk as pairs converge."""
+    """Per-pair arrays of the Newton iteration, gathered once and shrunk as pairs converge.
 
-    def __init__(self, system, angle, f, pin_b, brg_off, c_half):
+    rows (B, 2, K, 3) and pin_b (B, 2, K) are those of the K pins per disc taken
+    into the iteration (all of them, or the candidates that the load can close).
+    """
+
+    def __init__(self, system, angle, f, rows, pin_b, brg_off, c_half, products=None):
         self.system = system
         self.angle = angle
-        self.rows = system.model.pin_rows[angle]             # (B, 2, z_p, 3)
+        self.rows = rows
+        self.products = _products(rows) if products is None else products  # (B, 2, K, 6)
         self.K = system.K_red[angle]                          # (B, nN, nN)
         self.f, self.pin_b, self.brg_off, self.c_half = f, pin_b, brg_off, c_half
         self.brg_rows = system.brg_rows[angle] if system.brg_k.size else None
@@ -249,7 +336,7 @@ class _Work:
     def subset(self, keep):
         new = object.__new__(_Work)
         new.system, new.angle = self.system, self.angle[keep]
-        for name in ("rows", "K", "f", "pin_b", "brg_off", "c_half"):
+        for name in ("rows", "products", "K", "f", "pin_b", "brg_off", "c_half"):
             setattr(new, name, getattr(self, name)[keep])
         new.brg_rows = None if self.brg_rows is None else self.brg_rows[keep]
         return new
@@ -264,43 +351,77 @@ class _Work:
     def _bearing(self, q):
         return np.einsum("bpxn,bn->bpx", self.brg_rows, q) + self.brg_off
 
-    def gradient(self, q, active=None):
-        """Energy gradient (B, nN); with `active`, of the energy with those pins bonded."""
+    def delta(self, q):
+        return _pin_delta(self.rows, self._local(q), self.pin_b)
+
+    def energy(self, q):
+        """(reduced energy (B,) [J] up to a constant, pin deflections (B, 2, K) [m])."""
         sys = self.system
-        grad = np.matmul(self.K, q[..., None])[..., 0] + self.f + sys.reg * q
-        delta = _pin_delta(self.rows, self._local(q), self.pin_b)
-        delta = np.maximum(delta, 0.0) if active is None else delta * active
-        pin_gen = np.matmul(delta[:, :, None, :], self.rows)[:, :, 0] * sys.model.pin_k
+        kq = np.matmul(self.K, q[..., None])[..., 0]
+        e = np.einsum("bi,bi->b", q, 0.5 * (kq + sys.reg * q) + self.f)
+        delta = self.delta(q)
+        pos = np.maximum(delta, 0.0)
+        e += 0.5 * sys.model.pin_k * np.einsum("bjk,bjk->b", pos, pos)
+        if self.brg_rows is not None:
+            over = np.maximum(np.linalg.norm(self._bearing(q), axis=-1) - self.c_half, 0.0)
+            e += 0.5 * np.einsum("bp,p->b", over * over, sys.brg_k)
+        return e, delta
+
+    def gradient_hessian(self, q, active=None, bearings_engaged=False):
+        """(gradient, Hessian, true gradient, pins taken as touching) at q.
+
+        With `active` (B, 2, K) the gradient and Hessian are those of the energy
+        with exactly those pins bonded (a primal-dual active-set step); the true
+        gradient is always that of the real energy.
+        """
+        sys = self.system
+        kp = sys.model.pin_k
+        base = np.matmul(self.K, q[..., None])[..., 0] + self.f + sys.reg * q
+        delta = self.delta(q)
+        touching = delta > 0
+        if active is None:
+            # A pin exactly at contact (where an exact line search stops) counts as touching:
+            # that choice of the generalised Jacobian keeps the mechanism mode held.
+            active = delta > -GAP_TOLERANCE
+            force = np.where(touching, delta, 0.0)
+            true_force = force
+        else:
+            force = delta * active
+            true_force = np.where(touching, delta, 0.0)
+        grad = base.copy()
+        gen = np.matmul(force[:, :, None, :], self.rows)[:, :, 0] * kp                # (B, 2, 3)
+        hess = self.K + sys.reg * np.eye(sys.N.size)
+        upper = np.matmul((active * kp)[:, :, None, :], self.products)[:, :, 0]      # (B, 2, 6)
+        blocks = upper[..., _SYMMETRIC]                                                # (B, 2, 3, 3)
         for j in range(2):
-            grad[:, sys.pin_local[j]] += pin_gen[:, j]
+            idx = sys.pin_local[j]
+            grad[:, idx] += gen[:, j]
+            hess[:, idx[:, None], idx[None, :]] += blocks[:, j]
+        if true_force is force:
+            true_grad = grad.copy()
+        else:
+            true_grad = base.copy()
+            true_gen = np.matmul(true_force[:, :, None, :], self.rows)[:, :, 0] * kp
+            for j in range(2):
+                true_grad[:, sys.pin_local[j]] += true_gen[:, j]
         if self.brg_rows is not None:
             d = self._bearing(q)
             norm = np.linalg.norm(d, axis=-1)
             scale = np.where(norm > self.c_half, 1.0 - self.c_half / np.maximum(norm, 1e-300), 0.0)
-            grad += np.einsum("bpxn,bpx->bn", self.brg_rows, d * (scale * sys.brg_k)[..., None])
-        return grad
-
-    def hessian(self, q, active, bearings_engaged=False):
-        sys = self.system
-        hess = self.K + sys.reg * np.eye(sys.N.size)
-        if active is None:
-            # A pin exactly at contact (where an exact line search stops) counts as touching:
-            # that choice of the generalised Jacobian keeps the mechanism mode held.
-            active = _pin_delta(self.rows, self._local(q), self.pin_b) > -GAP_TOLERANCE
-        weighted = self.rows * (active * sys.model.pin_k)[..., None]
-        blocks = np.matmul(np.swapaxes(weighted, -1, -2), self.rows)  # (B, 2, 3, 3)
-        for j in range(2):
-            idx = sys.pin_local[j]
-            hess[:, idx[:, None], idx[None, :]] += blocks[:, j]
-        if self.brg_rows is not None:
+            bforce = np.einsum("bpxn,bpx->bn", self.brg_rows, d * (scale * sys.brg_k)[..., None])
+            grad += bforce
+            true_grad += bforce
             if bearings_engaged:
                 tangent = np.broadcast_to(np.eye(2) * sys.brg_k[:, None, None],
                                           self.brg_off.shape[:2] + (2, 2))
             else:
-                tangent = _bearing_tangent(self._bearing(q), self.c_half, sys.brg_k)
+                tangent = _bearing_tangent(d, self.c_half, sys.brg_k)
             hess = hess + np.einsum("bpxi,bpxy,bpyj->bij", self.brg_rows, tangent, self.brg_rows,
                                     optimize=True)
-        return hess
+        return grad, hess, true_grad, active
+
+    def hessian(self, q, active):
+        return self.gradient_hessian(q, active)[1]
 
     def line_search(self, q, step):
         """Exact minimiser of the energy along `step`, (B,) step lengths.
@@ -315,7 +436,7 @@ class _Work:
         quad = np.einsum("bi,bi->b", step, k_step)
         lin = np.einsum("bi,bi->b", np.matmul(self.K, q[..., None])[..., 0] + self.f + sys.reg * q,
                         step)
-        delta0 = _pin_delta(self.rows, self._local(q), self.pin_b)
+        delta0 = self.delta(q)
         ddelta = _pin_delta(self.rows, self._local(step), 0.0)
         kp = sys.model.pin_k
         if self.brg_rows is not None:
@@ -375,6 +496,15 @@ class _Work:
         return alpha
 
 
+_UPPER = np.triu_indices(3)                       # the six distinct entries of a 3x3 block
+_SYMMETRIC = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]])  # their places in the full block
+
+
+def _products(rows):
+    """The six distinct products of each pin's row with itself (..., 6), for Hessian blocks."""
+    return rows[..., _UPPER[0]] * rows[..., _UPPER[1]]
+
+
 def _bearing_tangent(d, c_half, k):
     """Tangent stiffness (B, p, 2, 2) of isotropic bearings with free play c_half at deflection d."""
     norm = np.maximum(np.linalg.norm(d, axis=-1), 1e-300)
@@ -407,11 +537,33 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     pin_force = np.empty((B, 2, model.design.z_p))
     converged = np.empty(B, dtype=bool)
     iterations = 0
+    count = _nominal_counts(system, errors, sample, angle, tau_load, no_load_probe)
     for start in range(0, B, CHUNK):
         part = slice(start, min(start + CHUNK, B))
-        eq = system.solve(errors, sample[part], angle[part], tau_load[part], half, no_load_probe)
+        eq = system.solve(errors, sample[part], angle[part], tau_load[part], half, no_load_probe,
+                          None if count is None else count[part])
         q[part], pin_force[part], converged[part] = eq.q, eq.pin_force, eq.converged
         iterations = max(iterations, eq.iterations)
         if progress is not None:
             progress(part.stop - part.start)
     return Equilibrium(q, pin_force, converged, iterations)
+
+
+NOMINAL_GUESS_MIN_SAMPLES = 4  # below this, solving the error-free reducer first costs more than it saves
+
+
+def _nominal_counts(system, errors, sample, angle, tau_load, probe):
+    """(B, 2) pins per disc touching in the error-free reducer at each pair's angle and load."""
+    if errors.samples < NOMINAL_GUESS_MIN_SAMPLES or np.all(tau_load == 0.0):
+        return None
+    keys, inverse = np.unique(np.stack([angle, tau_load]), axis=1, return_inverse=True)
+    a_u, t_u = keys[0].astype(int), keys[1]
+    nominal = zero_errors(system.model.design, 1)
+    half = np.zeros((1, system.model.bearing_k.size))
+    counts = np.empty((a_u.size, 2), dtype=int)
+    for start in range(0, a_u.size, CHUNK):
+        part = slice(start, min(start + CHUNK, a_u.size))
+        eq = system.solve(nominal, np.zeros(part.stop - part.start, dtype=int), a_u[part], t_u[part],
+                          half, probe)
+        counts[part] = (eq.pin_force > 0).sum(axis=2)
+    return counts[inverse.ravel()]

@@ -1,0 +1,141 @@
+"""One public function per job; the `rvte` CLI is a thin layer over these.
+
+Each function takes file paths or preset names and plain numbers, runs the
+core, writes the files it was asked for and returns a small record.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .core import metrics
+from .core.checks import InputError, finite_number
+from .core.design import PRESET_NAMES, RVDesign, load_design, preset
+from .core.errors import ErrorSet, load_errors, zero_errors
+from .core.quasistatic import TECurve, Windup, default_points, te_curve, windup
+
+HARMONICS_SHOWN = 5
+
+
+@dataclass(frozen=True)
+class TEReport:
+    """A TE curve of one reducer with its catalogue stiffness figures."""
+
+    curve: TECurve
+    windup: Windup
+    lost_motion_arcmin: float
+    torsional_rigidity_Nm_per_arcmin: float
+
+    def summary(self) -> str:
+        c = self.curve
+        d = c.design
+        orders, amplitudes = metrics.largest_orders(c.te_arcsec, HARMONICS_SHOWN)
+        nyquist = c.points // 2
+        pin_order = d.z_p * d.z_c
+        lines = [
+            f"design            {d.name} (ratio {d.ratio:g}, z_p {d.z_p}, z_c {d.z_c}, "
+            f"{d.n_c} cranks)",
+            f"load              {-c.tau_load:g} N*m resisting"
+            + ("  (no-load limit)" if c.tau_load == 0 else ""),
+            f"points            {c.points} per output revolution "
+            + (f"(resolves the pin-passing order {pin_order})" if nyquist > pin_order else
+               f"(Nyquist order {nyquist} < pin-passing order {pin_order}: that ripple aliases)"),
+            f"te_pp             {c.te_pp_arcsec[0]:.3f} arcsec",
+            f"rms               {c.rms_arcsec[0]:.3f} arcsec (about the mean)",
+            f"mean              {c.mean_arcsec[0]:.3f} arcsec",
+            "largest orders    " + ", ".join(
+                f"{o}: {a:.3f}\u2033" for o, a in zip(orders[0], amplitudes[0])),
+            f"lost motion       {self.lost_motion_arcmin:.3f} arcmin (windup span at +-3 % of "
+            f"{d.rated_torque:g} N*m)",
+            f"torsional rigidity {self.torsional_rigidity_Nm_per_arcmin:.1f} N*m/arcmin "
+            f"(50-100 % rated torque)",
+        ]
+        if not np.all(c.converged):
+            lines.append("warning           the equilibrium did not converge at some angles")
+        return "\n".join(lines)
+
+
+def resolve_design(design: str | Path | RVDesign) -> RVDesign:
+    return design if isinstance(design, RVDesign) else load_design(design)
+
+
+def resolve_errors(design: RVDesign, errors: str | Path | ErrorSet | None) -> ErrorSet:
+    if errors is None:
+        return zero_errors(design)
+    if isinstance(errors, ErrorSet):
+        return errors.check(design)
+    return load_errors(errors, design)
+
+
+def te(design, errors=None, load: float = 0.0, points: int | None = None,
+       csv_path: str | Path | None = None, plot_path: str | Path | None = None) -> TEReport:
+    """TE curve of one reducer at a resisting load [N*m] (0: no-load limit), with lost
+    motion and torsional rigidity; writes the CSV and the plot if paths are given."""
+    design = resolve_design(design)
+    errors = resolve_errors(design, errors)
+    load = finite_number("load", load)
+    curve = te_curve(design, errors, tau_load=-load, points=points)
+    wind = windup(design, errors)
+    report = TEReport(curve, wind, float(wind.lost_motion_arcmin()[0]),
+                      float(wind.torsional_rigidity_Nm_per_arcmin()[0]))
+    if csv_path is not None:
+        write_te_csv(curve, csv_path)
+    if plot_path is not None:
+        from .plots import plot_te
+
+        plot_te(curve, plot_path)
+    return report
+
+
+def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:
+    """Columns theta_in_rad, theta_out_rad, te_arcsec (MODEL.md names)."""
+    path = Path(path)
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["theta_in_rad", "theta_out_rad", "te_arcsec"])
+        for row in zip(curve.theta_in, curve.theta_out[sample], curve.te_arcsec[sample]):
+            writer.writerow([f"{row[0]:.12g}", f"{row[1]:.12g}", f"{row[2]:.6f}"])
+    return path
+
+
+@dataclass(frozen=True)
+class PresetInfo:
+    name: str
+    ratio: float
+    source: str
+    design: RVDesign
+
+
+def presets() -> list[PresetInfo]:
+    """The shipped presets with their ratios and sources."""
+    infos = []
+    for name in PRESET_NAMES:
+        text = resources.files("rvfmu.core.presets").joinpath(f"{name}.toml").read_text()
+        first = text.splitlines()[0]
+        source = first.split("Source:", 1)[1].strip().rstrip(".") if "Source:" in first else ""
+        infos.append(PresetInfo(name, preset(name).ratio, source, preset(name)))
+    return infos
+
+
+def profile(design, csv_path: str | Path | None = None, dxf_path: str | Path | None = None,
+            points: int | None = None):
+    """The disc profile of a design; writes CSV (mm) and/or DXF (mm)."""
+    from .core import profile as prof
+
+    design = resolve_design(design)
+    points = prof.DEFAULT_POINTS if points is None else points
+    if csv_path is None and dxf_path is None:
+        raise InputError("output", None, "give --csv and/or --dxf")
+    if csv_path is not None:
+        prof.write_profile_csv(design, csv_path, points)
+    if dxf_path is not None:
+        prof.write_profile_dxf(design, dxf_path, points)
+    return prof.disc_profile(design, points)
+
+
+__all__ = ["te", "presets", "profile", "TEReport", "default_points", "write_te_csv"]
