@@ -71,9 +71,13 @@ def finite_array(field, value, shape, where=""):
     so a pin list of the wrong length names the number of pins.
     """
     try:
-        array = np.asarray(value, dtype=float)
+        raw = np.asarray(value)
+        array = raw.astype(float)
     except (TypeError, ValueError):
-        raise InputError(field, value, f"must be numbers shaped {_shape_text(shape)}", where) from None
+        raw = None
+    if raw is None or raw.dtype.kind not in "iuf":
+        # Text ("5") and true/false would otherwise convert silently to numbers.
+        raise InputError(field, value, f"must be numbers shaped {_shape_text(shape)}", where)
     if array.shape != tuple(shape):
         raise InputError(
             field, value,

@@ -1,0 +1,53 @@
+"""Shared fixtures: the presets and the seed 002 error set."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rvfmu.core.design import preset
+from rvfmu.core.errors import load_errors
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="session")
+def rv40():
+    return preset("RV-40E-121")
+
+
+@pytest.fixture(scope="session")
+def seed002(rv40):
+    return load_errors(ROOT / "studies" / "seed002_errors.toml", rv40)
+
+
+def unit(angle):
+    return np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+
+
+def perp(v):
+    return np.stack([-v[..., 1], v[..., 0]], axis=-1)
+
+
+def hand_pin_geometry(design, theta_in):
+    """Pin contact normals and closing rates from the kinematics of MODEL.md section 2, by hand.
+
+    Returns normal (A, 2, z_p, 2), pin centre (z_p, 2), closing rate (A, 2, z_p): the
+    rate at which each pin's interference grows per radian the carrier turns BACK
+    with the input held (disc centre moves e*(1 + z_s/z_pl) per radian along the
+    tangent of its eccentric direction, disc turns with the carrier).
+    """
+    d = design
+    theta_out = theta_in / d.ratio
+    psi = -d.z_c * theta_out[:, None] + np.array([0.0, np.pi])
+    centre = d.e * unit(psi)                                           # (A, 2, 2)
+    pitch = d.z_p * d.e * unit(psi)
+    pins = d.R_p * unit(2 * np.pi * np.arange(d.z_p) / d.z_p)          # (z_p, 2)
+    normal = pins[None, None] - pitch[:, :, None]
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    contact = pins[None, None] - d.r_rp * normal
+    speed = d.e * (1.0 + d.z_s / d.z_pl)
+    # carrier turning back: rotation -1, centre moves -speed along the tangent
+    u = -speed * perp(unit(psi))[:, :, None, :] - perp(contact - centre[:, :, None])
+    rate = np.einsum("ajkx,ajkx->ajk", normal, u)
+    return normal, pins, rate
