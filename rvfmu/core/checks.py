@@ -23,6 +23,8 @@ class InputError(ValueError):
 
 def _show(value):
     text = repr(value.tolist() if isinstance(value, np.ndarray) else value)
+    if isinstance(value, str):  # a path or a name: cutting it would hide the file name
+        return text
     return text if len(text) <= 80 else text[:77] + "..."
 
 

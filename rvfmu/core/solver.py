@@ -225,8 +225,10 @@ class ReducedSystem:
         else:
             with np.errstate(divide="ignore", invalid="ignore"):
                 travel = np.where(closing > 0, -pb / closing, np.inf)
-            rank = np.argsort(np.argsort(travel, axis=-1), axis=-1)
-            guess = rank < np.maximum(count, 1)[..., None]
+            # the `count` pins of each disc that the turning carrier reaches first
+            ordered = np.sort(travel, axis=-1)
+            take = np.clip(count, 1, travel.shape[-1])[..., None] - 1
+            guess = travel <= np.take_along_axis(ordered, take, axis=-1)
         work = _Work(self, angle, f, rows, pb, brg_off, c_half, products)
         q, converged, iterations = _newton(work, guess, q0)
         # Any pin left out that touches at the solution: solve those pairs on all pins.
