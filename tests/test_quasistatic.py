@@ -8,7 +8,7 @@ from rvfmu.core.design import PRESET_NAMES, preset
 from rvfmu.core.equivalent import EquivalentModel
 from rvfmu.core.errors import stack, zero_errors
 from rvfmu.core.profile import disc_profile
-from rvfmu.core.quasistatic import (default_points, equilibrium_te, input_angles, te_curve,
+from rvfmu.core.quasistatic import (default_points, equilibria, equilibrium_te, input_angles, te_curve,
                                     windup)
 from rvfmu.core.reference import te_reference
 from rvfmu.core.solver import solve_pairs
@@ -168,3 +168,26 @@ def test_batch_of_seed002_converges_and_matches_single(rv40, seed002):
     np.testing.assert_allclose(curve.te[2], single.te[0], atol=1e-9 * ARCSEC)
     # seed 002 magnitudes give tens of arcseconds, as the seeds report for the RV-40E
     assert 10.0 < single.te_pp_arcsec[0] < 80.0
+
+
+def test_small_loads_wind_up_monotonically_at_every_angle(rv40, seed002):
+    """Where the first contacts close (a few % of rated torque) the active set changes
+    fastest; more resisting load must mean more lag at every angle, with pins loaded."""
+    design = rv40
+    theta_in = input_angles(design, 3120)
+    loads = -design.rated_torque * np.array([0.0, 0.0025, 0.01, 0.03, 0.06])
+    eq = equilibria(design, seed002, theta_in, loads)
+    assert eq.converged.all()
+    assert np.all(np.diff(eq.te[0], axis=0) < 0)
+    assert np.all(eq.pin_force_max[0, 1:] > 0)
+    np.testing.assert_allclose(eq.tau_in[0] * design.ratio, loads[:, None] * np.ones(3120),
+                               rtol=1e-3, atol=1e-9)
+
+
+@pytest.mark.parametrize("zero_side", [-1, 1])
+def test_no_load_limit_from_either_side_is_the_limit_of_small_loads(rv40, seed002, zero_side):
+    design = rv40
+    theta_in = input_angles(design, 240)
+    tiny = 1e-6 * design.rated_torque * zero_side
+    eq = equilibria(design, seed002, theta_in, [0.0, tiny], zero_side=zero_side)
+    np.testing.assert_allclose(eq.te[0, 0], eq.te[0, 1], atol=1e-3 * ARCSEC)

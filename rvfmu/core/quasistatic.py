@@ -88,30 +88,59 @@ def _checked_errors(design, errors):
     return errors.check(design)
 
 
-def equilibrium_te(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None):
-    """TE [rad] and largest pin force [N] at every (sample, angle, load) of the grid.
+@dataclass(frozen=True)
+class Equilibria:
+    """Quasi-static results on a grid of (sample, load, angle), each array (S, T, A).
 
-    theta_in: (A,) [rad]; tau_load: (T,) [N*m].  Returns te (S, T, A),
-    pin_force_max (S, T, A), converged (S, T, A).
+    te [rad]; tau_in [N*m]: torque the reducer exerts on the input shaft (flange
+    convention of MODEL.md section 2, about tau_load / i); pin_force_max [N];
+    converged: bool.
+    """
+
+    te: np.ndarray
+    tau_in: np.ndarray
+    pin_force_max: np.ndarray
+    converged: np.ndarray
+
+
+def equilibria(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None,
+               zero_side: int = -1) -> Equilibria:
+    """Quasi-static equilibrium at every (sample, load, angle) of the grid.
+
+    theta_in: (A,) [rad]; tau_load: (T,) [N*m].  A zero load is the no-load limit
+    approached from a resisting load (zero_side = -1, MODEL.md section 5) or from a
+    driving one (zero_side = +1).
     """
     theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
     tau_load = np.atleast_1d(np.asarray(tau_load, dtype=float))
     S, T, A = errors.samples, tau_load.size, theta_in.size
-    te = np.empty((S, T, A))
-    force = np.empty((S, T, A))
+    out = {name: np.empty((S, T, A)) for name in ("te", "tau_in", "pin_force_max")}
     ok = np.empty((S, T, A), dtype=bool)
     probe = NO_LOAD_PROBE * design.rated_torque
+    zero_flank = -1 if zero_side > 0 else 1
     for flank in (1, -1):
-        loads = np.flatnonzero((tau_load <= 0) if flank == 1 else (tau_load > 0))
+        # flank +1: the sun drives the planets forward (resisting load); -1: the load drives
+        mask = (tau_load < 0) | ((tau_load == 0) & (zero_flank == 1)) if flank == 1 else \
+            (tau_load > 0) | ((tau_load == 0) & (zero_flank == -1))
+        loads = np.flatnonzero(mask)
         if loads.size == 0:
             continue
         model = EquivalentModel(design, theta_in, flank=flank)
         s, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
-        eq = solve_pairs(model, errors, s, a, tau_load[t], no_load_probe=probe, progress=progress)
-        te[s, t, a] = eq.q[:, model.carrier_rot] / model.scale
-        force[s, t, a] = eq.pin_force.max(axis=(1, 2))
+        eq = solve_pairs(model, errors, s, a, tau_load[t], no_load_probe=probe, progress=progress,
+                         zero_side=zero_side)
+        out["te"][s, t, a] = eq.q[:, model.carrier_rot] / model.scale
+        # Mesh force on the sun acts along -w at the sun's base circle.
+        out["tau_in"][s, t, a] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
+        out["pin_force_max"][s, t, a] = eq.pin_force.max(axis=(1, 2))
         ok[s, t, a] = eq.converged
-    return te, force, ok
+    return Equilibria(converged=ok, **out)
+
+
+def equilibrium_te(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None):
+    """TE [rad], largest pin force [N] and convergence at every (sample, load, angle), (S, T, A)."""
+    eq = equilibria(design, errors, theta_in, tau_load, progress)
+    return eq.te, eq.pin_force_max, eq.converged
 
 
 def te_curve(design: RVDesign, errors: ErrorSet | None = None, tau_load: float = 0.0,

@@ -31,6 +31,7 @@ CHUNK = 4096           # pairs per chunk: ~40 MB of work arrays
 MAX_ITERATIONS = 400
 STEP_TOLERANCE = 1e-14   # m: converged when a Newton step moves less (1e-8 um)
 REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
+MODE_DIRECTION_STIFFNESS = 1e-9  # relative to the pin stiffness, Hessian only: see ReducedSystem
 GAP_TOLERANCE = 1e-12    # m: an interference smaller than this is contact, not preload
 SHRINK_FRACTION = 0.25   # drop converged pairs from the work arrays once a quarter are done
 CONTINUATION = (1e3, 1e2, 1e1, 1.0)  # no load with bearing clearance: probe multiples, large to small
@@ -42,11 +43,14 @@ class Equilibrium:
     """Unknowns at equilibrium for B pairs.
 
     q: (B, n) displacements [m; rotations as arc length at R_p];
-    pin_force: (B, 2, z_p) [N], >= 0; converged: (B,) bool; iterations: most used.
+    pin_force: (B, 2, z_p) [N], >= 0; mesh_force: (B, n_c) [N], sun-planet mesh
+    forces along their lines of action (compression positive); converged: (B,)
+    bool; iterations: most used.
     """
 
     q: np.ndarray
     pin_force: np.ndarray
+    mesh_force: np.ndarray
     converged: np.ndarray
     iterations: int
 
@@ -131,15 +135,26 @@ class ReducedSystem:
             border[:, :nN, nN] = mN
             border[:, nN, :nN] = mN
             self.free_shape = np.linalg.inv(border)[:, :nN, :nN]                   # q = -Z f
+        # A weak spring on every reduced unknown keeps parts that float in a clearance
+        # determinate; it leaves the mechanism mode free, so that however small the
+        # load, only the pins stop the carrier.
+        m_hat = mode[:, N] / np.linalg.norm(mode[:, N], axis=1, keepdims=True)
+        along = m_hat[:, :, None] * m_hat[:, None, :]
+        self.K_red = self.K_red + self.reg * (np.eye(nN) - along)
+        # Newton directions need some stiffness along the mode before a pin touches; this
+        # one enters the Hessian only (the energy and its minimiser do not see it).
+        self.mode_stiffness = MODE_DIRECTION_STIFFNESS * model.pin_k * along
 
     # -- one chunk -------------------------------------------------------------------------
     def solve(self, errors: ErrorSet, sample, angle, tau_load, half_clearance, probe,
               first_count=None) -> Equilibrium:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
-        tau_load == 0 gives the no-load limit; where it needs an elastic solve
-        (interference, bearing clearance) a resisting probe torque `probe` is used
-        and the result taken back to zero load along its tangent.
+        tau_load == 0 gives the no-load limit from the side of the signed probe
+        torque `probe` (negative: a resisting load, MODEL.md section 5; positive: a
+        driving one); where it needs an elastic solve (interference, bearing
+        clearance) the equilibrium under `probe` is taken back to zero load along
+        its tangent.
         first_count: (B, 2) int, optional: how many pins of each disc probably touch
         (from the error-free reducer); the first guess takes that many, those the
         load closes first.
@@ -163,7 +178,7 @@ class ReducedSystem:
                 elastic |= zero
             else:
                 z = np.flatnonzero(zero)
-                qz, rigid = self._first_contact(angle[z], f0[z], pin_b[z])
+                qz, rigid = self._first_contact(angle[z], f0[z], pin_b[z], np.sign(probe))
                 qn[z] = qz
                 elastic[z[~rigid]] = True
         iterations = 0
@@ -174,20 +189,20 @@ class ReducedSystem:
             loads = tau[group]
             q_start = None
             if at_zero:
-                # Resisting probe torques, from large to small when parts float in bearing
-                # clearances (each solve starts from the last), the last one the probe itself.
+                # Probe torques, from large to small when parts float in bearing clearances
+                # (each solve starts from the last), the last one the probe itself.
                 steps = CONTINUATION if self.nl_bearings.size else (1.0,)
                 for scale in steps:
-                    loads = np.full(group.size, -probe * scale)
+                    loads = np.full(group.size, probe * scale)
                     q_start, conv, its = self._solve_group(
                         group, angle, f0, pin_b, brg_off, c_half, loads, first_count, q_start)
                     iterations += its
-                # From tau = -probe back to tau = 0 along the tangent at that contact state.
+                # From tau = probe back to tau = 0 along the tangent at that contact state.
                 a = angle[group]
-                part = _Work(self, a, f0[group] + probe * self.g_red[a], model.pin_rows[a],
+                part = _Work(self, a, f0[group] - probe * self.g_red[a], model.pin_rows[a],
                              pin_b[group], brg_off[group], c_half[group])
                 dq = np.linalg.solve(part.hessian(q_start, None), part.load_direction()[..., None])
-                qn[group] = q_start + probe * dq[..., 0]
+                qn[group] = q_start - probe * dq[..., 0]
             else:
                 qn[group], conv, its = self._solve_group(
                     group, angle, f0, pin_b, brg_off, c_half, loads, first_count, None)
@@ -198,7 +213,10 @@ class ReducedSystem:
         q[:, self.L] = -(np.einsum("aln,an->al", self.G[angle], qn)
                          + np.einsum("alm,am->al", self.H[angle], b_lin)) + tau[:, None] * self.gl[angle]
         delta = _pin_delta(model.pin_rows[angle], qn[:, self.pin_local], pin_b)
-        return Equilibrium(q, model.pin_k * np.maximum(delta, 0.0), converged, iterations)
+        n_c = model.design.n_c
+        mesh = np.einsum("bmn,bn->bm", model.linear_rows[angle][:, :n_c], q) + lin_b[:, :n_c]
+        return Equilibrium(q, model.pin_k * np.maximum(delta, 0.0), model.linear_k[:n_c] * mesh,
+                           converged, iterations)
 
     def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count, q0):
         a = angle[group]
@@ -244,22 +262,24 @@ class ReducedSystem:
             iterations = max(iterations, more)
         return q, converged, iterations
 
-    def _first_contact(self, angle, f, pin_b):
+    def _first_contact(self, angle, f, pin_b, direction):
         """No-load limit by kinematics: (q_N (B, nN), rigid (B,) bool).
 
         The linear parts take the shape the errors force on them with the mechanism
         held, q0 = -Z f; then the carrier turns back along the mode m until the
-        first pin closes: mu = max over closing pins of -delta0 / rate.  Where no
+        first pin closes: mu = max over closing pins of -delta0 / rate (forward, for a
+        driving load, direction = +1: the min over the pins closing that way).  Where no
         such pose leaves every pin free of interference, `rigid` is False and the
         pair needs the elastic solve.
         """
         q0 = -np.einsum("bij,bj->bi", self.free_shape[angle], f)
         delta0 = _pin_delta(self.model.pin_rows[angle], q0[:, self.pin_local], pin_b)
         rate = self.pin_rate[angle]
-        closing = rate < 0  # closes as the carrier turns back (mu decreasing)
+        closing = rate * direction > 0  # closes as the carrier turns that way
         with np.errstate(divide="ignore", invalid="ignore"):
-            mu_k = np.where(closing, -delta0 / rate, -np.inf)
-        mu = mu_k.max(axis=(1, 2))
+            # -direction * mu_k: the pin met first, coming from the far side, is the largest
+            key = np.where(closing, direction * delta0 / rate, -np.inf)
+        mu = -direction * key.max(axis=(1, 2))
         after = delta0 + rate * mu[:, None, None]
         rigid = np.isfinite(mu) & np.all(after <= GAP_TOLERANCE, axis=(1, 2))
         mu = np.where(np.isfinite(mu), mu, 0.0)
@@ -304,11 +324,12 @@ def _newton(work, first_active, q0=None):
         # Done when a full step landed where exactly the pins it assumed touch (the
         # minimiser of that piece of the energy), or when a step no longer moves.
         done = np.max(np.abs(move), axis=1) <= STEP_TOLERANCE + 1e-12 * np.max(np.abs(q), axis=1)
+        if first:
+            # A guessed step that does not go downhill says nothing about convergence.
+            done[:] = False
         if smooth:
             consistent = np.where(used, delta >= -GAP_TOLERANCE, delta <= GAP_TOLERANCE)
             done |= full & np.all(consistent, axis=(1, 2))
-        elif first:
-            done[:] = False
         done |= converged[ids]
         converged[ids[done]] = True
         if np.all(done):
@@ -360,7 +381,7 @@ class _Work:
         """(reduced energy (B,) [J] up to a constant, pin deflections (B, 2, K) [m])."""
         sys = self.system
         kq = np.matmul(self.K, q[..., None])[..., 0]
-        e = np.einsum("bi,bi->b", q, 0.5 * (kq + sys.reg * q) + self.f)
+        e = np.einsum("bi,bi->b", q, 0.5 * kq + self.f)
         delta = self.delta(q)
         pos = np.maximum(delta, 0.0)
         e += 0.5 * sys.model.pin_k * np.einsum("bjk,bjk->b", pos, pos)
@@ -378,7 +399,7 @@ class _Work:
         """
         sys = self.system
         kp = sys.model.pin_k
-        base = np.matmul(self.K, q[..., None])[..., 0] + self.f + sys.reg * q
+        base = np.matmul(self.K, q[..., None])[..., 0] + self.f
         delta = self.delta(q)
         touching = delta > 0
         if active is None:
@@ -392,7 +413,7 @@ class _Work:
             true_force = np.where(touching, delta, 0.0)
         grad = base.copy()
         gen = np.matmul(force[:, :, None, :], self.rows)[:, :, 0] * kp                # (B, 2, 3)
-        hess = self.K + sys.reg * np.eye(sys.N.size)
+        hess = self.K + sys.mode_stiffness[self.angle]
         upper = np.matmul((active * kp)[:, :, None, :], self.products)[:, :, 0]      # (B, 2, 6)
         blocks = upper[..., _SYMMETRIC]                                                # (B, 2, 3, 3)
         for j in range(2):
@@ -434,9 +455,9 @@ class _Work:
         Its pieces are computed once, so each trial costs a few elementwise operations.
         """
         sys = self.system
-        k_step = np.matmul(self.K, step[..., None])[..., 0] + sys.reg * step
+        k_step = np.matmul(self.K, step[..., None])[..., 0]
         quad = np.einsum("bi,bi->b", step, k_step)
-        lin = np.einsum("bi,bi->b", np.matmul(self.K, q[..., None])[..., 0] + self.f + sys.reg * q,
+        lin = np.einsum("bi,bi->b", np.matmul(self.K, q[..., None])[..., 0] + self.f,
                         step)
         delta0 = self.delta(q)
         ddelta = _pin_delta(self.rows, self._local(step), 0.0)
@@ -524,12 +545,15 @@ def _pin_delta(rows, q_local, offset):
 
 
 def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_load,
-                no_load_probe: float, progress=None) -> Equilibrium:
+                no_load_probe: float, progress=None, zero_side: int = -1) -> Equilibrium:
     """Equilibria of many (reducer, angle) pairs, in chunks.
 
     sample, angle: (B,) indices into `errors` and `model.pose`; tau_load: (B,) [N*m].
-    Where tau_load is zero the result is the no-load limit of MODEL.md section 5.
+    Where tau_load is zero the result is the no-load limit of MODEL.md section 5,
+    approached from a resisting load (zero_side = -1) or a driving one (+1);
+    no_load_probe [N*m] > 0 is the size of the probe torque it uses where needed.
     """
+    probe = no_load_probe if zero_side > 0 else -no_load_probe
     sample, angle = np.asarray(sample), np.asarray(angle)
     tau_load = np.broadcast_to(np.asarray(tau_load, dtype=float), sample.shape)
     half = model.clearance_halves(errors)
@@ -537,18 +561,20 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     B = sample.size
     q = np.empty((B, model.n_dof))
     pin_force = np.empty((B, 2, model.design.z_p))
+    mesh_force = np.empty((B, model.design.n_c))
     converged = np.empty(B, dtype=bool)
     iterations = 0
-    count = _nominal_counts(system, errors, sample, angle, tau_load, no_load_probe)
+    count = _nominal_counts(system, errors, sample, angle, tau_load, probe)
     for start in range(0, B, CHUNK):
         part = slice(start, min(start + CHUNK, B))
-        eq = system.solve(errors, sample[part], angle[part], tau_load[part], half, no_load_probe,
+        eq = system.solve(errors, sample[part], angle[part], tau_load[part], half, probe,
                           None if count is None else count[part])
         q[part], pin_force[part], converged[part] = eq.q, eq.pin_force, eq.converged
+        mesh_force[part] = eq.mesh_force
         iterations = max(iterations, eq.iterations)
         if progress is not None:
             progress(part.stop - part.start)
-    return Equilibrium(q, pin_force, converged, iterations)
+    return Equilibrium(q, pin_force, mesh_force, converged, iterations)
 
 
 NOMINAL_GUESS_MIN_SAMPLES = 4  # below this, solving the error-free reducer first costs more than it saves

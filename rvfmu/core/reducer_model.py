@@ -1,0 +1,71 @@
+"""The reducer as a time-stepping model: input angle and output torque in, output angle out.
+
+This is the interface that a system simulation (the FMU, or any other host)
+drives.  A model is a small object with one job: `step` to the end of a
+communication interval given the inputs there, returning the outputs there.
+Its whole state is a small dict, so that a master can save and restore it.
+The quasi-static model is the first implementation; a dynamic one will offer
+the same methods.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .te_map import TEMap
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """Outputs at one instant: theta_out [rad], omega_out [rad/s], te [rad], tau_in [N*m]."""
+
+    theta_out: float
+    omega_out: float
+    te: float
+    tau_in: float
+
+
+class QuasiStaticReducer:
+    """Static equilibrium at every instant, from a TE map.
+
+    theta_out = theta_in / i + TE(theta_in, tau_load); omega_out is the output
+    angle's change over the last step divided by its length (zero before the first
+    step), so the outputs at the end of a step depend only on the inputs there and
+    on the output angle at its start, whatever the step size.
+    """
+
+    name = "quasistatic"
+
+    def __init__(self, te_map: TEMap):
+        self.map = te_map
+        self.state = {"time": 0.0, "theta_out": 0.0, "omega_out": 0.0}
+
+    def _evaluate(self, theta_in, tau_load):
+        te, tau_in = self.map.evaluate(theta_in, tau_load)
+        te, tau_in = float(te), float(tau_in)
+        return theta_in / self.map.ratio + te, te, tau_in
+
+    def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:
+        theta_out, te, tau_in = self._evaluate(theta_in, tau_load)
+        self.state = {"time": float(time), "theta_out": theta_out, "omega_out": 0.0}
+        return Outputs(theta_out, 0.0, te, tau_in)
+
+    def step(self, time: float, step_size: float, theta_in: float, tau_load: float) -> Outputs:
+        """Outputs at time + step_size for the inputs there."""
+        theta_out, te, tau_in = self._evaluate(theta_in, tau_load)
+        omega = (theta_out - self.state["theta_out"]) / step_size if step_size > 0 else 0.0
+        self.state = {"time": float(time + step_size), "theta_out": theta_out, "omega_out": omega}
+        return Outputs(theta_out, omega, te, tau_in)
+
+    def get_state(self) -> dict:
+        return dict(self.state)
+
+    def set_state(self, state: dict) -> None:
+        missing = {"time", "theta_out", "omega_out"} - set(state)
+        if missing or not all(math.isfinite(float(state[k])) for k in ("time", "theta_out", "omega_out")):
+            raise ValueError(f"not a state of this model: {sorted(state)}")
+        self.state = {k: float(state[k]) for k in ("time", "theta_out", "omega_out")}
+
+
+MODELS = {QuasiStaticReducer.name: QuasiStaticReducer}

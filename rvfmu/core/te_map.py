@@ -1,0 +1,107 @@
+"""The quasi-static TE of one reducer tabulated over input angle and output torque.
+
+A co-simulation master asks for the output angle thousands of times per
+simulated second; one contact solve per request would be far too slow, while
+the quasi-static TE is a function of two variables only, periodic in the input
+angle over one output revolution (i input revolutions).  So it is solved once on
+a grid and interpolated: linearly and periodically in the input angle (points
+dense enough to resolve the pin-passing order), linearly in the torque, with
+separate branches for resisting and driving loads because the TE jumps by the
+lost motion where the torque changes sign.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .checks import InputError, integer
+from .design import RVDesign
+from .errors import ErrorSet, zero_errors
+from .quasistatic import default_points, equilibria, input_angles
+
+# Torque levels as fractions of rated torque: dense near zero, where contacts and
+# clearances close, sparse at high load, where the windup is nearly linear.
+TORQUE_FRACTIONS = (0.0, 0.005, 0.015, 0.03, 0.06, 0.1, 0.15, 0.25, 0.35, 0.5, 0.75, 1.0, 1.25, 1.5)
+
+
+@dataclass(frozen=True)
+class TEMap:
+    """TE [rad] and input torque [N*m] on a grid, for one reducer.
+
+    theta_in: (A,) input angles evenly over one output revolution [rad];
+    torque_magnitude: (T,) ascending torque magnitudes [N*m], the first zero;
+    te: (2, T, A), tau_in: (2, T, A) -- branch 0 resisting loads (tau_load = -magnitude,
+    the zero level the no-load limit of MODEL.md section 5), branch 1 driving loads
+    (tau_load = +magnitude, the zero level the limit from that side).
+    """
+
+    ratio: float
+    theta_in: np.ndarray
+    torque_magnitude: np.ndarray
+    te: np.ndarray
+    tau_in: np.ndarray
+
+    @property
+    def period(self) -> float:
+        """Input angle of one output revolution [rad]."""
+        return 2.0 * np.pi * self.ratio
+
+    def evaluate(self, theta_in, tau_load):
+        """(te [rad], tau_in [N*m]) at any input angles and output torques (broadcast).
+
+        Torques beyond the grid are extrapolated linearly from its last two levels.
+        """
+        theta_in, tau_load = np.broadcast_arrays(np.asarray(theta_in, float), np.asarray(tau_load, float))
+        A = self.theta_in.size
+        position = np.mod(theta_in, self.period) / self.period * A
+        i0 = np.floor(position).astype(int) % A
+        i1 = (i0 + 1) % A
+        wa = position - np.floor(position)
+        branch = (tau_load > 0).astype(int)
+        magnitude = np.abs(tau_load)
+        levels = self.torque_magnitude
+        j0 = np.clip(np.searchsorted(levels, magnitude, side="right") - 1, 0, levels.size - 2)
+        wt = (magnitude - levels[j0]) / (levels[j0 + 1] - levels[j0])
+        results = []
+        for table in (self.te, self.tau_in):
+            at = lambda j: (1.0 - wa) * table[branch, j, i0] + wa * table[branch, j, i1]
+            results.append((1.0 - wt) * at(j0) + wt * at(j0 + 1))
+        return results[0], results[1]
+
+    def to_arrays(self) -> dict:
+        return {"ratio": np.array(self.ratio), "theta_in": self.theta_in,
+                "torque_magnitude": self.torque_magnitude, "te": self.te, "tau_in": self.tau_in}
+
+    @classmethod
+    def from_arrays(cls, arrays) -> "TEMap":
+        try:
+            te_map = cls(float(arrays["ratio"]), np.asarray(arrays["theta_in"], float),
+                         np.asarray(arrays["torque_magnitude"], float), np.asarray(arrays["te"], float),
+                         np.asarray(arrays["tau_in"], float))
+        except KeyError as missing:
+            raise InputError("te_map", str(missing), "is missing from the TE map file") from None
+        A, T = te_map.theta_in.size, te_map.torque_magnitude.size
+        if te_map.te.shape != (2, T, A) or te_map.tau_in.shape != (2, T, A) or T < 2:
+            raise InputError("te_map", f"te {te_map.te.shape}", f"must be shaped (2, {T}, {A})")
+        if not all(np.all(np.isfinite(a)) for a in (te_map.te, te_map.tau_in)):
+            raise InputError("te_map", "non-finite values", "must be finite")
+        return te_map
+
+
+def build_te_map(design: RVDesign, errors: ErrorSet | None = None, points: int | None = None,
+                 torque_fractions=TORQUE_FRACTIONS, progress=None) -> TEMap:
+    """Solve the quasi-static model on the grid (one reducer: `errors` of one sample)."""
+    errors = zero_errors(design) if errors is None else errors.check(design)
+    if errors.samples != 1:
+        raise InputError("errors", f"{errors.samples} reducers", "a TE map is for one reducer")
+    points = default_points(design) if points is None else integer("points", points, 16)
+    theta_in = input_angles(design, points)
+    magnitude = np.asarray(torque_fractions, float) * design.rated_torque
+    te = np.empty((2, magnitude.size, points))
+    tau_in = np.empty_like(te)
+    for branch, (sign, side) in enumerate(((-1.0, -1), (1.0, 1))):
+        eq = equilibria(design, errors, theta_in, sign * magnitude, progress, zero_side=side)
+        te[branch], tau_in[branch] = eq.te[0], eq.tau_in[0]
+    return TEMap(design.ratio, theta_in, magnitude, te, tau_in)
