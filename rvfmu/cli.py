@@ -60,6 +60,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dxf", help="write a DXF polyline in mm (needs ezdxf)")
     p.add_argument("--points", type=int, help="points on the profile")
     p.set_defaults(run=_profile)
+
+    from tolerance.cli import add_study_commands
+
+    from .fmu.cli import add_fmu_commands
+
+    add_fmu_commands(sub)
+    add_study_commands(sub)
     return parser
 
 

@@ -42,8 +42,7 @@ class QuasiStaticReducer:
         self.state = {"time": 0.0, "theta_out": 0.0, "omega_out": 0.0}
 
     def _evaluate(self, theta_in, tau_load):
-        te, tau_in = self.map.evaluate(theta_in, tau_load)
-        te, tau_in = float(te), float(tau_in)
+        te, tau_in = self.map.evaluate_one(theta_in, tau_load)
         return theta_in / self.map.ratio + te, te, tau_in
 
     def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:

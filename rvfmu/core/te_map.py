@@ -12,6 +12,7 @@ lost motion where the torque changes sign.
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,6 +70,33 @@ class TEMap:
             at = lambda j: (1.0 - wa) * table[branch, j, i0] + wa * table[branch, j, i1]
             results.append((1.0 - wt) * at(j0) + wt * at(j0 + 1))
         return results[0], results[1]
+
+    def evaluate_one(self, theta_in: float, tau_load: float) -> tuple[float, float]:
+        """`evaluate` for one point, in plain Python: a co-simulation step asks for one."""
+        A = self.theta_in.size
+        position = (theta_in % self.period) / self.period * A
+        i0 = int(position)
+        wa = position - i0
+        i0 %= A
+        i1 = (i0 + 1) % A
+        branch = 1 if tau_load > 0 else 0
+        magnitude = abs(tau_load)
+        levels = self._levels
+        j0 = min(max(bisect.bisect_right(levels, magnitude) - 1, 0), len(levels) - 2)
+        wt = (magnitude - levels[j0]) / (levels[j0 + 1] - levels[j0])
+        out = []
+        for table in (self._te_rows, self._tau_rows):
+            lo, hi = table[branch][j0], table[branch][j0 + 1]
+            a = lo[i0] + wa * (lo[i1] - lo[i0])
+            b = hi[i0] + wa * (hi[i1] - hi[i0])
+            out.append(a + wt * (b - a))
+        return out[0], out[1]
+
+    def __post_init__(self):
+        # Python-level views for evaluate_one: list indexing beats numpy for single items.
+        object.__setattr__(self, "_levels", [float(x) for x in self.torque_magnitude])
+        object.__setattr__(self, "_te_rows", [[row.tolist() for row in branch] for branch in self.te])
+        object.__setattr__(self, "_tau_rows", [[row.tolist() for row in branch] for branch in self.tau_in])
 
     def to_arrays(self) -> dict:
         return {"ratio": np.array(self.ratio), "theta_in": self.theta_in,

@@ -1,0 +1,135 @@
+"""Build the reducer FMU: solve its TE map, bundle code and data, complete the XML.
+
+`build_fmu` is the whole job behind `rvte fmu build`.  The FMU carries the
+physics core (`rvfmu.core`, pure numpy/scipy) in its resources, so it runs in
+any Python with numpy and scipy, rvte installed or not; pythonfmu provides
+the FMI binary.  pythonfmu writes neither unit definitions nor units on the
+variables, so the model description is completed here.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import numpy as np
+
+from ..core.design import RVDesign
+from ..core.errors import ErrorSet, error_file_values, zero_errors
+from ..core.te_map import build_te_map
+from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS, BUNDLED_MAP
+
+PACKAGE = Path(__file__).resolve().parent.parent          # the rvfmu package
+MODULE_NAME = "rvreducer_fmu"                             # the FMU's entry module
+UNITS = {  # unit name -> (base unit exponents, factor)
+    "rad": ({"rad": "1"}, None),
+    "rad/s": ({"rad": "1", "s": "-1"}, None),
+    "arcsec": ({"rad": "1"}, "4.84813681109536e-06"),
+    "N.m": ({"kg": "1", "m": "2", "s": "-2"}, None),
+    "1": ({}, None),
+}
+VARIABLE_UNITS = {
+    "theta_in": "rad", "tau_load": "N.m", "theta_out": "rad", "omega_out": "rad/s", "te": "rad",
+    "te_arcsec": "arcsec", "tau_in": "N.m", "pin_stiffness_scale": "1",
+    "bearing_stiffness_scale": "1", "mesh_stiffness_scale": "1", "error_scale": "1",
+}
+DEFAULT_STOP_TIME = 1.0
+DEFAULT_STEP = 1e-3
+
+
+def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Path = "RVReducer.fmu",
+              points: int | None = None, progress=None) -> Path:
+    """Write the reducer FMU for `design` and one reducer's `errors` to `output`."""
+    from pythonfmu import FmuBuilder
+
+    errors = zero_errors(design) if errors is None else errors.check(design)
+    output = Path(output)
+    if output.suffix != ".fmu":
+        output = output.with_suffix(".fmu")
+    te_map = build_te_map(design, errors, points=points, progress=progress)
+    with tempfile.TemporaryDirectory(prefix="rvte_fmu_") as tmp:
+        tmp = Path(tmp)
+        package = tmp / "rvfmu"
+        shutil.copytree(PACKAGE / "core", package / "core",
+                        ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        (package / "__init__.py").write_text((PACKAGE / "__init__.py").read_text())
+        (tmp / BUNDLED_DESIGN).write_text(_toml(design.file_values()))
+        (tmp / BUNDLED_ERRORS).write_text(_toml(error_file_values(errors)))
+        np.savez(tmp / BUNDLED_MAP, **te_map.to_arrays())
+        script = tmp / "src" / f"{MODULE_NAME}.py"
+        script.parent.mkdir()
+        shutil.copy2(PACKAGE / "fmu" / "slave.py", script)
+        output.parent.mkdir(parents=True, exist_ok=True)
+        built = FmuBuilder.build_FMU(
+            script, dest=output,
+            project_files=[package, tmp / BUNDLED_DESIGN, tmp / BUNDLED_ERRORS, tmp / BUNDLED_MAP],
+            canGetAndSetFMUstate=True, canSerializeFMUstate=True,
+            canHandleVariableCommunicationStepSize=True, needsExecutionTool=True)
+    complete_model_description(Path(built))
+    return Path(built)
+
+
+def complete_model_description(fmu: Path) -> None:
+    """Add unit definitions, variable units and a default experiment to the FMU's XML."""
+    with zipfile.ZipFile(fmu) as archive:
+        entries = {info.filename: archive.read(info.filename) for info in archive.infolist()}
+    root = ET.fromstring(entries["modelDescription.xml"])
+    units = ET.Element("UnitDefinitions")
+    for name, (base, factor) in UNITS.items():
+        unit = ET.SubElement(units, "Unit", name=name)
+        attributes = dict(base)
+        if factor:
+            attributes["factor"] = factor
+        ET.SubElement(unit, "BaseUnit", **attributes)
+    # The schema orders the children: CoSimulation, UnitDefinitions, ..., DefaultExperiment, ...
+    children = list(root)
+    position = next(i for i, child in enumerate(children) if child.tag == "CoSimulation") + 1
+    root.insert(position, units)
+    if root.find("DefaultExperiment") is None:
+        experiment = ET.Element("DefaultExperiment", startTime="0.0", stopTime=str(DEFAULT_STOP_TIME),
+                                stepSize=str(DEFAULT_STEP))
+        after = [i for i, child in enumerate(list(root))
+                 if child.tag in ("CoSimulation", "UnitDefinitions", "TypeDefinitions", "LogCategories")]
+        root.insert(max(after) + 1, experiment)
+    for variable in root.iter("ScalarVariable"):
+        unit = VARIABLE_UNITS.get(variable.get("name"))
+        real = variable.find("Real")
+        if unit and real is not None:
+            real.set("unit", unit)
+    # Outputs computed at initialisation are initial unknowns (FMI 2.0 section 2.2.8).
+    structure = root.find("ModelStructure")
+    if structure is not None and structure.find("InitialUnknowns") is None:
+        unknowns = ET.Element("InitialUnknowns")
+        for index, variable in enumerate(root.iter("ScalarVariable"), start=1):
+            if variable.get("causality") == "output" and variable.get("initial") == "calculated":
+                ET.SubElement(unknowns, "Unknown", index=str(index))
+        if len(unknowns):
+            after = [i for i, child in enumerate(list(structure)) if child.tag in ("Outputs", "Derivatives")]
+            structure.insert(max(after) + 1 if after else 0, unknowns)
+    entries["modelDescription.xml"] = ET.tostring(root, encoding="utf-8", xml_declaration=True)
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+
+
+def _toml(values: dict) -> str:
+    """A flat TOML document of numbers, strings and nested lists of numbers."""
+    lines = []
+    for key, value in values.items():
+        lines.append(f"{key} = {_toml_value(value)}")
+    return "\n".join(lines) + "\n"
+
+
+def _toml_value(value):
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    return repr(float(value))

@@ -1,0 +1,34 @@
+"""`rvte fmu build` and `rvte fmu info`: a few lines each over `rvfmu.fmu.api`."""
+
+from __future__ import annotations
+
+
+def add_fmu_commands(subparsers) -> None:
+    """Add the FMU sub-commands to the `rvte` sub-parsers."""
+    fmu = subparsers.add_parser("fmu", help="build or inspect the reducer FMU (FMI 2.0 co-simulation)")
+    sub = fmu.add_subparsers(dest="fmu_command", required=True)
+
+    p = sub.add_parser("build", help="build an FMU from a design and an error set")
+    p.add_argument("design", help="preset name or design TOML file")
+    p.add_argument("--errors", help="error TOML file (default: no errors)")
+    p.add_argument("-o", "--output", default="RVReducer.fmu", help="FMU file to write")
+    p.add_argument("--points", type=int,
+                   help="TE map points per output revolution (default 8*z_p*z_c)")
+    p.set_defaults(run=_build)
+
+    p = sub.add_parser("info", help="print an FMU's variables")
+    p.add_argument("fmu", help="FMU file")
+    p.set_defaults(run=_info)
+
+
+def _build(args):
+    from .api import fmu_build
+
+    path = fmu_build(args.design, args.errors, args.output, points=args.points)
+    print(f"wrote {path}")
+
+
+def _info(args):
+    from .api import fmu_info
+
+    print(fmu_info(args.fmu))

@@ -1,0 +1,198 @@
+"""The RV reducer FMU slave (pythonfmu): input angle and load torque in, output angle out.
+
+A thin adapter: it maps FMI variables onto a reducer model of
+`rvfmu.core.reducer_model` and turns every problem into a logged fmi2Error
+instead of an exception: pythonfmu reports any Python exception as fmi2Fatal
+and drops the instance, so nothing here raises; a failed initialisation is
+logged as an error and every step after it returns fmi2Discard with the reason.  The design, the error
+set and the quasi-static TE map are bundled in the FMU's resources at build
+time; the parameters `design_file` and `errors_file` replace them, and the
+scale parameters change the physics, in which case the TE map is solved again
+when initialisation ends.
+
+This file is the FMU's entry module: pythonfmu copies it into the FMU and finds
+the class below by its `class RVReducer(Fmi2Slave):` line.
+"""
+
+import math
+import traceback
+from pathlib import Path
+
+import numpy as np
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
+from pythonfmu.enums import Fmi2Initial, Fmi2Status
+
+from rvfmu.core.checks import InputError
+from rvfmu.core.design import load_design
+from rvfmu.core.errors import load_errors, zero_errors
+from rvfmu.core.reducer_model import MODELS
+from rvfmu.core.te_map import TEMap, build_te_map
+from rvfmu.core.units import ARCSEC
+
+BUNDLED_DESIGN = "design.toml"
+BUNDLED_ERRORS = "errors.toml"
+BUNDLED_MAP = "te_map.npz"
+SCALES = ("pin_stiffness_scale", "bearing_stiffness_scale", "mesh_stiffness_scale", "error_scale")
+
+
+class FmuInputError(Exception):
+    """An input or parameter the FMU cannot accept; logged, never raised to the host."""
+
+
+class RVReducer(Fmi2Slave):
+
+    author = "rvte"
+    description = ("RV reducer: transmission error, lost motion and torsional windup of a "
+                   "two-stage planetary + cycloid reducer (quasi-static equivalent error model)")
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        # inputs
+        self.theta_in = 0.0
+        self.tau_load = 0.0
+        # outputs
+        self.theta_out = 0.0
+        self.omega_out = 0.0
+        self.te = 0.0
+        self.te_arcsec = 0.0
+        self.tau_in = 0.0
+        # parameters
+        self.design_file = ""
+        self.errors_file = ""
+        self.model = "quasistatic"
+        self.pin_stiffness_scale = 1.0
+        self.bearing_stiffness_scale = 1.0
+        self.mesh_stiffness_scale = 1.0
+        self.error_scale = 1.0
+        self.map_points = 0
+        self._reducer = None
+        self._failed = None
+
+        cont, par = Fmi2Variability.continuous, Fmi2Variability.fixed
+        for name, text in (("theta_in", "input shaft (sun) angle [rad]"),
+                           ("tau_load", "torque of the load on the output flange [N.m], "
+                                        "positive in the direction of rotation")):
+            self.register_variable(Real(name, causality=Fmi2Causality.input, variability=cont,
+                                        description=text))
+        for name, text in (("theta_out", "output flange (carrier) angle [rad]"),
+                           ("omega_out", "output speed over the last step [rad/s]"),
+                           ("te", "transmission error theta_out - theta_in/i [rad]"),
+                           ("te_arcsec", "transmission error [arcsec]"),
+                           ("tau_in", "torque of the reducer on the input shaft [N.m]")):
+            self.register_variable(Real(name, causality=Fmi2Causality.output, variability=cont,
+                                        initial=Fmi2Initial.calculated, description=text))
+        for name, text in (("design_file", "design TOML file; empty: the design bundled at build"),
+                           ("errors_file", "error TOML file; empty: the errors bundled at build"),
+                           ("model", "reducer model: quasistatic")):
+            self.register_variable(String(name, causality=Fmi2Causality.parameter, variability=par,
+                                          description=text))
+        for name, text in (("pin_stiffness_scale", "factor on the pin-disc contact stiffness [1]"),
+                           ("bearing_stiffness_scale", "factor on every bearing stiffness [1]"),
+                           ("mesh_stiffness_scale", "factor on the sun-planet mesh and sun support [1]"),
+                           ("error_scale", "factor on every manufacturing error and clearance [1]")):
+            self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=par,
+                                        description=text))
+        self.register_variable(Integer("map_points", causality=Fmi2Causality.parameter,
+                                       variability=par,
+                                       description="TE map points per output revolution; "
+                                                   "0: as bundled"))
+
+    # -- life cycle ---------------------------------------------------------------------
+    def exit_initialization_mode(self):
+        try:
+            self._reducer = self._make_reducer()
+            self._check_inputs()
+            self._show(self._reducer.initialize(0.0, self.theta_in, self.tau_load))
+        except Exception as exc:  # noqa: BLE001
+            # pythonfmu turns any exception into fmi2Fatal and drops the instance, so a
+            # failure is logged here and every step then returns fmi2Discard with it.
+            self._reducer = None
+            self._fail(f"initialisation failed: {_describe(exc)}")
+
+    def do_step(self, current_time, step_size):
+        if self._reducer is None:
+            self._fail(self._failed or "do_step before the end of initialisation")
+            return False
+        try:
+            if not (math.isfinite(step_size) and step_size >= 0.0):
+                raise FmuInputError(f"communication step size = {step_size}: must be >= 0")
+            self._check_inputs()
+            self._show(self._reducer.step(current_time, step_size, self.theta_in, self.tau_load))
+        except Exception as exc:  # noqa: BLE001
+            self._fail(_describe(exc))
+            return False
+        return True
+
+    # -- state ----------------------------------------------------------------------------
+    def _get_fmu_state(self):
+        state = super()._get_fmu_state()
+        state["_reducer"] = None if self._reducer is None else self._reducer.get_state()
+        return state
+
+    def _set_fmu_state(self, state):
+        state = dict(state)
+        reducer_state = state.pop("_reducer", None)
+        super()._set_fmu_state(state)
+        if reducer_state is not None and self._reducer is not None:
+            self._reducer.set_state(reducer_state)
+
+    # -- helpers --------------------------------------------------------------------------
+    def _make_reducer(self):
+        if self.model not in MODELS:
+            raise FmuInputError(f"model = {self.model!r}: must be one of {', '.join(MODELS)}")
+        resources = Path(self.resources) if self.resources else Path(".")
+        design = load_design(self.design_file or resources / BUNDLED_DESIGN)
+        if self.errors_file:
+            errors = load_errors(self.errors_file, design)
+        elif (resources / BUNDLED_ERRORS).is_file():
+            errors = load_errors(resources / BUNDLED_ERRORS, design)
+        else:
+            errors = zero_errors(design)
+        scales = {name: getattr(self, name) for name in SCALES}
+        for name, value in scales.items():
+            if not (math.isfinite(value) and value > 0):
+                raise FmuInputError(f"{name} = {value}: must be a finite number > 0")
+        if self.map_points < 0:
+            raise FmuInputError(f"map_points = {self.map_points}: must be >= 0")
+        bundled = (not self.design_file and not self.errors_file and self.map_points == 0
+                   and all(v == 1.0 for v in scales.values()) and (resources / BUNDLED_MAP).is_file())
+        if bundled:
+            with np.load(resources / BUNDLED_MAP) as arrays:
+                te_map = TEMap.from_arrays(arrays)
+        else:
+            self.log("solving the quasi-static TE map for the changed parameters", Fmi2Status.ok)
+            design = design.with_fields(
+                pin_disc_stiffness=design.pin_disc_stiffness * scales["pin_stiffness_scale"],
+                crank_disc_bearing_stiffness=design.crank_disc_bearing_stiffness
+                * scales["bearing_stiffness_scale"],
+                crank_carrier_bearing_stiffness=design.crank_carrier_bearing_stiffness
+                * scales["bearing_stiffness_scale"],
+                main_bearing_stiffness=design.main_bearing_stiffness * scales["bearing_stiffness_scale"],
+                mesh_stiffness=design.mesh_stiffness * scales["mesh_stiffness_scale"],
+                sun_support_stiffness=design.sun_support_stiffness * scales["mesh_stiffness_scale"])
+            te_map = build_te_map(design, errors.scaled(scales["error_scale"]),
+                                  points=self.map_points or None)
+        return MODELS[self.model](te_map)
+
+    def _check_inputs(self):
+        for name in ("theta_in", "tau_load"):
+            value = getattr(self, name)
+            if not math.isfinite(value):
+                raise FmuInputError(f"input {name} = {value}: must be finite")
+
+    def _show(self, outputs):
+        self.theta_out = outputs.theta_out
+        self.omega_out = outputs.omega_out
+        self.te = outputs.te
+        self.te_arcsec = outputs.te / ARCSEC
+        self.tau_in = outputs.tau_in
+
+    def _fail(self, message):
+        self._failed = message
+        self.log(message, Fmi2Status.error)
+
+
+def _describe(exc):
+    if isinstance(exc, (InputError, FmuInputError, ValueError, OSError)):
+        return str(exc)
+    return "".join(traceback.format_exception_only(type(exc), exc)).strip()
