@@ -1,0 +1,275 @@
+"""The reducer FMU in real FMI importers: fmpy, a native engine (libcosim), a bare venv."""
+
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.fmi2 import FMU2Slave
+from fmpy.validation import validate_fmu
+
+from conftest import ROOT
+from rvfmu.core.quasistatic import equilibria
+from rvfmu.core.units import ARCSEC
+from rvfmu.fmu.build import build_fmu
+
+MAP_POINTS = 6240          # 4 per pin-passing period: te_pp within 0.5 % of the core
+SPEED = 1600 * 2 * np.pi / 60  # rad/s at the input, as in seeds 000/001
+STEP = 1e-3
+
+
+@pytest.fixture(scope="module")
+def fmu_path(tmp_path_factory, rv40, seed002):
+    return build_fmu(rv40, seed002, tmp_path_factory.mktemp("fmu") / "RVReducer.fmu",
+                     points=MAP_POINTS)
+
+
+@pytest.fixture(scope="module")
+def description(fmu_path):
+    return read_model_description(str(fmu_path))
+
+
+def signal(times, theta_in, tau_load):
+    rows = np.zeros(len(times), dtype=[("time", float), ("theta_in", float), ("tau_load", float)])
+    rows["time"], rows["theta_in"], rows["tau_load"] = times, theta_in, tau_load
+    return rows
+
+
+def run(fmu_path, stop, step, theta_of_t, tau_of_t, outputs=("theta_out", "te_arcsec", "tau_in")):
+    times = np.arange(0.0, stop + step / 2, step)
+    return simulate_fmu(str(fmu_path), start_time=0.0, stop_time=stop, output_interval=step,
+                        step_size=step, input=signal(times, theta_of_t(times), tau_of_t(times)),
+                        output=list(outputs))
+
+
+class Instance:
+    """One FMU instance driven by hand through fmpy's FMI 2.0 API, with its log."""
+
+    def __init__(self, fmu_path, description, name="reducer", strings=None, reals=None):
+        self.vr = {v.name: v.valueReference for v in description.modelVariables}
+        self.log = []
+        unzipped = extract(str(fmu_path))
+        self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzipped,
+                             modelIdentifier=description.coSimulation.modelIdentifier,
+                             instanceName=name)
+        self.fmu.instantiate(loggingOn=True, callbacks=None)
+        self.fmu.fmi2SetDebugLogging(self.fmu.component, True, 0, None)
+        for key, value in (strings or {}).items():
+            self.fmu.setString([self.vr[key]], [value])
+        for key, value in (reals or {}).items():
+            self.fmu.setReal([self.vr[key]], [value])
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+        self.fmu.exitInitializationMode()
+
+    def set(self, **values):
+        self.fmu.setReal([self.vr[k] for k in values], list(values.values()))
+
+    def get(self, *names):
+        return self.fmu.getReal([self.vr[n] for n in names])
+
+    def step(self, time, size):
+        return self.fmu.doStep(currentCommunicationPoint=time, communicationStepSize=size)
+
+
+def test_validates_with_units_and_default_experiment(fmu_path, description):
+    assert validate_fmu(str(fmu_path)) == []
+    units = {v.name: v.unit for v in description.modelVariables}
+    assert units["theta_in"] == "rad" and units["omega_out"] == "rad/s"
+    assert units["tau_load"] == units["tau_in"] == "N.m"
+    assert {u.name for u in description.unitDefinitions} >= {"rad", "rad/s", "N.m"}
+    assert float(description.defaultExperiment.stepSize) == STEP
+    assert description.coSimulation.canGetAndSetFMUstate
+    with zipfile.ZipFile(fmu_path) as archive:
+        names = set(archive.namelist())
+    assert {"resources/rvfmu/core/solver.py", "resources/te_map.npz",
+            "resources/design.toml", "resources/errors.toml"} <= names
+
+
+def test_constant_speed_and_load_reproduce_the_core_te_curve(fmu_path, rv40, seed002):
+    """One output revolution at 1600 rpm under rated load: te_pp within 1 % of the core."""
+    load = -rv40.rated_torque
+    revolution = np.ceil(2 * np.pi * rv40.ratio / SPEED / STEP) * STEP
+    result = run(fmu_path, revolution, STEP, lambda t: SPEED * t, lambda t: load + 0 * t)
+    # Co-simulation holds an input over a step: the outputs at t + h belong to theta_in(t).
+    theta_in = SPEED * np.maximum(result["time"] - STEP, 0.0)
+    core = equilibria(rv40, seed002, theta_in, [load]).te[0, 0] / ARCSEC
+    fmu = result["te_arcsec"]
+    assert abs(np.ptp(fmu) / np.ptp(core) - 1) < 0.01
+    assert np.max(np.abs(fmu - core)) < 0.05 * np.ptp(core)
+    np.testing.assert_allclose(result["theta_out"], theta_in / rv40.ratio + fmu * ARCSEC, atol=1e-12)
+
+
+def test_a_load_change_moves_the_output_by_the_core_windup(fmu_path, rv40, seed002):
+    """Input held still, the load steps from a quarter to all of the rated torque."""
+    theta = 123.4
+    loads = (-0.25 * rv40.rated_torque, -rv40.rated_torque)
+    result = run(fmu_path, 0.2, STEP, lambda t: theta + 0 * t,
+                 lambda t: np.where(t < 0.1, loads[0], loads[1]))
+    before = result["theta_out"][(result["time"] > 0.05) & (result["time"] < 0.095)]
+    after = result["theta_out"][result["time"] > 0.15]
+    assert np.ptp(before) < 1e-15 and np.ptp(after) < 1e-15
+    core = equilibria(rv40, seed002, [theta], list(loads)).te[0, :, 0]
+    np.testing.assert_allclose(after[0] - before[0], core[1] - core[0], rtol=0.01)
+    # and the input torque follows the load through the ratio
+    np.testing.assert_allclose(result["tau_in"][-1] * rv40.ratio, loads[1], rtol=1e-3)
+
+
+def test_results_do_not_depend_on_the_communication_step(fmu_path, rv40):
+    load = lambda t: -rv40.rated_torque * (0.5 + 0.5 * np.sin(20 * t))
+    coarse = run(fmu_path, 0.1, 1e-3, lambda t: SPEED * t, load)
+    fine = run(fmu_path, 0.1, 1e-4, lambda t: SPEED * t, load)
+    at = np.searchsorted(fine["time"], coarse["time"] - 1e-9)
+    fine_te = fine["te_arcsec"][at]
+    np.testing.assert_allclose(coarse["te_arcsec"], fine_te, rtol=0.01, atol=0.01 * np.ptp(fine_te))
+
+
+def test_bad_inputs_are_refused_with_a_logged_message_not_a_crash(fmu_path, description, capfd):
+    inst = Instance(fmu_path, description)
+    inst.set(theta_in=1.0, tau_load=-100.0)
+    inst.step(0.0, STEP)
+    good = inst.get("te_arcsec")
+    for values, size, expected in (({"theta_in": float("nan"), "tau_load": -100.0}, STEP, "theta_in"),
+                                   ({"theta_in": 1.0, "tau_load": float("inf")}, STEP, "tau_load"),
+                                   ({"theta_in": 1.0, "tau_load": -100.0}, -STEP, "step size")):
+        inst.set(**values)
+        with pytest.raises(Exception, match="status 2|status 3"):
+            inst.step(STEP, size)
+        assert expected in capfd.readouterr().out
+    inst.set(theta_in=1.0, tau_load=-100.0)
+    inst.step(STEP, STEP)
+    assert inst.get("te_arcsec") == good  # the instance is still usable
+
+
+@pytest.mark.parametrize("design_file, expected", [
+    ("/no/such/design.toml", "neither a preset"),
+    ("RV-99", "RV-99"),
+    ("bad_z_c", "z_c"),
+])
+def test_a_bad_design_parameter_is_reported_at_initialisation(fmu_path, description, tmp_path,
+                                                              capfd, design_file, expected):
+    if design_file == "bad_z_c":
+        path = tmp_path / "bad.toml"
+        path.write_text('preset = "RV-40E-121"\nz_c = 41\n')
+        design_file = str(path)
+    inst = Instance(fmu_path, description, strings={"design_file": design_file})
+    assert expected in capfd.readouterr().out
+    with pytest.raises(Exception, match="status 2|status 3"):
+        inst.step(0.0, STEP)
+    assert expected in capfd.readouterr().out
+
+
+def test_state_roll_back_and_re_step_give_identical_results(fmu_path, description):
+    inst = Instance(fmu_path, description)
+    inst.set(theta_in=10.0, tau_load=-200.0)
+    inst.step(0.0, STEP)
+    state = inst.fmu.getFMUstate()
+    inst.set(theta_in=10.1, tau_load=-300.0)
+    inst.step(STEP, STEP)
+    first = inst.get("theta_out", "omega_out", "te", "tau_in")
+    inst.set(theta_in=55.0, tau_load=100.0)
+    inst.step(2 * STEP, STEP)
+    inst.fmu.setFMUstate(state)
+    inst.set(theta_in=10.1, tau_load=-300.0)
+    inst.step(STEP, STEP)
+    assert inst.get("theta_out", "omega_out", "te", "tau_in") == first
+    inst.fmu.freeFMUstate(state)
+
+
+def test_reset_returns_to_the_start(fmu_path, description):
+    inst = Instance(fmu_path, description)
+    start = inst.get("theta_out", "te")
+    inst.set(theta_in=20.0, tau_load=-400.0)
+    inst.step(0.0, STEP)
+    inst.fmu.reset()
+    inst.fmu.setupExperiment(startTime=0.0)
+    inst.fmu.enterInitializationMode()
+    inst.fmu.exitInitializationMode()
+    assert inst.get("theta_out", "te") == start
+
+
+def test_instances_in_one_process_stay_independent(fmu_path, description, rv40):
+    plain = Instance(fmu_path, description, name="plain")
+    # a second instance with other physics: no errors, the map solved again at init
+    clean = Instance(fmu_path, description, name="clean",
+                     reals={"error_scale": 1e-9, "pin_stiffness_scale": 1.0})
+    alone = Instance(fmu_path, description, name="alone")
+    for inst, theta in ((plain, 5.0), (clean, 5.0), (alone, 5.0)):
+        inst.set(theta_in=theta, tau_load=-rv40.rated_torque)
+    plain.step(0.0, STEP)
+    clean.step(0.0, STEP)
+    alone.step(0.0, STEP)
+    assert plain.get("te") == alone.get("te")
+    assert plain.get("te") != clean.get("te")
+
+
+def native_env(site_packages):
+    import sysconfig
+
+    libpython = Path(sysconfig.get_config_var("LIBDIR")) / sysconfig.get_config_var("LDLIBRARY")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
+    env.update(LD_PRELOAD=str(libpython), PYTHONHOME=sys.base_prefix, PYTHONPATH=site_packages)
+    return env
+
+
+def test_native_engine_libcosim_runs_the_fmu_with_the_readme_recipe(fmu_path, rv40, tmp_path):
+    site = ":".join(p for p in sys.path if p.endswith("site-packages"))
+    out = tmp_path / "cosim.csv"
+    proc = subprocess.run([sys.executable, str(ROOT / "studies" / "native_host" / "run_libcosim.py"),
+                           str(fmu_path), str(out), "--load", str(rv40.rated_torque),
+                           "--duration", "0.05"],
+                          env=native_env(site), capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    data = np.genfromtxt(out, delimiter=",", names=True)
+    # libcosim sets theta_in(t) then steps to t + h: outputs belong to theta_in(t)
+    theta_in = SPEED * (data["time"] - STEP)
+    reference = equilibria(rv40, rv40_errors(), theta_in, [-rv40.rated_torque]).te[0, 0] / ARCSEC
+    np.testing.assert_allclose(data["te_arcsec"], reference, atol=0.05 * np.ptp(reference) + 0.5)
+
+
+def rv40_errors():
+    from rvfmu.core.design import preset
+    from rvfmu.core.errors import load_errors
+
+    return load_errors(ROOT / "studies" / "seed002_errors.toml", preset("RV-40E-121"))
+
+
+def test_runs_where_numpy_and_scipy_are_installed_but_not_rvte(fmu_path, tmp_path):
+    """A fresh venv with numpy, scipy, fmpy and libcosimpy only: both importers run the FMU."""
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
+    python = venv / "bin" / "python"
+    subprocess.run([str(python), "-m", "pip", "install", "-q", "numpy", "scipy", "fmpy", "libcosimpy"],
+                   check=True, timeout=900, capture_output=True)
+    probe = subprocess.run([str(python), "-c", "import rvfmu"], capture_output=True, text=True,
+                           cwd=tmp_path)
+    assert probe.returncode != 0 and "No module named 'rvfmu'" in probe.stderr
+    script = tmp_path / "run.py"
+    script.write_text(
+        "import sys, numpy as np\n"
+        "from fmpy import simulate_fmu\n"
+        "t = np.arange(0, 0.0505, 0.001)\n"
+        "sig = np.zeros(t.size, dtype=[('time', float), ('theta_in', float), ('tau_load', float)])\n"
+        f"sig['time'] = t; sig['theta_in'] = {SPEED} * t; sig['tau_load'] = -412.0\n"
+        "r = simulate_fmu(sys.argv[1], stop_time=0.05, output_interval=0.001, step_size=0.001,\n"
+        "                 input=sig, output=['te_arcsec'])\n"
+        "print(repr(float(r['te_arcsec'][-1])))\n")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
+    proc = subprocess.run([str(python), str(script), str(fmu_path)], capture_output=True, text=True,
+                          env=env, timeout=300, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    inside = run(fmu_path, 0.05, STEP, lambda t: SPEED * t, lambda t: -412.0 + 0 * t)
+    assert float(proc.stdout.strip().splitlines()[-1]) == pytest.approx(inside["te_arcsec"][-1], abs=1e-9)
+    site = str(next((venv / "lib").glob("python3*/site-packages")))
+    out = tmp_path / "cosim.csv"
+    proc = subprocess.run([str(python), str(ROOT / "studies" / "native_host" / "run_libcosim.py"),
+                           str(fmu_path), str(out), "--load", "412", "--duration", "0.02"],
+                          env=native_env(site), capture_output=True, text=True, timeout=300,
+                          cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert np.isfinite(np.genfromtxt(out, delimiter=",", names=True)["te_arcsec"]).all()
