@@ -39,32 +39,31 @@ class QuasiStaticReducer:
 
     def __init__(self, te_map: TEMap):
         self.map = te_map
-        self.state = {"time": 0.0, "theta_out": 0.0, "omega_out": 0.0}
-
-    def _evaluate(self, theta_in, tau_load):
-        te, tau_in = self.map.evaluate_one(theta_in, tau_load)
-        return theta_in / self.map.ratio + te, te, tau_in
+        self._evaluate_map = te_map.evaluate_one
+        self._ratio = te_map.ratio
+        self.time = self.theta_out = self.omega_out = 0.0
 
     def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:
-        theta_out, te, tau_in = self._evaluate(theta_in, tau_load)
-        self.state = {"time": float(time), "theta_out": theta_out, "omega_out": 0.0}
-        return Outputs(theta_out, 0.0, te, tau_in)
+        te, tau_in = self._evaluate_map(theta_in, tau_load)
+        self.time, self.theta_out, self.omega_out = float(time), theta_in / self._ratio + te, 0.0
+        return Outputs(self.theta_out, 0.0, te, tau_in)
 
     def step(self, time: float, step_size: float, theta_in: float, tau_load: float) -> Outputs:
         """Outputs at time + step_size for the inputs there."""
-        theta_out, te, tau_in = self._evaluate(theta_in, tau_load)
-        omega = (theta_out - self.state["theta_out"]) / step_size if step_size > 0 else 0.0
-        self.state = {"time": float(time + step_size), "theta_out": theta_out, "omega_out": omega}
+        te, tau_in = self._evaluate_map(theta_in, tau_load)
+        theta_out = theta_in / self._ratio + te
+        omega = (theta_out - self.theta_out) / step_size if step_size > 0 else 0.0
+        self.time, self.theta_out, self.omega_out = time + step_size, theta_out, omega
         return Outputs(theta_out, omega, te, tau_in)
 
     def get_state(self) -> dict:
-        return dict(self.state)
+        return {"time": self.time, "theta_out": self.theta_out, "omega_out": self.omega_out}
 
     def set_state(self, state: dict) -> None:
-        missing = {"time", "theta_out", "omega_out"} - set(state)
-        if missing or not all(math.isfinite(float(state[k])) for k in ("time", "theta_out", "omega_out")):
+        keys = ("time", "theta_out", "omega_out")
+        if set(keys) - set(state) or not all(math.isfinite(float(state[k])) for k in keys):
             raise ValueError(f"not a state of this model: {sorted(state)}")
-        self.state = {k: float(state[k]) for k in ("time", "theta_out", "omega_out")}
+        self.time, self.theta_out, self.omega_out = (float(state[k]) for k in keys)
 
 
 MODELS = {QuasiStaticReducer.name: QuasiStaticReducer}

@@ -16,6 +16,7 @@ the class below by its `class RVReducer(Fmi2Slave):` line.
 
 import math
 import traceback
+from math import isfinite
 from pathlib import Path
 
 import numpy as np
@@ -113,14 +114,16 @@ class RVReducer(Fmi2Slave):
         if self._reducer is None:
             self._fail(self._failed or "do_step before the end of initialisation")
             return False
+        theta_in, tau_load = self.theta_in, self.tau_load
+        if not (isfinite(theta_in) and isfinite(tau_load) and step_size >= 0.0):
+            self._fail(_bad_step(theta_in, tau_load, step_size))
+            return False
         try:
-            if not (math.isfinite(step_size) and step_size >= 0.0):
-                raise FmuInputError(f"communication step size = {step_size}: must be >= 0")
-            self._check_inputs()
-            self._show(self._reducer.step(current_time, step_size, self.theta_in, self.tau_load))
+            out = self._reducer.step(current_time, step_size, theta_in, tau_load)
         except Exception as exc:  # noqa: BLE001
             self._fail(_describe(exc))
             return False
+        self._show(out)
         return True
 
     # -- state ----------------------------------------------------------------------------
@@ -190,6 +193,13 @@ class RVReducer(Fmi2Slave):
     def _fail(self, message):
         self._failed = message
         self.log(message, Fmi2Status.error)
+
+
+def _bad_step(theta_in, tau_load, step_size):
+    for name, value in (("theta_in", theta_in), ("tau_load", tau_load)):
+        if not isfinite(value):
+            return f"input {name} = {value}: must be finite"
+    return f"communication step size = {step_size}: must be >= 0"
 
 
 def _describe(exc):
