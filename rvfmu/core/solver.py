@@ -223,10 +223,16 @@ class ReducedSystem:
         f = f0[group] - loads[:, None] * self.g_red[a]
         direction = np.where(loads > 0, 1.0, -1.0)
         count = None if first_count is None else first_count[group]
-        return self._elastic(a, f, pin_b[group], brg_off[group], c_half[group], direction, count, q0)
+        return self._elastic(a, f, pin_b[group], brg_off[group], c_half[group], direction, count, q0,
+                             f_errors=f0[group])
 
-    def _elastic(self, angle, f, pin_b, brg_off, c_half, direction, count, q0=None):
-        """Newton solve of the pairs on their candidate pins, then on all pins where needed."""
+    def _elastic(self, angle, f, pin_b, brg_off, c_half, direction, count, q0=None, f_errors=None):
+        """Newton solve of the pairs on their candidate pins, then on all pins where needed.
+
+        The first guess of the touching pins: the `count` pins of each disc that the
+        turning carrier reaches first, their gaps measured once the linear parts have
+        taken the shape the errors force on them (when that shape is known).
+        """
         model = self.model
         forward = direction > 0
         cand = self.candidates[-1.0][angle]                                         # (B, 2, Kc)
@@ -241,8 +247,12 @@ class ReducedSystem:
         if count is None:
             guess = closing > 0
         else:
+            gaps = pb
+            if f_errors is not None and hasattr(self, "free_shape"):
+                shape = -np.einsum("bij,bj->bi", self.free_shape[angle], f_errors)
+                gaps = _pin_delta(rows, shape[:, self.pin_local], pb)
             with np.errstate(divide="ignore", invalid="ignore"):
-                travel = np.where(closing > 0, -pb / closing, np.inf)
+                travel = np.where(closing > 0, -gaps / closing, np.inf)
             # the `count` pins of each disc that the turning carrier reaches first
             ordered = np.sort(travel, axis=-1)
             take = np.clip(count, 1, travel.shape[-1])[..., None] - 1
