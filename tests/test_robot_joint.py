@@ -1,0 +1,147 @@
+"""The robot-joint co-simulation example (studies/robot_joint): its models and a short run.
+
+The short run builds the three FMUs (the reducer's TE map with 1560 points per
+output revolution, half the example's, to save time) and co-simulates the
+first 0.3 s of the move with and without the reducer's errors.
+"""
+
+import io
+import math
+import sys
+import zipfile
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from rvfmu.core.units import ARCSEC
+
+sys.path.insert(0, str(ROOT / "studies" / "robot_joint"))
+import run_joint  # noqa: E402
+from arm import ArmModel  # noqa: E402
+from servo_drive import ServoDriveModel  # noqa: E402
+
+POINTS = 1560
+STOP = 0.3
+
+
+@pytest.fixture(scope="module")
+def joint(tmp_path_factory):
+    out = tmp_path_factory.mktemp("robot_joint")
+    (with_errors, without), summary, png = run_joint.run_joint(out, points=POINTS, stop_time=STOP,
+                                                               log=lambda *_: None)
+    return with_errors, without, summary, png, out
+
+
+def reducer_te_pp_arcsec(fmu, tau_load):
+    """te_pp over one output revolution of the FMU's bundled TE map at the nearest torque level."""
+    with zipfile.ZipFile(fmu) as archive, np.load(io.BytesIO(archive.read("resources/te_map.npz"))) as m:
+        level = np.argmin(np.abs(m["torque_magnitude"] - abs(tau_load)))
+        return float(np.ptp(m["te"][0, level])) / ARCSEC
+
+
+def test_the_arm_follows_the_reference_and_the_drive_tracks_its_encoder(joint):
+    with_errors, without, summary, _, _ = joint
+    assert with_errors.time[-1] == pytest.approx(STOP)
+    assert np.ptp(with_errors.theta_ref) > math.radians(3)   # the arm really moves
+    for run in (with_errors, without):
+        assert np.all(np.isfinite(run.arm_error_arcsec))
+        # lost motion, windup and link sag under gravity: a few arcminutes at most
+        assert np.max(np.abs(run.arm_error_arcsec)) < 300
+        # the drive sees its motor encoder only, and tracks it well under an arcminute
+        assert np.max(np.abs(run.servo_error_arcsec)) < 20
+    assert summary["peak_servo_error_arcsec"] < 20
+
+
+def test_signs_and_the_static_start_follow_the_model_contract(joint):
+    with_errors, without, _, _, _ = joint
+    gravity = run_joint.ARM["mass"] * run_joint.ARM["g"] * run_joint.ARM["com_distance"]
+    ratio = run_joint.SERVO["ratio"]
+    for run in (with_errors, without):
+        # the arm held up resists positive rotation: tau_load < 0 (MODEL.md section 2)
+        assert np.all(run.tau_load < 0)
+        assert run.tau_load[0] == pytest.approx(-gravity, rel=1e-3)
+        # the drive starts holding it through the ratio
+        assert run.tau_motor[0] == pytest.approx(gravity / ratio, rel=1e-3)
+        # the reducer output leads or lags the motor by its TE only
+        np.testing.assert_allclose(run.theta_out - run.theta_motor / ratio, run.te_arcsec * ARCSEC,
+                                   atol=1e-9)
+
+
+def test_the_errors_move_the_arm_by_about_the_reducer_te(joint):
+    with_errors, without, summary, _, out = joint
+    caused = with_errors.arm_error_arcsec - without.arm_error_arcsec
+    te_diff = with_errors.te_arcsec - without.te_arcsec
+    te_pp = reducer_te_pp_arcsec(out / f"RVReducer_{POINTS}.fmu", with_errors.tau_load[0])
+    assert 5 < te_pp < 100                                   # seed 002: some tens of arcsec
+    assert te_pp / 3 < np.max(np.abs(caused)) < 3 * te_pp
+    assert summary["peak_te_caused_error_arcsec"] == pytest.approx(np.max(np.abs(caused)))
+    # at rest at the start the arm is off by exactly the static TE difference ...
+    assert caused[0] == pytest.approx(te_diff[0], abs=0.01)
+    # ... and while moving it follows it, with the joint's dynamics on top
+    assert np.max(np.abs(caused - te_diff)) < 0.25 * np.ptp(te_diff) + 1.0
+    assert np.corrcoef(caused, te_diff)[0, 1] > 0.8
+
+
+def test_the_motor_torque_stays_within_its_limit(joint):
+    with_errors, without, summary, _, _ = joint
+    limit = run_joint.SERVO["torque_limit"]
+    for run in (with_errors, without):
+        assert np.all(np.abs(run.tau_motor) <= limit)
+        # no oscillation: the torque stays near what gravity and the move ask for
+        assert np.max(np.abs(run.tau_motor)) < 0.1 * limit
+    assert summary["peak_motor_torque_Nm"] <= limit
+
+
+def test_the_figure_is_written(joint):
+    png = joint[3]
+    assert png.is_file() and png.stat().st_size > 20_000
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_servo_model_saturates_and_holds_its_integral():
+    servo = ServoDriveModel(ratio=121.0, motor_inertia=1.5e-4, viscous_friction=0.0, torque_limit=2.0,
+                            position_gain=150.0, velocity_gain=0.15, velocity_integral_time=0.008,
+                            velocity_feedforward=1.0, substeps=20)
+    servo.initialize(0.0, 0.0, 0.0)
+    _, _, tau = servo.step(0.0, 1e-3, 0.1, 0.0)          # a 0.1 rad arm step: 12 rad at the motor
+    assert tau == 2.0
+    assert servo.state["integral"] == 0.0                  # anti-windup: no integration while clamped
+    # free motor under the limit torque: omega = tau / J * t (semi-implicit Euler is exact for it)
+    assert servo.state["omega"] == pytest.approx(2.0 / 1.5e-4 * 1e-3, rel=1e-12)
+    with pytest.raises(ValueError, match="motor_inertia"):
+        ServoDriveModel(121.0, 0.0, 0.0, 2.0, 150.0, 0.15, 0.008, 1.0, 20)
+
+
+def test_the_servo_holds_a_static_load_without_error():
+    servo = ServoDriveModel(121.0, 1.5e-4, 1e-4, 9.5, 150.0, 0.15, 0.008, 1.0, 20)
+    servo.initialize(0.0, 0.5, -0.3)                        # holding 0.3 N m from the start
+    for k in range(200):
+        theta, omega, tau = servo.step(k * 1e-3, 1e-3, 0.5, -0.3)
+    assert tau == pytest.approx(0.3, rel=1e-9) and theta == pytest.approx(121.0 * 0.5, abs=1e-12)
+
+
+def test_the_arm_model_rings_at_its_frequency_with_its_damping():
+    """Flange stepped and held, no gravity: frequency near sqrt(k/J), decay by zeta."""
+    k, J, zeta, h = 1e5, 1.5, 0.05, 1e-4
+    arm = ArmModel(J, 0.0, 0.0, 9.81, k, zeta, 20)
+    arm.initialize(0.0, 0.0)
+    twist = np.array([arm.step(i * h, h, 1e-3)[1] - 1e-3 for i in range(3000)])
+    peaks = [i for i in range(1, twist.size - 1) if twist[i - 1] < twist[i] > twist[i + 1]]
+    frequency = 1.0 / (h * np.mean(np.diff(peaks)))
+    assert frequency == pytest.approx(math.sqrt(k / J) / (2 * math.pi), rel=0.08)
+    decrement = math.log(twist[peaks[0]] / twist[peaks[3]]) / 3
+    assert decrement / math.hypot(2 * math.pi, decrement) == pytest.approx(zeta, rel=0.15)
+
+
+def test_the_arm_model_at_rest_carries_its_weight():
+    arm = ArmModel(1.5, 18.0, 0.25, 9.81, 1e5, 0.05, 20)
+    theta = math.radians(30)
+    tau, theta_arm, _ = arm.initialize(0.0, theta)
+    assert tau == pytest.approx(-18.0 * 9.81 * 0.25 * math.cos(theta_arm), rel=1e-12)
+    assert theta - theta_arm == pytest.approx(-tau / 1e5, rel=1e-12)   # the link sags under it
+    for i in range(100):
+        tau_i, theta_i, omega_i = arm.step(i * 1e-3, 1e-3, theta)
+    assert tau_i == pytest.approx(tau, rel=1e-9) and abs(omega_i) < 1e-9
+    with pytest.raises(ValueError, match="inertia"):
+        ArmModel(0.5, 18.0, 0.25, 9.81, 1e5, 0.05, 20)     # less than m l^2
