@@ -1,1 +1,38 @@
-"""Tolerance studies: sampling manufacturing errors, Monte Carlo, Sobol ranking, allocation."""
+"""Tolerance studies: which tolerances decide the TE of the reducers we build, and how many meet the spec.
+
+SALib's scheme over the quasi-static model:
+
+- `load_study(path) -> Study`: the study file, checked; `Study.problem()` is the SALib problem.
+- `sample_mc(study, n) -> X`, `sample_sobol(study.problem(), n, second_order, seed) -> X`:
+  rows of the unit hypercube; `errors_from_unit(study, X)` turns them into reducers.
+- `evaluate(study, X) -> (Y, converged)`: the metrics of those reducers (pure, batched).
+- `analyze_mc(study, Y, converged)`, `analyze_sobol(problem, Y, columns, ...)`.
+- `run_mc(study_path, n=None, ...)`, `run_sobol(study_path, n=None, ...)`: the whole jobs
+  (store, backends, report), behind `rvte mc` and `rvte sobol`.
+
+Names other than `evaluate` are imported on first use, so that `rvte te` does
+not pay for SALib, pyarrow and Dask.
+"""
+
+from importlib import import_module
+
+from .evaluate import evaluate  # eager: the name would otherwise be taken by the submodule
+
+_WHERE = {
+    "Study": ("study", "Study"), "load_study": ("study", "load_study"),
+    "sample_mc": ("montecarlo", "sample"), "analyze_mc": ("montecarlo", "analyze"),
+    "wilson_interval": ("montecarlo", "wilson_interval"),
+    "sample_sobol": ("sobol", "sample"), "analyze_sobol": ("sobol", "analyze"),
+    "errors_from_unit": ("sampling", "errors_from_unit"),
+    "run_mc": ("run", "run_mc"), "run_sobol": ("run", "run_sobol"),
+    "MCResult": ("run", "MCResult"), "SobolResult": ("run", "SobolResult"),
+}
+
+__all__ = ["evaluate", *_WHERE]
+
+
+def __getattr__(name):
+    if name not in _WHERE:
+        raise AttributeError(f"module 'tolerance' has no attribute {name!r}")
+    module, attribute = _WHERE[name]
+    return getattr(import_module(f".{module}", __name__), attribute)

@@ -1,5 +1,73 @@
-"""`rvte mc` and `rvte sobol`: registered on the `rvte` parser by `add_study_commands`."""
+"""`rvte mc` and `rvte sobol`: registered on the `rvte` parser by `add_study_commands`.
+
+Each sub-command is a few lines over `tolerance.run_mc` / `tolerance.run_sobol`.
+The table goes to stdout, or with --json one JSON document (for scripts);
+the progress bar and the one-line run summary go to stderr.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+
+def _log(text):
+    print(text, file=sys.stderr)
+
+
+def _mc(args):
+    from .run import run_mc
+
+    result = run_mc(args.study, args.n, output=args.output, processes=args.processes,
+                    workers=args.workers, scheduler=args.scheduler, progress=None,
+                    plots=not args.no_plots, log=_log)
+    _show(result, args.json)
+
+
+def _sobol(args):
+    from .run import run_sobol
+
+    result = run_sobol(args.study, args.n, second_order=True if args.second_order else None,
+                       output=args.output, processes=args.processes, workers=args.workers,
+                       scheduler=args.scheduler, progress=None, plots=not args.no_plots, log=_log)
+    _show(result, args.json)
+
+
+def _show(result, as_json):
+    if as_json:
+        print(json.dumps(result.to_json(), indent=1))
+        return
+    print(result.table())
+    for label, path in result.files.items():
+        print(f"wrote {label:<13} {path}")
+
+
+def _common(p):
+    p.add_argument("study", help="study TOML file (see tolerance/README_SECTION.md)")
+    p.add_argument("-o", "--output", help="output folder (default: the study's [study] output, "
+                   "or <study name>/output beside the study file)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--processes", type=int, metavar="N", help="evaluate on N local worker processes")
+    where.add_argument("--workers", type=int, metavar="N",
+                       help="evaluate on a Dask LocalCluster of N single-threaded workers")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="evaluate on the Dask cluster at ADDRESS (tcp://host:port)")
+    p.add_argument("--json", action="store_true", help="print one JSON document instead of the table")
+    p.add_argument("--no-plots", action="store_true", help="write no figures")
 
 
 def add_study_commands(subparsers) -> None:
     """Add the tolerance-study sub-commands to the `rvte` sub-parsers."""
+    p = subparsers.add_parser("mc", help="Monte Carlo of a tolerance study: TE distribution, "
+                              "yield against the spec")
+    _common(p)
+    p.add_argument("-n", type=int, help="reducers to sample (default: the study's [montecarlo] n)")
+    p.set_defaults(run=_mc)
+
+    p = subparsers.add_parser("sobol", help="Sobol ranking of the tolerances of a study")
+    _common(p)
+    p.add_argument("-n", type=int, help="base samples, a power of 2 (default: the study's "
+                   "[sobol] n); the model runs n*(factors+2) times")
+    p.add_argument("--second-order", action="store_true", help="also second-order indices "
+                   "(n*(2*factors+2) runs)")
+    p.set_defaults(run=_sobol)

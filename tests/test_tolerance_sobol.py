@@ -1,0 +1,128 @@
+"""The Sobol harness: Ishigami's analytic indices, Saltelli slicing, negative estimates, a toy ranking."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rvfmu.cli import main
+from tolerance import run_sobol, sobol
+from tolerance_toy import write_study
+
+ISHIGAMI = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[-np.pi, np.pi]] * 3}
+A, B = 7.0, 0.1
+
+
+def ishigami(X):
+    return np.sin(X[:, 0]) + A * np.sin(X[:, 1]) ** 2 + B * X[:, 2] ** 4 * np.sin(X[:, 0])
+
+
+def ishigami_indices():
+    """Analytic S1 and ST of the Ishigami function (Ishigami & Homma 1990; Sobol' 1999)."""
+    v1 = 0.5 * (1 + B * np.pi ** 4 / 5) ** 2
+    v2 = A ** 2 / 8
+    v13 = B ** 2 * np.pi ** 8 * (1 / 18 - 1 / 50)
+    total = v1 + v2 + v13
+    return np.array([v1, v2, 0.0]) / total, np.array([v1 + v13, v2, v13]) / total
+
+
+@pytest.fixture(scope="module")
+def ishigami_run():
+    n = 2048
+    X = sobol.sample(ISHIGAMI, n, second_order=False, seed=3)
+    y = ishigami(X)
+    return n, X, y, sobol.analyze(ISHIGAMI, y[:, None], ["y"], resamples=300, seed=3)["y"]
+
+
+def test_ishigami_analytic_indices_lie_within_the_bootstrap_intervals(ishigami_run):
+    n, X, y, result = ishigami_run
+    S1, ST = ishigami_indices()
+    ind = result.indices
+    assert ind.n == n and ind.names == ("x1", "x2", "x3")
+    np.testing.assert_array_less(np.abs(ind.S1 - S1), ind.S1_conf)
+    np.testing.assert_array_less(np.abs(ind.ST - ST), ind.ST_conf)
+    assert list(ind.ranking()) == [0, 1, 2]
+    assert result.convergence.n == (n // 4, n // 2, n) and result.convergence.converged
+
+
+def test_negative_estimates_are_reported_as_zero_and_flagged():
+    values = np.array([-0.02, -0.30, 0.50, 1.04])
+    conf = np.array([0.05, 0.10, 0.02, 0.20])
+    ind = sobol.Indices(("a", "b", "c", "d"), 64, values, conf, np.abs(values), conf, None, None, 0.95)
+    np.testing.assert_array_equal(ind.S1_reported, [0.0, 0.0, 0.5, 1.0])
+    flags = ind.flags()
+    assert flags[0] == ["S1 -0.020 < 0 within its CI: reported as 0"]
+    assert flags[1][0] == "S1 -0.300 < 0 beyond its CI: not converged, raise n"
+    assert flags[2] == []
+    assert "S1 1.040 > 1: reported as 1" in flags[3] and "S1 CI wide (+-0.20)" in flags[3]
+
+
+def test_convergence_slices_whole_base_samples(ishigami_run):
+    """The first n/4 base samples of the Saltelli matrix are the matrix of n/4 (same scrambling)."""
+    n, X, y, result = ishigami_run
+    per = sobol.rows_per_base_sample(ISHIGAMI, second_order=False)
+    assert per == 5 and X.shape == (n * per, 3)
+    quarter = sobol.sample(ISHIGAMI, n // 4, second_order=False, seed=3)
+    np.testing.assert_array_equal(quarter, X[: n // 4 * per])
+    alone = sobol.indices(ISHIGAMI, ishigami(quarter), resamples=300, seed=3)
+    np.testing.assert_allclose(result.convergence.ST[0], alone.ST, rtol=1e-12)
+
+
+def test_second_order_indices_of_ishigami():
+    n = 1024
+    X = sobol.sample(ISHIGAMI, n, second_order=True, seed=5)
+    assert X.shape == (n * 8, 3)
+    ind = sobol.indices(ISHIGAMI, ishigami(X), second_order=True, resamples=200, seed=5)
+    S1, ST = ishigami_indices()
+    s13 = ST[2]                                              # x3 acts only with x1
+    assert abs(ind.S2[0, 2] - s13) < ind.S2_conf[0, 2]
+    assert abs(ind.S2[0, 1]) < ind.S2_conf[0, 1]
+
+
+def test_a_constant_output_gives_zero_indices_not_nan():
+    X = sobol.sample(ISHIGAMI, 16, seed=1)
+    ind = sobol.indices(ISHIGAMI, np.ones(X.shape[0]))
+    assert ind.constant and not ind.ST.any()
+
+
+@pytest.fixture(scope="module")
+def toy_sobol(tmp_path_factory):
+    """A toy reducer with one obviously dominant tolerance: a 20 um cam zone against sub-um ones."""
+    folder = tmp_path_factory.mktemp("sobol")
+    path = write_study(folder, tolerances={
+        "pin_radial": {"band_um": 0.2},
+        "crank_cam_eccentricity": {"position_um": 20.0},
+        "disc_profile": {"band_um": 0.2, "group": "disc"},
+        "disc_pitch": {"cumulative_um": 0.2, "group": "disc"},
+    }, sobol={"n": 32})
+    return path, run_sobol(path)
+
+
+def test_toy_reducer_ranks_the_dominant_tolerance_first(toy_sobol):
+    path, result = toy_sobol
+    assert result.study.groups == ("pin_radial", "crank_cam_eccentricity", "disc")
+    assert result.X.shape == (32 * 5, len(result.study.columns))
+    for column in ("te_pp_arcsec", "rms_arcsec"):
+        ind = result.analyses[column].indices
+        first = ind.names[ind.ranking()[0]]
+        assert first == "crank_cam_eccentricity"
+        assert ind.ST_reported[1] > 0.8
+    out = result.study.output
+    for name in ("sobol_indices.json", "sobol_ranking.txt", "sobol_bars.png", "sobol_convergence.png"):
+        assert (out / name).is_file()
+    assert "crank_cam_eccentricity" in (out / "sobol_ranking.txt").read_text().split("\n")[5]
+
+
+def test_sobol_cli_json_is_machine_readable(toy_sobol, capsys):
+    path, result = toy_sobol
+    assert main(["sobol", str(path), "--json", "--no-plots"]) == 0
+    captured = capsys.readouterr()
+    data = json.loads(captured.out)
+    assert "sobol-n32: 20 batches (20 reused, 0 computed)" in captured.err
+    ranking = data["metrics"]["te_pp_arcsec"]["groups"]
+    assert ranking[0]["name"] == "crank_cam_eccentricity" and ranking[0]["rank"] == 1
+    assert set(ranking[0]) >= {"S1", "S1_conf", "ST", "ST_conf", "S1_reported", "ST_reported", "notes"}
+    assert data["n"] == 32 and data["evaluations"] == 160
+    assert data["metrics"]["te_pp_arcsec"]["convergence"]["n"] == [8, 16, 32]
+    assert Path(data["output"]) == result.study.output

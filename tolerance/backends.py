@@ -1,0 +1,257 @@
+"""Where the batches of a study are evaluated: in this process, in worker processes, or on Dask.
+
+Evaluating a batch is one pure function (`tolerance.evaluate.evaluate`) of the
+study and the batch's sample rows, and the batch boundaries are fixed by the
+study, not by the backend, so every backend computes bit-for-bit the same
+numbers (the solver's result for a reducer depends, at round-off level, on
+the batch it is solved in; the boundaries are therefore never changed).
+
+- `InProcess()`: the default; the core is vectorised over the batch already.
+- `Processes(n)`: n local worker processes (spawned, one BLAS thread each).
+- `DaskBackend(workers=n)`: a Dask LocalCluster of n single-threaded worker
+  processes; `DaskBackend(scheduler="tcp://host:port")`: an existing Dask
+  cluster whose workers have the same rvte installed (checked: a worker with
+  another model version is refused).
+
+Each backend is a context manager with `map(study, tasks)`: tasks are
+((start, stop), X) pairs, consumed lazily with a bounded number in flight, and
+results come back as they complete, so that the caller writes each batch the
+moment it is done.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import multiprocessing
+import os
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+
+from rvfmu.core.checks import InputError, integer
+
+from .evaluate import evaluate
+from .study import model_fingerprint
+
+IN_FLIGHT_PER_WORKER = 3     # keeps every worker busy while the next batch's rows travel
+ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+DASK_LOCAL_CONFIG = {
+    # Dask's default MALLOC_TRIM_THRESHOLD_=65536 turns glibc's adaptive mmap threshold off,
+    # and the solver's many temporary arrays then cost an mmap/munmap each (measured:
+    # 88 -> 51 TE curves/s on one core): not set in our workers.
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+    # The statistical profiler samples the computing thread every 10 ms (GIL); no dashboard
+    # reads it here (measured, paired runs on 1 worker: 0.92 -> 1.0 of in-process speed).
+    "distributed.worker.profile.enabled": False,
+    # Batches take ~1 s: the scheduler, nannies and client need not look around every
+    # 20-500 ms, and uniform batches need no work stealing.  Halves the CPU that this
+    # process takes from the workers on a small machine (measured: 12 % -> 5 % of a core).
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.worker.memory.monitor-interval": "2s",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.scheduler.work-stealing": False,
+}
+
+
+def evaluate_checked(study, X, fingerprint):
+    """`evaluate` on a worker, refusing to run if the worker's model code differs from the caller's."""
+    if fingerprint != model_fingerprint():
+        raise RuntimeError("a worker runs another version of rvte's model than this process "
+                           f"(model hash {model_fingerprint()[:12]} there, {fingerprint[:12]} here); "
+                           "install the same rvte on every worker")
+    return evaluate(study, X)
+
+
+class InProcess:
+    """Evaluate the batches one after another in this process."""
+
+    workers = 1
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def describe(self) -> str:
+        return "in-process"
+
+    def map(self, study, tasks):
+        for batch, X in tasks:
+            Y, converged = evaluate(study, X)
+            yield batch, X, Y, converged
+
+
+def _warm_up():
+    """Run in each new worker: load the model's modules before the first batch arrives."""
+    return model_fingerprint()
+
+
+class Processes:
+    """A pool of `workers` spawned local processes, one BLAS thread each."""
+
+    def __init__(self, workers: int):
+        self.workers = integer("processes", workers, 1, 256)
+        self._pool = None
+
+    def describe(self) -> str:
+        return f"{self.workers} worker processes"
+
+    def __enter__(self):
+        # Spawned children inherit the environment at their start, before numpy loads:
+        # start them all now, with one BLAS thread each.
+        with _environment(ONE_THREAD):
+            self._pool = ProcessPoolExecutor(self.workers,
+                                             mp_context=multiprocessing.get_context("spawn"))
+            starts = [self._pool.submit(_warm_up) for _ in range(self.workers)]
+            try:
+                for start in starts:
+                    start.result()
+            except BrokenProcessPool as exc:
+                self.__exit__()
+                raise RuntimeError(_DIED.format(exc=exc)) from None
+        return self
+
+    def __exit__(self, *exc):
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+        return False
+
+    def map(self, study, tasks):
+        fingerprint = model_fingerprint()
+        try:
+            yield from _windowed(tasks, self.workers,
+                                 lambda X: self._pool.submit(evaluate_checked, study, X, fingerprint),
+                                 _wait_futures)
+        except BrokenProcessPool as exc:
+            raise RuntimeError(_DIED.format(exc=exc)) from None
+
+
+_DIED = ("a worker process died ({exc}); finished batches are kept. A script that uses worker "
+         "processes must run its main code under `if __name__ == '__main__':`")
+
+
+class DaskBackend:
+    """Dask distributed: a LocalCluster of `workers` processes, or the cluster at `scheduler`."""
+
+    def __init__(self, workers: int | None = None, scheduler: str | None = None):
+        if (workers is None) == (scheduler is None):
+            raise InputError("dask", {"workers": workers, "scheduler": scheduler},
+                             "give either a number of local workers or a scheduler address")
+        self.n_local = None if workers is None else integer("workers", workers, 1, 256)
+        self.scheduler = scheduler
+        self.client = self.cluster = None
+        self.workers = self.n_local or 1
+
+    def describe(self) -> str:
+        if self.scheduler:
+            return f"Dask cluster at {self.scheduler} ({self.workers} workers)"
+        return f"Dask LocalCluster of {self.n_local} workers"
+
+    def __enter__(self):
+        import dask
+        from dask.distributed import Client, LocalCluster
+
+        try:
+            if self.scheduler:
+                self.client = Client(self.scheduler, timeout="20s")
+                self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+            else:
+                # BLAS threads: Dask's nanny sets OMP/OPENBLAS/MKL_NUM_THREADS=1 in its
+                # workers (distributed.nanny.pre-spawn-environ); they are set here too.
+                with dask.config.set(DASK_LOCAL_CONFIG):
+                    self.cluster = LocalCluster(n_workers=self.n_local, threads_per_worker=1,
+                                                processes=True, dashboard_address=None,
+                                                silence_logs=logging.ERROR, env=dict(ONE_THREAD))
+                    self.client = Client(self.cluster)
+        except OSError as exc:
+            self.__exit__()
+            where = self.scheduler or "a LocalCluster"
+            raise RuntimeError(f"could not reach the Dask scheduler at {where}: {exc}") from None
+        return self
+
+    def __exit__(self, *exc):
+        for thing in (self.client, self.cluster):
+            if thing is not None:
+                with contextlib.suppress(Exception):
+                    thing.close()
+        self.client = self.cluster = None
+        return False
+
+    def map(self, study, tasks):
+        from dask.distributed import wait as dask_wait
+
+        remote_study = self.client.scatter(study, broadcast=True, hash=False)  # own key per map
+        fingerprint = model_fingerprint()
+
+        def submit(X):
+            return self.client.submit(evaluate_checked, remote_study, X, fingerprint, pure=False)
+
+        def wait_any(futures):
+            done = dask_wait(list(futures), return_when="FIRST_COMPLETED").done
+            return done
+
+        yield from _windowed(tasks, self.workers, submit, wait_any)
+
+
+def _wait_futures(futures):
+    return wait(list(futures), return_when=FIRST_COMPLETED).done
+
+
+def _windowed(tasks, workers, submit, wait_any):
+    """Submit tasks with at most IN_FLIGHT_PER_WORKER * workers in flight; yield as they finish."""
+    tasks = iter(tasks)
+    pending = {}
+    limit = IN_FLIGHT_PER_WORKER * workers
+
+    def fill():
+        while len(pending) < limit:
+            try:
+                batch, X = next(tasks)
+            except StopIteration:
+                return
+            pending[submit(X)] = (batch, X)
+
+    fill()
+    try:
+        while pending:
+            for future in wait_any(pending):
+                batch, X = pending.pop(future)
+                Y, converged = future.result()
+                yield batch, X, Y, converged
+            fill()
+    finally:
+        for future in pending:
+            future.cancel()
+
+
+def make_backend(processes: int | None = None, workers: int | None = None,
+                 scheduler: str | None = None):
+    """The backend the options ask for: none -> InProcess; processes -> Processes;
+    workers and/or scheduler -> DaskBackend."""
+    if processes is not None and (workers is not None or scheduler is not None):
+        raise InputError("processes", processes, "give either --processes or a Dask backend "
+                         "(--workers / --scheduler), not both")
+    if workers is not None and scheduler is not None:
+        raise InputError("workers", workers, "--workers starts a local Dask cluster; with "
+                         "--scheduler the cluster's own workers are used: give one of them")
+    if processes is not None:
+        return Processes(processes)
+    if workers is not None or scheduler is not None:
+        return DaskBackend(workers=workers, scheduler=scheduler)
+    return InProcess()
+
+
+@contextlib.contextmanager
+def _environment(values):
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v

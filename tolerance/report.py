@@ -1,0 +1,270 @@
+"""Reports of tolerance studies for people and for scripts: tables, figures, JSON.
+
+Reporting knows the result records and matplotlib (Agg), never the model.
+Units are those of the metric columns (arcsec, arcmin, N*m/arcmin); yields and
+Sobol indices are fractions, shown in % or as plain numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .montecarlo import PERCENTILES, MCAnalysis
+from .sobol import CONVERGED_CHANGE
+
+
+def operating_text(study) -> str:
+    """Load and points per revolution, and whether they resolve the pin-passing order."""
+    d = study.design
+    load = "no load" if study.load_Nm == 0 else f"load {study.load_Nm:g} N*m resisting"
+    pin_order = d.z_p * d.z_c
+    nyquist = study.points // 2
+    resolve = (f"resolves the pin-passing order {pin_order}" if nyquist > pin_order else
+               f"Nyquist order {nyquist} < pin-passing order {pin_order}: that ripple aliases")
+    return f"{d.name}, {load}, {study.points} points per output revolution ({resolve})"
+
+
+# -- Monte Carlo ------------------------------------------------------------------------------
+
+def mc_table(study, analysis: MCAnalysis) -> str:
+    """The distribution of every metric, the yields and the worst reducer, as text."""
+    a = analysis
+    lines = [f"Monte Carlo of study {study.name!r}: {a.n} reducers (seed {study.seed})",
+             f"  {operating_text(study)}"]
+    heads = ["mean", "std", "min"] + [f"p{p}" for p in PERCENTILES] + ["max"]
+    width = max(len(c) for c in study.metric_columns) + 2
+    lines.append(f"  {'metric':<{width}}" + "".join(f"{h:>10}" for h in heads))
+    for s in a.summaries:
+        values = [s.mean, s.std, s.minimum] + [s.percentiles[p] for p in PERCENTILES] + [s.maximum]
+        lines.append(f"  {s.column:<{width}}" + "".join(f"{v:>10.4g}" for v in values))
+    for y in a.yields:
+        lines.append(f"  yield {y.label}: {y.passed}/{y.n} = {100 * y.fraction:.2f} % "
+                     f"({100 * y.confidence:g} % {y.method} interval {100 * y.low:.2f} - "
+                     f"{100 * y.high:.2f} %)")
+    if not a.yields:
+        lines.append("  no [spec] in the study: no yield")
+    if a.failed:
+        lines.append(f"  warning: the model failed on {a.failed} reducers; they are left out")
+    if a.not_converged:
+        lines.append(f"  warning: {a.not_converged} reducers did not converge at some angle")
+    return "\n".join(lines)
+
+
+def mc_json(study, analysis: MCAnalysis, extra: dict) -> dict:
+    a = analysis
+    return {
+        "study": study.name, "job": "mc", "inputs_hash": study.inputs_hash,
+        "operating": operating_text(study), "n": a.n, "evaluated": a.evaluated,
+        "failed": a.failed, "not_converged": a.not_converged,
+        "metrics": {s.column: {"mean": s.mean, "std": s.std, "min": s.minimum, "max": s.maximum,
+                               "percentiles": {str(p): v for p, v in s.percentiles.items()}}
+                    for s in a.summaries},
+        "yields": [{"limit": y.label, "passed": y.passed, "n": y.n, "fraction": y.fraction,
+                    "low": y.low, "high": y.high, "confidence": y.confidence, "method": y.method}
+                   for y in a.yields],
+        "worst": {"row": a.worst, "column": a.worst_column}, **extra,
+    }
+
+
+def plot_mc(study, Y: np.ndarray, analysis: MCAnalysis, path: Path) -> Path:
+    """Histogram (left) and empirical CDF (right) of every metric, spec limits marked."""
+    plt = _pyplot()
+    M = len(study.metric_columns)
+    fig, axes = plt.subplots(M, 2, figsize=(10, 3.2 * M), squeeze=False, constrained_layout=True)
+    limits = {s.column: s for s in study.spec}
+    for j, column in enumerate(study.metric_columns):
+        v = np.sort(Y[np.isfinite(Y[:, j]), j])
+        ax_h, ax_c = axes[j]
+        ax_h.hist(v, bins=max(10, min(60, int(np.sqrt(v.size)) + 1)), color="C0", alpha=0.8)
+        ax_h.set_xlabel(column)
+        ax_h.set_ylabel("reducers")
+        ax_c.step(v, np.arange(1, v.size + 1) / max(v.size, 1), where="post", color="C0")
+        ax_c.set_xlabel(column)
+        ax_c.set_ylabel("fraction of reducers <= value")
+        ax_c.set_ylim(0, 1.02)
+        if column in limits:
+            limit = limits[column]
+            label = str(limit)
+            for ax in (ax_h, ax_c):
+                ax.axvline(limit.limit, color="C3", ls="--", lw=1.0, label=label)
+            y = next((y for y in analysis.yields if y.label == label), None)
+            if y is not None:
+                ax_c.set_title(f"yield {100 * y.fraction:.1f} % ({100 * y.low:.1f}-"
+                               f"{100 * y.high:.1f} %, {100 * y.confidence:g} % Wilson)", fontsize=9)
+            ax_h.legend(fontsize=8)
+        for ax in (ax_h, ax_c):
+            ax.grid(alpha=0.3)
+    fig.suptitle(f"{study.name}: {analysis.n} reducers — {operating_text(study)}", fontsize=9)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+# -- Sobol ------------------------------------------------------------------------------------
+
+def sobol_table(study, analyses: dict, n: int, evaluations: int, second_order: bool) -> str:
+    """Ranking table of every metric, with intervals, notes and the convergence check."""
+    lines = [f"Sobol ranking of study {study.name!r}: {n} base samples, {evaluations} evaluations, "
+             f"{len(study.groups)} factors",
+             f"  {operating_text(study)}"]
+    for column, result in analyses.items():
+        ind, conv = result.indices, result.convergence
+        conf = f"{100 * ind.confidence:g} %"
+        lines.append("")
+        lines.append(f"{column}  (S1, ST with {conf} bootstrap CI, {study.resamples} resamples)")
+        if ind.constant:
+            lines.append("  the metric did not vary over the sample: every index is 0")
+            continue
+        width = max(len(g) for g in ind.names) + 2
+        lines.append(f"  {'rank':>4}  {'factor':<{width}}{'S1':>16}{'ST':>16}  notes")
+        flags = ind.flags()
+        for rank, g in enumerate(ind.ranking(), start=1):
+            s1 = f"{ind.S1_reported[g]:.3f} ± {ind.S1_conf[g]:.3f}"
+            st = f"{ind.ST_reported[g]:.3f} ± {ind.ST_conf[g]:.3f}"
+            lines.append(f"  {rank:>4}  {ind.names[g]:<{width}}{s1:>16}{st:>16}  "
+                         + "; ".join(flags[g]))
+        lines.append(f"  sum S1 = {ind.S1_reported.sum():.3f} (1 - sum S1 = share of interactions)")
+        changes = ", ".join(f"N={m}" for m in conv.n)
+        state = "converged" if conv.converged else "NOT converged: raise n"
+        lines.append(f"  convergence ({changes}): max |ST(N) - ST(N/2)| = {conv.max_change:.3f} "
+                     f"-> {state} (limit {CONVERGED_CHANGE})")
+        if second_order and ind.S2 is not None:
+            pairs = [(ind.S2[a, b], ind.names[a], ind.names[b]) for a in range(len(ind.names))
+                     for b in range(a + 1, len(ind.names))]
+            top = sorted(pairs, key=lambda p: -p[0])[:5]
+            lines.append("  largest S2: " + ", ".join(f"{a} x {b} {v:.3f}" for v, a, b in top))
+    lines.append("")
+    lines.append("  Negative estimates are sampling noise around zero: reported as 0 (SALib's "
+                 "maintainers' advice when the CI includes 0); see the notes.")
+    return "\n".join(lines)
+
+
+def sobol_json(study, analyses: dict, n: int, evaluations: int, second_order: bool,
+               extra: dict) -> dict:
+    metrics = {}
+    for column, result in analyses.items():
+        ind, conv = result.indices, result.convergence
+        flags = ind.flags()
+        rank_of = {int(g): r for r, g in enumerate(ind.ranking(), start=1)}
+        groups = [{"name": name, "rank": rank_of[g],
+                   "S1": _num(ind.S1[g]), "S1_conf": _num(ind.S1_conf[g]),
+                   "ST": _num(ind.ST[g]), "ST_conf": _num(ind.ST_conf[g]),
+                   "S1_reported": _num(ind.S1_reported[g]), "ST_reported": _num(ind.ST_reported[g]),
+                   "notes": flags[g]} for g, name in enumerate(ind.names)]
+        groups.sort(key=lambda item: item["rank"])
+        entry = {"constant": ind.constant, "groups": groups,
+                 "convergence": {"n": list(conv.n),
+                                 "ST": {name: [_num(v) for v in conv.ST[:, g]]
+                                        for g, name in enumerate(ind.names)},
+                                 "S1": {name: [_num(v) for v in conv.S1[:, g]]
+                                        for g, name in enumerate(ind.names)},
+                                 "max_change_ST": _num(conv.max_change),
+                                 "converged": bool(conv.converged),
+                                 "limit": CONVERGED_CHANGE}}
+        if second_order and ind.S2 is not None:
+            entry["S2"] = {f"{ind.names[a]} x {ind.names[b]}": {"S2": _num(ind.S2[a, b]),
+                                                               "S2_conf": _num(ind.S2_conf[a, b])}
+                           for a in range(len(ind.names)) for b in range(a + 1, len(ind.names))}
+        metrics[column] = entry
+    return {"study": study.name, "job": "sobol", "inputs_hash": study.inputs_hash,
+            "operating": operating_text(study), "n": n, "second_order": second_order,
+            "evaluations": evaluations, "resamples": study.resamples,
+            "confidence": study.sobol_confidence, "factors": list(study.groups),
+            "metrics": metrics, **extra}
+
+
+def plot_sobol(study, analyses: dict, path: Path) -> Path:
+    """S1 and ST bars (reported values) with their bootstrap intervals, one panel per metric."""
+    plt = _pyplot()
+    M = len(analyses)
+    G = len(study.groups)
+    fig, axes = plt.subplots(M, 1, figsize=(max(7, 0.9 * G + 3), 3.6 * M), squeeze=False,
+                             constrained_layout=True)
+    for ax, (column, result) in zip(axes[:, 0], analyses.items(), strict=True):
+        ind = result.indices
+        order = ind.ranking()
+        x = np.arange(len(order))
+        ax.bar(x - 0.2, ind.S1_reported[order], 0.4, yerr=ind.S1_conf[order], capsize=3,
+               label="S1 (alone)", color="C0")
+        ax.bar(x + 0.2, ind.ST_reported[order], 0.4, yerr=ind.ST_conf[order], capsize=3,
+               label="ST (with interactions)", color="C1")
+        ax.set_xticks(x, [ind.names[g] for g in order], rotation=30, ha="right", fontsize=8)
+        ax.set_ylabel("Sobol index")
+        ax.set_ylim(0, 1.05)
+        ax.set_title(f"{column}: {100 * ind.confidence:g} % bootstrap intervals, "
+                     f"N = {ind.n}", fontsize=9)
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3, axis="y")
+    fig.suptitle(f"{study.name}: {operating_text(study)}", fontsize=9)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_convergence(study, analyses: dict, path: Path) -> Path:
+    """ST of every factor against the base sample count N/4, N/2, N."""
+    plt = _pyplot()
+    M = len(analyses)
+    fig, axes = plt.subplots(1, M, figsize=(5.5 * M + 2.5, 4), squeeze=False, constrained_layout=True)
+    for ax, (column, result) in zip(axes[0], analyses.items(), strict=True):
+        conv = result.convergence
+        for g, name in enumerate(result.indices.names):
+            ax.plot(conv.n, conv.ST[:, g], "o-", ms=3, lw=1, label=name)
+        ax.set_xscale("log", base=2)
+        ax.set_xlabel("base samples N")
+        ax.set_ylabel("ST")
+        ax.set_title(f"{column}: max change N/2 -> N {conv.max_change:.3f}", fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0, -1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+# -- files ------------------------------------------------------------------------------------
+
+def write_json(path: Path, data: dict) -> Path:
+    Path(path).write_text(json.dumps(data, indent=1, default=_json_default) + "\n")
+    return Path(path)
+
+
+def error_file_text(values: dict, header: str = "") -> str:
+    """An error file (MODEL.md names, um and deg) from `error_file_values` output."""
+    lines = [f"# {line}" for line in header.splitlines()]
+    for name, value in values.items():
+        lines.append(f"{name} = {_toml_value(value)}")
+    return "\n".join(lines) + "\n"
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return f"{float(value):.6g}"
+
+
+def _num(value) -> float | None:
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _json_default(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt

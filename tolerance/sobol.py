@@ -1,0 +1,196 @@
+"""Sobol ranking: which tolerances decide the TE variance of the reducers we build.
+
+A first-order index S1 is the share of the output variance that one factor
+(one error source, or a group of them) explains alone; the total index ST
+adds all its interactions.  Tightening a tolerance with a small ST changes
+little; the factors at the top of the ST ranking are the ones worth paying
+for.  Indices are estimated with SALib: Saltelli's cross-sampling of a
+scrambled Sobol' sequence (`SALib.sample.sobol.sample`) and the Saltelli
+(2010) estimators with bootstrap confidence intervals
+(`SALib.analyze.sobol.analyze`), over the groups of the problem.
+
+Reading the estimates:
+
+- Negative estimates.  True indices are >= 0; an estimate below zero is
+  sampling noise around an index that is (nearly) zero.  As SALib's
+  maintainers advise (SALib issues #102 and #135), an index whose confidence
+  interval includes zero is treated as zero: it is reported as 0 and flagged.
+  A negative estimate whose interval excludes zero means too few samples:
+  it is also reported as 0, flagged "not converged".  Totals above 1 are
+  clipped to 1 the same way.
+- Wide intervals.  An index known only to +-WIDE_CI cannot rank factors whose
+  indices differ by less; it is flagged.
+- Convergence.  The indices are computed again from the first N/4 and N/2
+  base samples (each base sample owns a block of D+2, or 2D+2, consecutive
+  rows of the Saltelli matrix, and the first N/4 points of a Sobol' sequence
+  are themselves balanced); the largest change of ST from N/2 to N is
+  reported, and the study is called converged if it is below
+  CONVERGED_CHANGE.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from SALib.analyze import sobol as salib_analyze
+from SALib.sample import sobol as salib_sample
+from SALib.util import extract_group_names
+
+WIDE_CI = 0.1            # half-width of an index's interval above which its rank is uncertain
+CONVERGED_CHANGE = 0.05  # largest |ST(N) - ST(N/2)| of a converged study (5 % of the variance)
+CONVERGENCE_FRACTIONS = (4, 2, 1)
+
+
+def group_names(problem: dict) -> list[str]:
+    """The problem's groups (or variables, if it has no groups), in SALib's order."""
+    return list(extract_group_names(problem)[0])
+
+
+def rows_per_base_sample(problem: dict, second_order: bool) -> int:
+    """Rows of the Saltelli matrix per base sample: D+2, or 2D+2 with second order (D groups)."""
+    D = len(group_names(problem))
+    return 2 * D + 2 if second_order else D + 2
+
+
+def sample(problem: dict, n: int, second_order: bool = False, seed: int = 0) -> np.ndarray:
+    """Saltelli sample matrix (n * rows_per_base_sample, num_vars) on the problem's bounds."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)   # n is checked to be a power of 2 upstream
+        return salib_sample.sample(problem, n, calc_second_order=second_order, scramble=True,
+                                   seed=seed)
+
+
+@dataclass(frozen=True)
+class Indices:
+    """Sobol indices of one output over the G groups `names`, from n base samples.
+
+    S1, S1_conf, ST, ST_conf: (G,) estimates and the half-widths of their
+    bootstrap intervals at `confidence`; S2, S2_conf: (G, G) upper triangles
+    (NaN elsewhere) or None.  constant: the output did not vary (all zero).
+    """
+
+    names: tuple
+    n: int
+    S1: np.ndarray
+    S1_conf: np.ndarray
+    ST: np.ndarray
+    ST_conf: np.ndarray
+    S2: np.ndarray | None
+    S2_conf: np.ndarray | None
+    confidence: float
+    constant: bool = False
+
+    @property
+    def S1_reported(self) -> np.ndarray:
+        """S1 clipped to [0, 1] (see the module docstring)."""
+        return np.clip(self.S1, 0.0, 1.0)
+
+    @property
+    def ST_reported(self) -> np.ndarray:
+        return np.clip(self.ST, 0.0, 1.0)
+
+    def flags(self) -> list[list[str]]:
+        """Per group, the notes a reader needs: clipped, not converged, wide interval."""
+        out = []
+        for g in range(len(self.names)):
+            notes = []
+            for label, value, conf in (("S1", self.S1[g], self.S1_conf[g]),
+                                       ("ST", self.ST[g], self.ST_conf[g])):
+                if value < 0:
+                    notes.append(f"{label} {value:.3f} < 0 within its CI: reported as 0"
+                                 if value + conf >= 0 else
+                                 f"{label} {value:.3f} < 0 beyond its CI: not converged, raise n")
+                elif value > 1:
+                    notes.append(f"{label} {value:.3f} > 1: reported as 1"
+                                 + ("" if value - conf <= 1 else ", not converged, raise n"))
+                if conf > WIDE_CI:
+                    notes.append(f"{label} CI wide (+-{conf:.2f})")
+            out.append(notes)
+        return out
+
+    def ranking(self) -> np.ndarray:
+        """Group indices from the most to the least important: by reported ST, then S1."""
+        return np.lexsort((-self.S1_reported, -self.ST_reported))
+
+
+def indices(problem: dict, y: np.ndarray, second_order: bool = False, resamples: int = 200,
+            confidence: float = 0.95, seed: int = 0) -> Indices:
+    """Sobol indices of one output y (n * rows_per_base_sample,) from a Saltelli sample."""
+    names = tuple(group_names(problem))
+    G = len(names)
+    y = np.asarray(y, dtype=float)
+    per = rows_per_base_sample(problem, second_order)
+    if y.ndim != 1 or y.size % per:
+        raise ValueError(f"y must hold n * {per} values from a Saltelli sample, got {y.shape}")
+    n = y.size // per
+    if not np.all(np.isfinite(y)):
+        raise ValueError("y has NaN or inf values: Sobol indices need every row's output")
+    if np.ptp(y) == 0.0:
+        zero = np.zeros(G)
+        square = np.full((G, G), np.nan) if second_order else None
+        return Indices(names, n, zero, zero, zero, zero, square, square, confidence, constant=True)
+    # SALib seeds its bootstrap only for a truthy seed: 0 would give different CIs each run.
+    si = salib_analyze.analyze(problem, y, calc_second_order=second_order, num_resamples=resamples,
+                               conf_level=confidence, seed=int(seed) + 1)
+    S2 = np.asarray(si["S2"], dtype=float) if second_order else None
+    S2_conf = np.asarray(si["S2_conf"], dtype=float) if second_order else None
+    return Indices(names, n, np.asarray(si["S1"], dtype=float), np.asarray(si["S1_conf"], dtype=float),
+                   np.asarray(si["ST"], dtype=float), np.asarray(si["ST_conf"], dtype=float),
+                   S2, S2_conf, confidence)
+
+
+@dataclass(frozen=True)
+class Convergence:
+    """Indices from the first n/4, n/2 and n base samples: n (3,), S1 and ST (3, G)."""
+
+    n: tuple
+    S1: np.ndarray
+    ST: np.ndarray
+
+    @property
+    def max_change(self) -> float:
+        """Largest |ST(n) - ST(n/2)| over the groups."""
+        return float(np.max(np.abs(self.ST[-1] - self.ST[-2])))
+
+    @property
+    def converged(self) -> bool:
+        return self.max_change <= CONVERGED_CHANGE
+
+
+def convergence(problem: dict, y: np.ndarray, second_order: bool = False, resamples: int = 200,
+                confidence: float = 0.95, seed: int = 0, final: Indices | None = None) -> Convergence:
+    """Indices from the first n/4, n/2 and all n base samples of a Saltelli sample's outputs y."""
+    per = rows_per_base_sample(problem, second_order)
+    n = np.asarray(y).size // per
+    ns, S1, ST = [], [], []
+    for divisor in CONVERGENCE_FRACTIONS:
+        m = n // divisor
+        result = final if (divisor == 1 and final is not None) else \
+            indices(problem, np.asarray(y)[:m * per], second_order, resamples, confidence, seed)
+        ns.append(m)
+        S1.append(result.S1)
+        ST.append(result.ST)
+    return Convergence(tuple(ns), np.array(S1), np.array(ST))
+
+
+@dataclass(frozen=True)
+class SobolAnalysis:
+    """Indices and convergence of one output (a metric column)."""
+
+    column: str
+    indices: Indices
+    convergence: Convergence
+
+
+def analyze(problem: dict, Y: np.ndarray, columns, second_order: bool = False,
+            resamples: int = 200, confidence: float = 0.95, seed: int = 0) -> dict:
+    """{column: SobolAnalysis} for every output column of Y (rows, len(columns))."""
+    Y = np.asarray(Y, dtype=float).reshape(-1, len(columns))
+    out = {}
+    for j, column in enumerate(columns):
+        final = indices(problem, Y[:, j], second_order, resamples, confidence, seed)
+        conv = convergence(problem, Y[:, j], second_order, resamples, confidence, seed, final)
+        out[column] = SobolAnalysis(column, final, conv)
+    return out
