@@ -73,30 +73,37 @@ class TEMap:
 
     def evaluate_one(self, theta_in: float, tau_load: float) -> tuple[float, float]:
         """`evaluate` for one point, in plain Python: a co-simulation step asks for one."""
-        A = self.theta_in.size
-        position = (theta_in % self.period) / self.period * A
+        A = self._points
+        position = (theta_in % self._period) * self._per_radian
         i0 = int(position)
         wa = position - i0
         i0 %= A
-        i1 = (i0 + 1) % A
-        branch = 1 if tau_load > 0 else 0
-        magnitude = abs(tau_load)
+        i1 = i0 + 1 if i0 + 1 < A else 0
+        if tau_load > 0:
+            magnitude, te_rows, tau_rows = tau_load, self._te_rows[1], self._tau_rows[1]
+        else:
+            magnitude, te_rows, tau_rows = -tau_load, self._te_rows[0], self._tau_rows[0]
         levels = self._levels
-        j0 = min(max(bisect.bisect_right(levels, magnitude) - 1, 0), len(levels) - 2)
+        j0 = bisect.bisect_right(levels, magnitude) - 1
+        j0 = 0 if j0 < 0 else (self._last_level if j0 > self._last_level else j0)
         wt = (magnitude - levels[j0]) / (levels[j0 + 1] - levels[j0])
-        out = []
-        for table in (self._te_rows, self._tau_rows):
-            lo, hi = table[branch][j0], table[branch][j0 + 1]
-            a = lo[i0] + wa * (lo[i1] - lo[i0])
-            b = hi[i0] + wa * (hi[i1] - hi[i0])
-            out.append(a + wt * (b - a))
-        return out[0], out[1]
+        lo, hi = te_rows[j0], te_rows[j0 + 1]
+        a = lo[i0] + wa * (lo[i1] - lo[i0])
+        te = a + wt * (hi[i0] + wa * (hi[i1] - hi[i0]) - a)
+        lo, hi = tau_rows[j0], tau_rows[j0 + 1]
+        a = lo[i0] + wa * (lo[i1] - lo[i0])
+        return te, a + wt * (hi[i0] + wa * (hi[i1] - hi[i0]) - a)
 
     def __post_init__(self):
         # Python-level views for evaluate_one: list indexing beats numpy for single items.
-        object.__setattr__(self, "_levels", [float(x) for x in self.torque_magnitude])
-        object.__setattr__(self, "_te_rows", [[row.tolist() for row in branch] for branch in self.te])
-        object.__setattr__(self, "_tau_rows", [[row.tolist() for row in branch] for branch in self.tau_in])
+        put = object.__setattr__
+        put(self, "_points", int(self.theta_in.size))
+        put(self, "_period", self.period)
+        put(self, "_per_radian", self.theta_in.size / self.period)
+        put(self, "_levels", [float(x) for x in self.torque_magnitude])
+        put(self, "_last_level", len(self.torque_magnitude) - 2)
+        put(self, "_te_rows", [[row.tolist() for row in branch] for branch in self.te])
+        put(self, "_tau_rows", [[row.tolist() for row in branch] for branch in self.tau_in])
 
     def to_arrays(self) -> dict:
         return {"ratio": np.array(self.ratio), "theta_in": self.theta_in,

@@ -98,6 +98,25 @@ class RVReducer(Fmi2Slave):
                                        description="TE map points per output revolution; "
                                                    "0: as bundled"))
 
+        # Direct access for the calls a master makes every step.
+        reals = [v for v in self.vars.values() if isinstance(v, Real)]
+        self._getters = {v.value_reference: v.getter for v in reals}
+        self._setters = {v.value_reference: v.setter for v in reals}
+
+    def get_real(self, vrs):
+        getters = self._getters
+        if all(vr in getters for vr in vrs):
+            return [float(getters[vr]()) for vr in vrs]
+        return super().get_real(vrs)
+
+    def set_real(self, vrs, values):
+        setters = self._setters
+        if all(vr in setters for vr in vrs):
+            for vr, value in zip(vrs, values):
+                setters[vr](value)
+        else:
+            super().set_real(vrs, values)
+
     # -- life cycle ---------------------------------------------------------------------
     def exit_initialization_mode(self):
         try:
