@@ -1,0 +1,277 @@
+"""The Newton iteration on the reduced contact problem, for many pairs at once.
+
+One chunk of (reducer, angle) pairs, condensed to the unknowns that nonlinear
+elements touch (`solver.ReducedSystem`), is iterated here: an active-set
+Newton method on the convex energy, whose first step bonds the pins guessed to
+touch at their real gaps (a primal-dual active-set step) and whose later steps
+are semismooth Newton steps; a full step is kept where it lowers the energy,
+otherwise an exact line search along it chooses the length.  Arrays are
+shaped (pairs, ...) and shrink as pairs converge.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MAX_ITERATIONS = 400
+STEP_TOLERANCE = 1e-14   # m: converged when a Newton step moves less (1e-8 um)
+GAP_TOLERANCE = 1e-12    # m: an interference smaller than this is contact, not preload
+SHRINK_FRACTION = 0.25   # drop converged pairs from the work arrays once a quarter are done
+
+
+def newton(work, first_active, q0=None):
+    """Active-set Newton on the reduced energy; returns (q (B, nN), converged (B,), iterations).
+
+    The first step solves the linear system with the guessed pins in contact at
+    their real gaps (a primal-dual active-set step), so it closes those gaps in one
+    go; later steps are semismooth Newton steps on the true energy.  A full step is
+    taken where it lowers the true energy; elsewhere an exact line search on the
+    true energy chooses the step length, so every step is a descent.
+    """
+    B, nN = work.f.shape
+    result = np.zeros((B, nN))
+    converged = np.zeros(B, dtype=bool)
+    ids = np.arange(B)
+    warm = q0 is not None
+    q = np.zeros((B, nN)) if q0 is None else q0.copy()
+    energy, _ = work.energy(q)
+    smooth = work.brg_rows is None  # piecewise quadratic: a consistent active set is exact
+    iterations = 0
+    for iterations in range(1, MAX_ITERATIONS + 1):
+        first = iterations == 1 and not warm
+        guess = first_active if first else None
+        grad, hess, true_grad, used = work.gradient_hessian(q, guess, bearings_engaged=first)
+        step = -np.linalg.solve(hess, grad[..., None])[..., 0]
+        trial, delta = work.energy(q + step)
+        slope = np.einsum("bi,bi->b", true_grad, step)
+        full = trial <= energy + 1e-4 * slope + 1e-13 * np.abs(energy)
+        alpha = np.ones(len(q))
+        if not np.all(full):
+            short = np.flatnonzero(~full)
+            alpha[short] = work.subset(short).line_search(q[short], step[short])
+        move = alpha[:, None] * step
+        move[converged[ids]] = 0.0  # pairs already done but still in the arrays stay put
+        q = q + move
+        energy = trial if np.all(full) else np.where(full, trial, work.energy(q)[0])
+        result[ids] = q
+        # Done when a full step landed where exactly the pins it assumed touch (the
+        # minimiser of that piece of the energy), or when a step no longer moves.
+        done = np.max(np.abs(move), axis=1) <= STEP_TOLERANCE + 1e-12 * np.max(np.abs(q), axis=1)
+        if first:
+            # A guessed step that does not go downhill says nothing about convergence.
+            done[:] = False
+        if smooth:
+            consistent = np.where(used, delta >= -GAP_TOLERANCE, delta <= GAP_TOLERANCE)
+            done |= full & np.all(consistent, axis=(1, 2))
+        done |= converged[ids]
+        converged[ids[done]] = True
+        if np.all(done):
+            break
+        if np.count_nonzero(done) > SHRINK_FRACTION * len(done):
+            keep = np.flatnonzero(~done)
+            work, q, ids, energy = work.subset(keep), q[keep], ids[keep], energy[keep]
+    return result, converged, iterations
+
+
+class Work:
+    """Per-pair arrays of the Newton iteration, gathered once and shrunk as pairs converge.
+
+    rows (B, 2, K, 3) and pin_b (B, 2, K) are those of the K pins per disc taken
+    into the iteration (all of them, or the candidates that the load can close).
+    """
+
+    def __init__(self, system, angle, f, rows, pin_b, brg_off, c_half, products=None):
+        self.system = system
+        self.angle = angle
+        self.rows = rows
+        self.products = row_products(rows) if products is None else products  # (B, 2, K, 6)
+        self.K = system.K_red[angle]                          # (B, nN, nN)
+        self.f, self.pin_b, self.brg_off, self.c_half = f, pin_b, brg_off, c_half
+        self.brg_rows = system.brg_rows[angle] if system.brg_k.size else None
+
+    def subset(self, keep):
+        new = object.__new__(Work)
+        new.system, new.angle = self.system, self.angle[keep]
+        for name in ("rows", "products", "K", "f", "pin_b", "brg_off", "c_half"):
+            setattr(new, name, getattr(self, name)[keep])
+        new.brg_rows = None if self.brg_rows is None else self.brg_rows[keep]
+        return new
+
+    def load_direction(self):
+        """d(gradient)/d(-tau): the reduced load vector (B, nN)."""
+        return self.system.g_red[self.angle]
+
+    def _local(self, q):
+        return q[:, self.system.pin_local]                    # (B, 2, 3)
+
+    def _bearing(self, q):
+        return np.einsum("bpxn,bn->bpx", self.brg_rows, q) + self.brg_off
+
+    def delta(self, q):
+        return pin_delta(self.rows, self._local(q), self.pin_b)
+
+    def energy(self, q):
+        """(reduced energy (B,) [J] up to a constant, pin deflections (B, 2, K) [m])."""
+        sys = self.system
+        kq = np.matmul(self.K, q[..., None])[..., 0]
+        e = np.einsum("bi,bi->b", q, 0.5 * kq + self.f)
+        delta = self.delta(q)
+        pos = np.maximum(delta, 0.0)
+        e += 0.5 * sys.model.pin_k * np.einsum("bjk,bjk->b", pos, pos)
+        if self.brg_rows is not None:
+            over = np.maximum(np.linalg.norm(self._bearing(q), axis=-1) - self.c_half, 0.0)
+            e += 0.5 * np.einsum("bp,p->b", over * over, sys.brg_k)
+        return e, delta
+
+    def gradient_hessian(self, q, active=None, bearings_engaged=False):
+        """(gradient, Hessian, true gradient, pins taken as touching) at q.
+
+        With `active` (B, 2, K) the gradient and Hessian are those of the energy
+        with exactly those pins bonded (a primal-dual active-set step); the true
+        gradient is always that of the real energy.
+        """
+        sys = self.system
+        kp = sys.model.pin_k
+        base = np.matmul(self.K, q[..., None])[..., 0] + self.f
+        delta = self.delta(q)
+        touching = delta > 0
+        if active is None:
+            # A pin exactly at contact (where an exact line search stops) counts as touching:
+            # that choice of the generalised Jacobian keeps the mechanism mode held.
+            active = delta > -GAP_TOLERANCE
+            force = np.where(touching, delta, 0.0)
+            true_force = force
+        else:
+            force = delta * active
+            true_force = np.where(touching, delta, 0.0)
+        grad = base.copy()
+        gen = np.matmul(force[:, :, None, :], self.rows)[:, :, 0] * kp                # (B, 2, 3)
+        hess = self.K + sys.mode_stiffness[self.angle]
+        upper = np.matmul((active * kp)[:, :, None, :], self.products)[:, :, 0]      # (B, 2, 6)
+        blocks = upper[..., _SYMMETRIC]                                                # (B, 2, 3, 3)
+        for j in range(2):
+            idx = sys.pin_local[j]
+            grad[:, idx] += gen[:, j]
+            hess[:, idx[:, None], idx[None, :]] += blocks[:, j]
+        if true_force is force:
+            true_grad = grad.copy()
+        else:
+            true_grad = base.copy()
+            true_gen = np.matmul(true_force[:, :, None, :], self.rows)[:, :, 0] * kp
+            for j in range(2):
+                true_grad[:, sys.pin_local[j]] += true_gen[:, j]
+        if self.brg_rows is not None:
+            d = self._bearing(q)
+            norm = np.linalg.norm(d, axis=-1)
+            scale = np.where(norm > self.c_half, 1.0 - self.c_half / np.maximum(norm, 1e-300), 0.0)
+            bforce = np.einsum("bpxn,bpx->bn", self.brg_rows, d * (scale * sys.brg_k)[..., None])
+            grad += bforce
+            true_grad += bforce
+            if bearings_engaged:
+                tangent = np.broadcast_to(np.eye(2) * sys.brg_k[:, None, None],
+                                          self.brg_off.shape[:2] + (2, 2))
+            else:
+                tangent = bearing_tangent(d, self.c_half, sys.brg_k)
+            hess = hess + np.einsum("bpxi,bpxy,bpyj->bij", self.brg_rows, tangent, self.brg_rows,
+                                    optimize=True)
+        return grad, hess, true_grad, active
+
+    def hessian(self, q, active):
+        return self.gradient_hessian(q, active)[1]
+
+    def line_search(self, q, step):
+        """Exact minimiser of the energy along `step`, (B,) step lengths.
+
+        Along the line the energy is a convex 1-D function whose derivative is
+        piecewise linear in the pins (and smooth in the bearings); a safeguarded
+        Newton iteration on that derivative, inside a bracket, finds its zero.
+        Its pieces are computed once, so each trial costs a few elementwise operations.
+        """
+        sys = self.system
+        k_step = np.matmul(self.K, step[..., None])[..., 0]
+        quad = np.einsum("bi,bi->b", step, k_step)
+        lin = np.einsum("bi,bi->b", np.matmul(self.K, q[..., None])[..., 0] + self.f,
+                        step)
+        delta0 = self.delta(q)
+        ddelta = pin_delta(self.rows, self._local(step), 0.0)
+        kp = sys.model.pin_k
+        if self.brg_rows is not None:
+            d0 = self._bearing(q)
+            dd = np.einsum("bpxn,bn->bpx", self.brg_rows, step)
+
+        def slope(alpha, t):
+            """(first, second) derivative of the energy along the line at alpha, pairs t."""
+            a = alpha[:, None, None]
+            delta = delta0[t] + a * ddelta[t]
+            on = delta > 0
+            d1 = quad[t] * alpha + lin[t] + kp * np.einsum("bjk,bjk->b", np.where(on, delta, 0.0), ddelta[t])
+            d2 = quad[t] + kp * np.einsum("bjk,bjk->b", on * ddelta[t], ddelta[t])
+            if self.brg_rows is not None:
+                d = d0[t] + a * dd[t]
+                scale = np.linalg.norm(d, axis=-1)
+                over = np.where(scale > self.c_half[t], 1.0 - self.c_half[t] / np.maximum(scale, 1e-300), 0.0)
+                force = d * (over * sys.brg_k)[..., None]
+                d1 = d1 + np.einsum("bpx,bpx->b", force, dd[t])
+                tangent = bearing_tangent(d, self.c_half[t], sys.brg_k)
+                d2 = d2 + np.einsum("bpx,bpxy,bpy->b", dd[t], tangent, dd[t])
+            return d1, d2
+
+        B = len(q)
+        everyone = np.arange(B)
+        d1_0, _ = slope(np.zeros(B), everyone)
+        lo, hi = np.zeros(B), np.ones(B)
+        # Bracket the zero of the derivative: grow hi until the derivative is >= 0.
+        d1_hi, d2_hi = slope(hi, everyone)
+        grow = np.flatnonzero(d1_hi < 0)
+        for _ in range(60):
+            if grow.size == 0:
+                break
+            lo[grow] = hi[grow]
+            hi[grow] *= 4.0
+            d1, d2 = slope(hi[grow], grow)
+            d1_hi[grow], d2_hi[grow] = d1, d2
+            grow = grow[d1 < 0]
+        alpha = hi.copy()
+        d1, d2 = d1_hi, d2_hi
+        tolerance = 1e-12 * np.abs(d1_0) + 1e-300
+        todo = np.flatnonzero((np.abs(d1) > tolerance) & (d1_0 < 0))
+        alpha[d1_0 >= 0] = 0.0  # no descent left: the pair is at its minimum
+        for _ in range(60):
+            if todo.size == 0:
+                break
+            a, g1, g2 = alpha[todo], d1[todo], d2[todo]
+            hi[todo] = np.where(g1 > 0, a, hi[todo])
+            lo[todo] = np.where(g1 < 0, a, lo[todo])
+            newton = a - g1 / np.where(g2 > 0, g2, 1.0)
+            inside = (g2 > 0) & (newton > lo[todo]) & (newton < hi[todo])
+            alpha[todo] = np.where(inside, newton, 0.5 * (lo[todo] + hi[todo]))
+            g1, g2 = slope(alpha[todo], todo)
+            d1[todo], d2[todo] = g1, g2
+            settled = (np.abs(g1) <= tolerance[todo]) | (hi[todo] - lo[todo] <= 1e-15 * hi[todo])
+            todo = todo[~settled]
+        return alpha
+
+
+_UPPER = np.triu_indices(3)                       # the six distinct entries of a 3x3 block
+_SYMMETRIC = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]])  # their places in the full block
+
+
+def row_products(rows):
+    """The six distinct products of each pin's row with itself (..., 6), for Hessian blocks."""
+    return rows[..., _UPPER[0]] * rows[..., _UPPER[1]]
+
+
+def bearing_tangent(d, c_half, k):
+    """Tangent stiffness (B, p, 2, 2) of isotropic bearings with free play c_half at deflection d."""
+    norm = np.maximum(np.linalg.norm(d, axis=-1), 1e-300)
+    n_hat = d / norm[..., None]
+    engaged = norm > c_half
+    ratio = np.where(engaged, c_half / norm, 1.0)
+    tangent = ((1.0 - ratio)[..., None, None] * np.eye(2)
+               + ratio[..., None, None] * n_hat[..., :, None] * n_hat[..., None, :])
+    return tangent * (engaged * k)[..., None, None]
+
+
+def pin_delta(rows, q_local, offset):
+    """Pin deflections (B, 2, z_p) from disc unknowns (B, 2, 3)."""
+    return np.matmul(rows, q_local[..., None])[..., 0] + offset
