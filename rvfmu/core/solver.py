@@ -32,7 +32,7 @@ CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
 REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
 MODE_DIRECTION_STIFFNESS = 1e-9  # relative to the pin stiffness, Hessian only: see ReducedSystem
 CONTINUATION = (1e3, 1e2, 1e1, 1.0)  # no load with bearing clearance: probe multiples, large to small
-CANDIDATE_MARGIN = 4     # pins per disc iterated on beyond the half that the load closes
+CANDIDATE_MARGIN = 1     # pins per disc iterated on beyond the half that the load closes
 
 
 @dataclass(frozen=True)
