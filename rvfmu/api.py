@@ -73,13 +73,20 @@ def resolve_errors(design: RVDesign, errors: str | Path | ErrorSet | None) -> Er
 
 
 def te(design, errors=None, load: float = 0.0, points: int | None = None,
-       csv_path: str | Path | None = None, plot_path: str | Path | None = None) -> TEReport:
+       csv_path: str | Path | None = None, plot_path: str | Path | None = None,
+       progress=None) -> TEReport:
     """TE curve of one reducer at a resisting load [N*m] (0: no-load limit), with lost
-    motion and torsional rigidity; writes the CSV and the plot if paths are given."""
+    motion and torsional rigidity; writes the CSV and the plot if paths are given.
+
+    progress(total, done): optional, called as the curve's angles are solved.
+    """
     design = resolve_design(design)
     errors = resolve_errors(design, errors)
     load = finite_number("load", load)
-    curve = te_curve(design, errors, tau_load=-load, points=points)
+    if points is None:
+        points = default_points(design)
+    counter = None if progress is None else _Counter(points, progress)
+    curve = te_curve(design, errors, tau_load=-load, points=points, progress=counter)
     wind = windup(design, errors)
     report = TEReport(curve, wind, float(wind.lost_motion_arcmin()[0]),
                       float(wind.torsional_rigidity_Nm_per_arcmin()[0]))
@@ -90,6 +97,17 @@ def te(design, errors=None, load: float = 0.0, points: int | None = None,
 
         plot_te(curve, plot_path)
     return report
+
+
+class _Counter:
+    """Turns the solver's per-chunk counts into progress(total, done) calls."""
+
+    def __init__(self, total, report):
+        self.total, self.done, self.report = total, 0, report
+
+    def __call__(self, count):
+        self.done += count
+        self.report(self.total, self.done)
 
 
 def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:

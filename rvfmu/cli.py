@@ -7,15 +7,39 @@ value and what is allowed, and exits with status 2.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from . import api
 from .core.checks import InputError
 
 
+class ProgressBar:
+    """A tqdm bar on stderr for progress(total, done) callbacks; silent when not a terminal."""
+
+    def __init__(self, description):
+        self.description, self.bar = description, None
+
+    def __call__(self, total, done):
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=self.description, unit="pose", file=sys.stderr,
+                            disable=None, dynamic_ncols=True, leave=False)
+        self.bar.update(done - self.bar.n)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
 def _te(args):
-    report = api.te(args.design, args.errors, load=args.load, points=args.points,
-                    csv_path=args.csv, plot_path=args.plot)
+    bar = ProgressBar("te")
+    try:
+        report = api.te(args.design, args.errors, load=args.load, points=args.points,
+                        csv_path=args.csv, plot_path=args.plot, progress=bar)
+    finally:
+        bar.close()
     print(report.summary())
     for label, path in (("csv", args.csv), ("plot", args.plot)):
         if path:
@@ -77,6 +101,10 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         args.run(args)
+    except BrokenPipeError:
+        # the reader (e.g. `| head`) has gone: stop quietly, as command-line tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except InputError as exc:
         print(f"rvte {args.command}: error: {exc}", file=sys.stderr)
         return 2

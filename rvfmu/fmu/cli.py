@@ -24,7 +24,13 @@ def add_fmu_commands(subparsers) -> None:
 def _build(args):
     from .api import fmu_build
 
-    path = fmu_build(args.design, args.errors, args.output, points=args.points)
+    from ..cli import ProgressBar
+
+    bar = ProgressBar("TE map")
+    try:
+        path = fmu_build(args.design, args.errors, args.output, points=args.points, progress=bar)
+    finally:
+        bar.close()
     print(f"wrote {path}")
 
 
