@@ -85,7 +85,7 @@ def te(design, errors=None, load: float = 0.0, points: int | None = None,
     load = finite_number("load", load)
     if points is None:
         points = default_points(design)
-    counter = None if progress is None else _Counter(points, progress)
+    counter = None if progress is None else ProgressCounter(points, progress)
     curve = te_curve(design, errors, tau_load=-load, points=points, progress=counter)
     wind = windup(design, errors)
     report = TEReport(curve, wind, float(wind.lost_motion_arcmin()[0]),
@@ -99,7 +99,7 @@ def te(design, errors=None, load: float = 0.0, points: int | None = None,
     return report
 
 
-class _Counter:
+class ProgressCounter:
     """Turns the solver's per-chunk counts into progress(total, done) calls."""
 
     def __init__(self, total, report):
@@ -136,7 +136,8 @@ def presets() -> list[PresetInfo]:
         text = resources.files("rvfmu.core.presets").joinpath(f"{name}.toml").read_text()
         first = text.splitlines()[0]
         source = first.split("Source:", 1)[1].strip().rstrip(".") if "Source:" in first else ""
-        infos.append(PresetInfo(name, preset(name).ratio, source, preset(name)))
+        design = preset(name)
+        infos.append(PresetInfo(name, design.ratio, source, design))
     return infos
 
 

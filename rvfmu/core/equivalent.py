@@ -117,7 +117,6 @@ class EquivalentModel:
         r_s, r_pl = d.m * d.z_s / 2.0, d.m * d.z_pl / 2.0
         crank_dir = p.theta_out[:, None] + 2.0 * np.pi * np.arange(n_c) / n_c     # (A, n_c)
         e_i, t_i = _unit(crank_dir), _perp(_unit(crank_dir))                      # (A, n_c, 2)
-        self._crank_dir = crank_dir
 
         # Sun-planet meshes: compression = w . (u_sun(C) - u_planet(C)) at the pitch point C.
         alpha = d.pressure_angle
@@ -181,9 +180,8 @@ class EquivalentModel:
         self.pin_rows = np.concatenate([normal, (lever / self.scale)[..., None]], axis=-1)
         self.pin_k = d.pin_disc_stiffness
         radial = _unit(pin_angle)
-        self._pin_radial_dot = np.einsum("ajkx,kx->ajk", normal, radial)            # n . e_k
-        self._pin_tangent_dot = np.einsum("ajkx,kx->ajk", normal, _perp(radial))    # n . t_k
-        self._pin_lever = lever
+        radial_dot = np.einsum("ajkx,kx->ajk", normal, radial)                      # n . e_k
+        tangent_dot = np.einsum("ajkx,kx->ajk", normal, _perp(radial))              # n . t_k
         # Lobe of each contact point, in the disc frame (disc 1 is disc 0 turned by pi).
         disc_angle = np.arctan2(arm[..., 1], arm[..., 0]) - p.theta_out[:, None, None]
         disc_angle -= np.array([0.0, np.pi])[None, :, None]
@@ -191,10 +189,9 @@ class EquivalentModel:
         self._lobe = np.minimum(self._lobe, d.z_c - 1)
         # Profile modifications as gaps (MODEL.md section 3): d_rrp opens every normal, d_rp
         # moves the generating pin circle out, closing the gap by d_rp (n . e_k).
-        self._pin_gap = d.d_rrp - d.d_rp * self._pin_radial_dot                     # (A, 2, z_p)
+        gap = d.d_rrp - d.d_rp * radial_dot                                         # (A, 2, z_p)
         # Everything the error offsets need per angle, gathered in one take.
-        self._pin_geometry = np.stack([self._pin_gap, self._pin_radial_dot,
-                                       self._pin_tangent_dot, self._pin_lever], axis=1)
+        self._pin_geometry = np.stack([gap, radial_dot, tangent_dot, lever], axis=1)
         self._lobe_flat = self._lobe + d.z_c * np.arange(2)[None, :, None]
 
     # -- loads -----------------------------------------------------------------------

@@ -167,7 +167,6 @@ class ReducedSystem:
         c_half = half_clearance[sample][:, self.nl_bearings]
         qn = np.zeros((B, self.N.size))
         converged = np.ones(B, dtype=bool)
-        iterations = 0
 
         elastic = ~zero
         if np.any(zero):

@@ -11,7 +11,7 @@ from ..core.checks import InputError
 
 def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress=None) -> Path:
     """Build the reducer FMU; returns its path.  progress(total, done): optional."""
-    from ..api import _Counter
+    from ..api import ProgressCounter
     from ..core.quasistatic import default_points
     from ..core.te_map import TORQUE_FRACTIONS
     from .build import build_fmu
@@ -19,7 +19,7 @@ def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress
     design = resolve_design(design)
     points = default_points(design) if points is None else points
     total = 2 * len(TORQUE_FRACTIONS) * points
-    counter = None if progress is None else _Counter(total, progress)
+    counter = None if progress is None else ProgressCounter(total, progress)
     return build_fmu(design, resolve_errors(design, errors), output, points=points, progress=counter)
 
 

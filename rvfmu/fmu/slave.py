@@ -121,7 +121,9 @@ class RVReducer(Fmi2Slave):
     def exit_initialization_mode(self):
         try:
             self._reducer = self._make_reducer()
-            self._check_inputs()
+            message = _bad_inputs(self.theta_in, self.tau_load)
+            if message:
+                raise FmuInputError(message)
             self._show(self._reducer.initialize(0.0, self.theta_in, self.tau_load))
         except Exception as exc:  # noqa: BLE001
             # pythonfmu turns any exception into fmi2Fatal and drops the instance, so a
@@ -135,7 +137,8 @@ class RVReducer(Fmi2Slave):
             return False
         theta_in, tau_load = self.theta_in, self.tau_load
         if not (isfinite(theta_in) and isfinite(tau_load) and step_size >= 0.0):
-            self._fail(_bad_step(theta_in, tau_load, step_size))
+            self._fail(_bad_inputs(theta_in, tau_load)
+                       or f"communication step size = {step_size}: must be >= 0")
             return False
         try:
             out = self._reducer.step(current_time, step_size, theta_in, tau_load)
@@ -196,12 +199,6 @@ class RVReducer(Fmi2Slave):
                                   points=self.map_points or None)
         return MODELS[self.model](te_map)
 
-    def _check_inputs(self):
-        for name in ("theta_in", "tau_load"):
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                raise FmuInputError(f"input {name} = {value}: must be finite")
-
     def _show(self, outputs):
         self.theta_out = outputs.theta_out
         self.omega_out = outputs.omega_out
@@ -214,11 +211,12 @@ class RVReducer(Fmi2Slave):
         self.log(message, Fmi2Status.error)
 
 
-def _bad_step(theta_in, tau_load, step_size):
+def _bad_inputs(theta_in, tau_load):
+    """The message for the first non-finite input, or None."""
     for name, value in (("theta_in", theta_in), ("tau_load", tau_load)):
         if not isfinite(value):
             return f"input {name} = {value}: must be finite"
-    return f"communication step size = {step_size}: must be >= 0"
+    return None
 
 
 def _describe(exc):
