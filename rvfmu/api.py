@@ -14,12 +14,23 @@ from pathlib import Path
 import numpy as np
 
 from .core import metrics
-from .core.checks import InputError, finite_number
+from .core.checks import InputError
+from .core.limits import check_load
 from .core.design import PRESET_NAMES, RVDesign, load_design, preset
 from .core.errors import ErrorSet, load_errors, zero_errors
 from .core.quasistatic import TECurve, Windup, default_points, te_curve, windup
+from .outputs import figure_file, output_file
+from .progress import counter as progress_counter
 
 HARMONICS_SHOWN = 5
+
+
+class NothingToWrite(InputError):
+    """A job that writes files was given none to write."""
+
+    def __init__(self, message):
+        ValueError.__init__(self, message)
+        self.field, self.value, self.allowed = "output", None, message
 
 
 @dataclass(frozen=True)
@@ -30,6 +41,7 @@ class TEReport:
     windup: Windup
     lost_motion_arcmin: float
     torsional_rigidity_Nm_per_arcmin: float
+    warnings: tuple[str, ...] = ()
 
     def summary(self) -> str:
         c = self.curve
@@ -47,7 +59,10 @@ class TEReport:
                f"(Nyquist order {nyquist} < pin-passing order {pin_order}: that ripple aliases)"),
             f"te_pp             {c.te_pp_arcsec[0]:.3f} arcsec",
             f"rms               {c.rms_arcsec[0]:.3f} arcsec (about the mean)",
-            f"mean              {c.mean_arcsec[0]:.3f} arcsec",
+            f"mean              {c.mean_arcsec[0]:.3f} arcsec"
+            + ("  (no load: the output's turn-back from its nominal place to the first contact,"
+               " i.e. the free play that the profile modifications, errors and clearances leave)"
+               if c.tau_load == 0 else ""),
             "largest orders    " + ", ".join(
                 f"{o}: {a:.3f}\u2033" for o, a in zip(orders[0], amplitudes[0])),
             f"lost motion       {self.lost_motion_arcmin:.3f} arcmin (windup span at +-3 % of "
@@ -57,6 +72,7 @@ class TEReport:
         ]
         if not np.all(c.converged):
             lines.append("warning           the equilibrium did not converge at some angles")
+        lines += [f"warning           {text}" for text in self.warnings]
         return "\n".join(lines)
 
 
@@ -80,16 +96,18 @@ def te(design, errors=None, load: float = 0.0, points: int | None = None,
 
     progress(total, done): optional, called as the curve's angles are solved.
     """
+    csv_path = None if csv_path is None else output_file("csv", csv_path)
+    plot_path = None if plot_path is None else figure_file("plot", plot_path)
     design = resolve_design(design)
     errors = resolve_errors(design, errors)
-    load = finite_number("load", load)
+    note = check_load("load", load, design.rated_torque)
     if points is None:
         points = default_points(design)
-    counter = None if progress is None else ProgressCounter(points, progress)
-    curve = te_curve(design, errors, tau_load=-load, points=points, progress=counter)
+    curve = te_curve(design, errors, tau_load=-load, points=points,
+                     progress=progress_counter(points, progress))
     wind = windup(design, errors)
     report = TEReport(curve, wind, float(wind.lost_motion_arcmin()[0]),
-                      float(wind.torsional_rigidity_Nm_per_arcmin()[0]))
+                      float(wind.torsional_rigidity_Nm_per_arcmin()[0]), (note,) if note else ())
     if csv_path is not None:
         write_te_csv(curve, csv_path)
     if plot_path is not None:
@@ -97,17 +115,6 @@ def te(design, errors=None, load: float = 0.0, points: int | None = None,
 
         plot_te(curve, plot_path)
     return report
-
-
-class ProgressCounter:
-    """Turns the solver's per-chunk counts into progress(total, done) calls."""
-
-    def __init__(self, total, report):
-        self.total, self.done, self.report = total, 0, report
-
-    def __call__(self, count):
-        self.done += count
-        self.report(self.total, self.done)
 
 
 def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:
@@ -146,10 +153,12 @@ def profile(design, csv_path: str | Path | None = None, dxf_path: str | Path | N
     """The disc profile of a design; writes CSV (mm) and/or DXF (mm)."""
     from .core import profile as prof
 
+    if csv_path is None and dxf_path is None:
+        raise NothingToWrite("nothing to write: give --csv FILE and/or --dxf FILE")
+    csv_path = None if csv_path is None else output_file("csv", csv_path)
+    dxf_path = None if dxf_path is None else output_file("dxf", dxf_path, ("dxf",))
     design = resolve_design(design)
     points = prof.DEFAULT_POINTS if points is None else points
-    if csv_path is None and dxf_path is None:
-        raise InputError("output", None, "give --csv and/or --dxf")
     if csv_path is not None:
         prof.write_profile_csv(design, csv_path, points)
     if dxf_path is not None:

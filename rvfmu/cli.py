@@ -2,6 +2,11 @@
 
 Bad input never shows a traceback: it prints one line naming the field, the
 value and what is allowed, and exits with status 2.
+
+Other packages add their commands through the entry-point group
+`rvte.commands` (the tolerance studies declare theirs in pyproject.toml): each
+entry is a function add(subparsers) that is found and called when the parser
+is built, so that `rvfmu` never imports the packages built on top of it.
 """
 
 from __future__ import annotations
@@ -9,37 +14,19 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from importlib import metadata
 
 from . import api
 from .core.checks import InputError
+from .progress import ProgressBar
 
-
-class ProgressBar:
-    """A tqdm bar on stderr for progress(total, done) callbacks; silent when not a terminal."""
-
-    def __init__(self, description):
-        self.description, self.bar = description, None
-
-    def __call__(self, total, done):
-        if self.bar is None:
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=total, desc=self.description, unit="pose", file=sys.stderr,
-                            disable=None, dynamic_ncols=True, leave=False)
-        self.bar.update(done - self.bar.n)
-
-    def close(self):
-        if self.bar is not None:
-            self.bar.close()
+COMMAND_GROUP = "rvte.commands"
 
 
 def _te(args):
-    bar = ProgressBar("te")
-    try:
+    with ProgressBar("te") as bar:
         report = api.te(args.design, args.errors, load=args.load, points=args.points,
                         csv_path=args.csv, plot_path=args.plot, progress=bar)
-    finally:
-        bar.close()
     print(report.summary())
     for label, path in (("csv", args.csv), ("plot", args.plot)):
         if path:
@@ -85,15 +72,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--points", type=int, help="points on the profile")
     p.set_defaults(run=_profile)
 
-    from tolerance.cli import add_study_commands
-
     from .fmu.cli import add_fmu_commands
 
     add_fmu_commands(sub)
-    add_study_commands(sub)
+    add_plugin_commands(sub)
     return parser
 
 
+def add_plugin_commands(subparsers) -> None:
+    """Call every add(subparsers) of the `rvte.commands` entry-point group.
+
+    A plugin that cannot be loaded (its package is missing or broken) costs its
+    own commands only: one line on stderr says which and why.
+    """
+    for entry in sorted(metadata.entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
+        try:
+            add = entry.load()
+        except Exception as exc:  # noqa: BLE001 - any failure of a plugin's import
+            print(f"rvte: the {entry.name!r} commands ({entry.value}) are unavailable: "
+                  f"{type(exc).__name__}: {exc}", file=sys.stderr)
+            continue
+        add(subparsers)
 
 
 def main(argv=None) -> int:
@@ -105,6 +104,9 @@ def main(argv=None) -> int:
         # the reader (e.g. `| head`) has gone: stop quietly, as command-line tools do
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except api.NothingToWrite as exc:
+        print(f"rvte {args.command}: {exc}", file=sys.stderr)
+        return 2
     except InputError as exc:
         print(f"rvte {args.command}: error: {exc}", file=sys.stderr)
         return 2

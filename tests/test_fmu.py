@@ -50,7 +50,7 @@ def run(fmu_path, stop, step, theta_of_t, tau_of_t, outputs=("theta_out", "te_ar
 class Instance:
     """One FMU instance driven by hand through fmpy's FMI 2.0 API, with its log."""
 
-    def __init__(self, fmu_path, description, name="reducer", strings=None, reals=None):
+    def __init__(self, fmu_path, description, name="reducer", strings=None, reals=None, ints=None):
         self.vr = {v.name: v.valueReference for v in description.modelVariables}
         self.log = []
         unzipped = extract(str(fmu_path))
@@ -63,6 +63,8 @@ class Instance:
             self.fmu.setString([self.vr[key]], [value])
         for key, value in (reals or {}).items():
             self.fmu.setReal([self.vr[key]], [value])
+        for key, value in (ints or {}).items():
+            self.fmu.setInteger([self.vr[key]], [value])
         self.fmu.setupExperiment(startTime=0.0)
         self.fmu.enterInitializationMode()
         self.fmu.exitInitializationMode()
@@ -164,6 +166,43 @@ def test_a_bad_design_parameter_is_reported_at_initialisation(fmu_path, descript
     assert expected in capfd.readouterr().out
 
 
+def test_load_above_the_momentary_class_warns_once_and_above_emergency_stop_is_refused(
+        fmu_path, description, rv40, capfd):
+    inst = Instance(fmu_path, description)
+    capfd.readouterr()
+    rated = rv40.rated_torque
+    for k, load in enumerate((-2.0 * rated, -3.0 * rated, 4.0 * rated)):   # in range: no Discard
+        inst.set(theta_in=1.0 + k, tau_load=load)
+        inst.step(k * STEP, STEP)
+    log = capfd.readouterr().out
+    assert log.count("above the momentary maximum class") == 1        # warned once, not per step
+    assert "tau_load = -1236 N*m" in log                              # the first offending input
+    inst.set(theta_in=5.0, tau_load=-5.5 * rated)
+    with pytest.raises(Exception, match="status 2"):                  # fmi2Discard
+        inst.step(3 * STEP, STEP)
+    assert "tau_load = -2266.0: must be within +-5 x the rated torque 412" in capfd.readouterr().out
+    inst.set(theta_in=5.0, tau_load=-rated)
+    inst.step(4 * STEP, STEP)                                         # still usable afterwards
+
+
+def test_error_scale_zero_is_the_error_free_reducer(fmu_path, description, rv40, tmp_path):
+    clean_fmu = build_fmu(rv40, None, tmp_path / "clean.fmu", points=624)
+    clean = Instance(clean_fmu, read_model_description(str(clean_fmu)))
+    zeroed = Instance(fmu_path, description, reals={"error_scale": 0.0},
+                      ints={"map_points": 624})
+    errors = Instance(fmu_path, description, reals={"error_scale": 1.0},
+                      ints={"map_points": 624})
+    t = 0.0
+    for theta, load in ((0.3, -400.0), (17.0, -10.0), (2.2, 0.0), (50.0, 300.0), (80.1, -800.0)):
+        for inst in (clean, zeroed, errors):
+            inst.set(theta_in=theta, tau_load=load)
+            inst.step(t, STEP)
+        t += STEP
+        assert zeroed.get("te")[0] == pytest.approx(clean.get("te")[0], abs=1e-12)
+        assert zeroed.get("tau_in")[0] == pytest.approx(clean.get("tau_in")[0], abs=1e-12)
+        assert abs(errors.get("te")[0] - clean.get("te")[0]) > 1e-7   # the errors do show
+
+
 def test_state_roll_back_and_re_step_give_identical_results(fmu_path, description):
     inst = Instance(fmu_path, description)
     inst.set(theta_in=10.0, tau_load=-200.0)
@@ -197,7 +236,7 @@ def test_instances_in_one_process_stay_independent(fmu_path, description, rv40):
     plain = Instance(fmu_path, description, name="plain")
     # a second instance with other physics: no errors, the map solved again at init
     clean = Instance(fmu_path, description, name="clean",
-                     reals={"error_scale": 1e-9, "pin_stiffness_scale": 1.0})
+                     reals={"error_scale": 0.0, "pin_stiffness_scale": 1.0})
     alone = Instance(fmu_path, description, name="alone")
     for inst, theta in ((plain, 5.0), (clean, 5.0), (alone, 5.0)):
         inst.set(theta_in=theta, tau_load=-rv40.rated_torque)

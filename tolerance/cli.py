@@ -20,7 +20,7 @@ def _mc(args):
 
     result = run_mc(args.study, args.n, output=args.output, processes=args.processes,
                     workers=args.workers, scheduler=args.scheduler, progress=None,
-                    plots=not args.no_plots, log=_log)
+                    plots=not args.no_plots, log=_log, yes=args.yes)
     _show(result, args.json)
 
 
@@ -29,7 +29,8 @@ def _sobol(args):
 
     result = run_sobol(args.study, args.n, second_order=True if args.second_order else None,
                        output=args.output, processes=args.processes, workers=args.workers,
-                       scheduler=args.scheduler, progress=None, plots=not args.no_plots, log=_log)
+                       scheduler=args.scheduler, progress=None, plots=not args.no_plots, log=_log,
+                       yes=args.yes)
     _show(result, args.json)
 
 
@@ -43,7 +44,7 @@ def _show(result, as_json):
 
 
 def _common(p):
-    p.add_argument("study", help="study TOML file (see tolerance/README_SECTION.md)")
+    p.add_argument("study", help="study TOML file (see docs/studies.md)")
     p.add_argument("-o", "--output", help="output folder (default: the study's [study] output, "
                    "or <study name>/output beside the study file)")
     where = p.add_mutually_exclusive_group()
@@ -54,6 +55,8 @@ def _common(p):
                        help="evaluate on the Dask cluster at ADDRESS (tcp://host:port)")
     p.add_argument("--json", action="store_true", help="print one JSON document instead of the table")
     p.add_argument("--no-plots", action="store_true", help="write no figures")
+    p.add_argument("--yes", action="store_true", help="run even if the estimate (printed before "
+                   "the run, from its first batch) is above a day or above the free disk")
 
 
 def add_study_commands(subparsers) -> None:

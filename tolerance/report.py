@@ -24,16 +24,26 @@ def operating_text(study) -> str:
     pin_order = d.z_p * d.z_c
     nyquist = study.points // 2
     resolve = (f"resolves the pin-passing order {pin_order}" if nyquist > pin_order else
-               f"Nyquist order {nyquist} < pin-passing order {pin_order}: that ripple aliases")
+               f"below the pin-passing order {pin_order}: its effect is measured by the "
+               "aliasing check")
     return f"{d.name}, {load}, {study.points} points per output revolution ({resolve})"
 
 
 # -- Monte Carlo ------------------------------------------------------------------------------
 
-def mc_table(study, analysis: MCAnalysis) -> str:
-    """The distribution of every metric, the yields and the worst reducer, as text."""
+def mc_table(study, analysis: MCAnalysis, computed=None, aliasing=None) -> str:
+    """The distribution of every metric, the yields and the worst reducer, as text.
+
+    computed: the run's `Computed` record (how many reducers were computed, in
+    which batches); aliasing: the run's `AliasingCheck`, if the points alias.
+    """
     a = analysis
-    lines = [f"Monte Carlo of study {study.name!r}: {a.n} reducers (seed {study.seed})",
+    counted = f"{a.n} reducers analysed"
+    if computed is not None:
+        counted += (f" ({computed.Y.shape[0]} computed in {computed.batches} batches of "
+                    f"{computed.batch_size}"
+                    + ("; the rest are kept for a larger -n)" if computed.Y.shape[0] > a.n else ")"))
+    lines = [f"Monte Carlo of study {study.name!r}: {counted} (seed {study.seed})",
              f"  {operating_text(study)}"]
     heads = ["mean", "std", "min"] + [f"p{p}" for p in PERCENTILES] + ["max"]
     width = max(len(c) for c in study.metric_columns) + 2
@@ -51,6 +61,8 @@ def mc_table(study, analysis: MCAnalysis) -> str:
         lines.append(f"  warning: the model failed on {a.failed} reducers; they are left out")
     if a.not_converged:
         lines.append(f"  warning: {a.not_converged} reducers did not converge at some angle")
+    if aliasing is not None:
+        lines += ["  " + line for line in aliasing.lines()]
     return "\n".join(lines)
 
 

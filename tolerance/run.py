@@ -9,6 +9,8 @@ was killed is simply started again.
 from __future__ import annotations
 
 import math
+import os
+import shutil
 import sys
 import time
 from dataclasses import dataclass, field
@@ -19,8 +21,9 @@ import numpy as np
 from rvfmu.core.checks import InputError, integer
 from rvfmu.core.errors import error_file_values
 from rvfmu.core.quasistatic import TECurve, te_curve
+from rvfmu.outputs import output_folder
 
-from . import montecarlo, report, sobol
+from . import aliasing, montecarlo, report, sobol
 from .backends import make_backend
 from .sampling import errors_from_unit
 from .store import BatchResult, JobStore, open_output
@@ -39,6 +42,7 @@ class Computed:
     computed_rows: int
     seconds: float
     backend: str
+    batch_size: int = 0
 
     @property
     def rate(self) -> float:
@@ -47,46 +51,140 @@ class Computed:
 
     def summary(self, job: str) -> str:
         rate = f", {self.rate:.1f} reducers/s" if self.computed else ""
-        return (f"{job}: {self.batches} batches ({self.reused} reused, {self.computed} computed) "
-                f"for {self.Y.shape[0]} reducers in {self.seconds:.1f} s{rate} on {self.backend}")
+        return (f"{job}: {self.Y.shape[0]} reducers in {self.batches} batches of "
+                f"{self.batch_size} ({self.reused} reused, {self.computed} computed) "
+                f"in {self.seconds:.1f} s{rate} on {self.backend}")
+
+
+DAY_SECONDS = 86400.0      # a run estimated above a day needs --yes
+DISK_MARGIN = 1.1          # store size + 10 % must fit in the free space without --yes
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What a job will cost, estimated from the first batch it computed.
+
+    seconds_first: wall time of that batch on one worker; bytes_first: its file size.
+    """
+
+    job: str
+    rows: int
+    batches: int
+    missing: int
+    batch_size: int
+    workers: int
+    backend: str
+    seconds_first: float
+    bytes_first: int
+    free_bytes: int
+
+    @property
+    def seconds(self) -> float:
+        """Estimated wall time of the batches still to compute after the first [s]."""
+        return self.seconds_first * (self.missing - 1) / max(1, self.workers)
+
+    @property
+    def store_bytes(self) -> int:
+        """Estimated disk taken by the batches still to write [bytes]."""
+        return self.bytes_first * (self.missing - 1)
+
+    def text(self) -> str:
+        return (f"{self.job}: {self.rows} evaluations in {self.batches} batches of "
+                f"{self.batch_size} ({self.missing} to compute); first batch "
+                f"{self.seconds_first:.2f} s -> about {duration_text(self.seconds)} more on "
+                f"{self.backend}; the store takes about {size_text(self.store_bytes)} more "
+                f"({size_text(self.free_bytes)} free)")
+
+    def refusal(self) -> str | None:
+        """Why this run should not start without confirmation, or None."""
+        reasons = []
+        if self.seconds > DAY_SECONDS:
+            reasons.append(f"would take about {duration_text(self.seconds)} on {self.backend}")
+        if self.store_bytes * DISK_MARGIN > self.free_bytes:
+            reasons.append(f"would write about {size_text(self.store_bytes)} with "
+                           f"{size_text(self.free_bytes)} free on the output's disk")
+        if not reasons:
+            return None
+        return (f"{self.rows} evaluations " + " and ".join(reasons) + " (estimated from the first "
+                f"batch of {self.batch_size}: {self.seconds_first:.2f} s, "
+                f"{size_text(self.bytes_first)}); give --yes to run it anyway, or ask for fewer")
+
+
+def duration_text(seconds: float) -> str:
+    for unit, size in (("years", 365.25 * DAY_SECONDS), ("days", DAY_SECONDS), ("h", 3600.0),
+                       ("min", 60.0)):
+        if seconds >= size:
+            return f"{seconds / size:.1f} {unit}"
+    return f"{seconds:.0f} s"
+
+
+def size_text(size: float) -> str:
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if size >= scale:
+            return f"{size / scale:.1f} {unit}"
+    return f"{size:.0f} B"
 
 
 def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: bool | None = False,
-            log=None, output: Path | None = None) -> Computed:
+            log=None, output: Path | None = None, yes: bool = False,
+            size_field: tuple[str, int] | None = None) -> Computed:
     """Metrics of rows [0, n_rows) of `job`, reusing the batches already in the output folder.
 
     rows(start, stop) -> (stop - start, D) sample rows.  Batches are the
-    study's batch_size rows each, at fixed boundaries.
+    study's batch_size rows each, at fixed boundaries.  The first missing
+    batch is computed and timed before the others: a run estimated above a day,
+    or above the free disk, stops there with an InputError on `size_field`
+    (name, value) unless `yes`.  log(str) gets the estimate and the summary.
     """
     backend = backend or make_backend()
     folder = open_output(study, output)
     store = JobStore(folder, study, job)
     B = study.batch_size
-    batches = [(s, min(s + B, n_rows)) for s in range(0, n_rows, B)]
-    done = store.load(batches, rows)
-    missing = [b for b in batches if b not in done]
-    todo_rows = sum(stop - start for start, stop in missing)
+    n_batches = -(-n_rows // B)
+    done = store.load(n_rows, rows)
+    missing = n_batches - len(done)
+    todo_rows = n_rows - sum(r.stop - r.start for r in done.values())
     start_time = time.perf_counter()
     if missing:
-        bar = _progress_bar(todo_rows, job, progress, len(done))
-        try:
-            with backend:
-                tasks = ((b, rows(*b)) for b in missing)
+        gaps = ((s, min(s + B, n_rows)) for s in range(0, n_rows, B) if (s, min(s + B, n_rows))
+                not in done)
+        bar = None
+        with backend:
+            first = next(gaps)
+            clock = time.perf_counter()
+            for (s, e), X, Y, conv in backend.map(study, iter([(first, rows(*first))])):
+                written = store.write(s, e, X, Y, conv)
+                done[(s, e)] = BatchResult(s, e, Y, conv)
+            plan = RunPlan(job, n_rows, n_batches, missing, B, backend.workers, backend.describe(),
+                           time.perf_counter() - clock, written.stat().st_size,
+                           shutil.disk_usage(folder).free)
+            if log is not None:
+                log(plan.text())
+            refusal = plan.refusal()
+            if refusal and not yes:
+                name, value = size_field or ("n", n_rows)
+                raise InputError(name, value, refusal)
+            bar = _progress_bar(todo_rows, job, progress, len(done))
+            try:
+                if bar is not None:
+                    bar.update(first[1] - first[0])
+                tasks = ((b, rows(*b)) for b in gaps)
                 for (s, e), X, Y, conv in backend.map(study, tasks):
                     store.write(s, e, X, Y, conv)
                     done[(s, e)] = BatchResult(s, e, Y, conv)
                     if bar is not None:
                         bar.update(e - s)
-        finally:
-            if bar is not None:
-                bar.close()
+            finally:
+                if bar is not None:
+                    bar.close()
     seconds = time.perf_counter() - start_time
+    batches = [(s, min(s + B, n_rows)) for s in range(0, n_rows, B)]
     Y = np.concatenate([done[b].Y for b in batches]) if batches else \
         np.empty((0, len(study.metrics)))
     converged = np.concatenate([done[b].converged for b in batches]) if batches else \
         np.empty(0, dtype=bool)
-    result = Computed(Y, converged, len(batches), len(batches) - len(missing), len(missing),
-                      todo_rows, seconds, backend.describe())
+    result = Computed(Y, converged, n_batches, n_batches - missing, missing, todo_rows, seconds,
+                      backend.describe(), B)
     if log is not None:
         log(result.summary(job))
     return result
@@ -119,13 +217,16 @@ class MCResult:
     analysis: montecarlo.MCAnalysis
     worst_curve: TECurve | None
     computed: Computed
+    aliasing: aliasing.AliasingCheck | None = None
     files: dict = field(default_factory=dict)
 
     def table(self) -> str:
-        return report.mc_table(self.study, self.analysis)
+        return report.mc_table(self.study, self.analysis, self.computed, self.aliasing)
 
     def to_json(self) -> dict:
         return report.mc_json(self.study, self.analysis, {
+            "computed_rows": int(self.computed.Y.shape[0]), "batch_size": self.study.batch_size,
+            "aliasing": None if self.aliasing is None else self.aliasing.to_json(),
             "output": str(self.study.output), "files": {k: str(v) for k, v in self.files.items()},
             "run": {"batches": self.computed.batches, "reused": self.computed.reused,
                     "computed": self.computed.computed, "seconds": self.computed.seconds,
@@ -134,7 +235,7 @@ class MCResult:
 
 def run_mc(study_path, n: int | None = None, *, output=None, processes: int | None = None,
            workers: int | None = None, scheduler: str | None = None, progress: bool | None = False,
-           plots: bool = True, log=None) -> MCResult:
+           plots: bool = True, log=None, yes: bool = False) -> MCResult:
     """Monte Carlo of a study file: n reducers (default: the study's [montecarlo] n).
 
     Backends: none of processes/workers/scheduler -> in-process; processes=k ->
@@ -142,17 +243,23 @@ def run_mc(study_path, n: int | None = None, *, output=None, processes: int | No
     scheduler="tcp://host:port" -> that Dask cluster.  Writes to the study's
     output folder (or `output`): the batches, mc_summary.json, mc_samples.csv,
     mc_distribution.png, and the worst reducer's TE curve (mc_worst_te.png /
-    .csv) and error file (mc_worst_errors.toml).  log(str) receives the
-    one-line run summary.
+    .csv) and error file (mc_worst_errors.toml).  log(str) receives the cost
+    estimate and the one-line run summary; a run estimated above a day or above
+    the free disk stops after its first batch unless `yes` (see `compute`).
     """
     study = _load(study_path, output)
     n = study.mc_n if n is None else integer("n", n, 1)
+    _warn_load(study, log)
     # Whole batches are computed so that a later, larger n reuses every batch as it is.
     n_rows = math.ceil(n / study.batch_size) * study.batch_size
     computed = compute(study, "mc", n_rows, lambda s, e: montecarlo.rows(study, s, e),
-                       make_backend(processes, workers, scheduler), progress, log)
+                       make_backend(processes, workers, scheduler), progress, log, yes=yes,
+                       size_field=("n", n))
     Y, converged = computed.Y[:n], computed.converged[:n]
     analysis = montecarlo.analyze(study, Y, converged)
+    check_rows = min(n, aliasing.CHECK_ROWS)
+    alias = aliasing.check(study, montecarlo.rows(study, 0, check_rows), Y[:check_rows],
+                           Path(study.output) / "mc", Y, study.spec)
     worst_curve = _worst_curve(study, analysis.worst)
     folder = Path(study.output)
     files = {"summary": folder / "mc_summary.json", "samples": folder / "mc_samples.csv",
@@ -176,7 +283,7 @@ def run_mc(study_path, n: int | None = None, *, output=None, processes: int | No
             files["worst_te"] = plot_te(worst_curve, folder / "mc_worst_te.png", title=(
                 f"{study.name}: worst of {n} reducers (row {analysis.worst}), "
                 f"te_pp {worst_curve.te_pp_arcsec[0]:.2f}″, {study.points} points/rev"))
-    result = MCResult(study, n, Y, converged, analysis, worst_curve, computed, files)
+    result = MCResult(study, n, Y, converged, analysis, worst_curve, computed, alias, files)
     report.write_json(files["summary"], result.to_json())
     return result
 
@@ -212,15 +319,19 @@ class SobolResult:
     Y: np.ndarray
     analyses: dict
     computed: Computed
+    aliasing: aliasing.AliasingCheck | None = None
     files: dict = field(default_factory=dict)
 
     def table(self) -> str:
-        return report.sobol_table(self.study, self.analyses, self.n, self.Y.shape[0],
+        text = report.sobol_table(self.study, self.analyses, self.n, self.Y.shape[0],
                                   self.second_order)
+        return "\n".join([text, *self.aliasing.lines()]) if self.aliasing else text
 
     def to_json(self) -> dict:
         return report.sobol_json(self.study, self.analyses, self.n, self.Y.shape[0],
                                  self.second_order, {
+                                     "aliasing": None if self.aliasing is None
+                                     else self.aliasing.to_json(),
                                      "output": str(self.study.output),
                                      "files": {k: str(v) for k, v in self.files.items()},
                                      "run": {"batches": self.computed.batches,
@@ -238,7 +349,7 @@ def sobol_job(n: int, second_order: bool) -> str:
 def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = None, output=None,
               processes: int | None = None, workers: int | None = None,
               scheduler: str | None = None, progress: bool | None = False, plots: bool = True,
-              log=None) -> SobolResult:
+              log=None, yes: bool = False) -> SobolResult:
     """Sobol indices of every metric of a study file over its tolerance factors.
 
     n: base samples (a power of 2; default the study's [sobol] n); the model
@@ -249,29 +360,58 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     study = _load(study_path, output)
     n = study.sobol_n if n is None else sobol_base_samples("n", n)
     second_order = study.second_order if second_order is None else bool(second_order)
+    _warn_load(study, log)
     problem = study.problem()
+    _check_sample_memory(problem, n, second_order)
     X = sobol.sample(problem, n, second_order, seed=study.seed)
-    computed = compute(study, sobol_job(n, second_order), X.shape[0], lambda s, e: X[s:e],
-                       make_backend(processes, workers, scheduler), progress, log)
+    job = sobol_job(n, second_order)
+    computed = compute(study, job, X.shape[0], lambda s, e: X[s:e],
+                       make_backend(processes, workers, scheduler), progress, log, yes=yes,
+                       size_field=("n", n))
     bad = np.flatnonzero(~np.all(np.isfinite(computed.Y), axis=1))
     if bad.size:
         raise RuntimeError(f"the model failed on {bad.size} of {X.shape[0]} Sobol rows (first: row "
                            f"{bad[0]}); Sobol indices need every row: check the tolerances")
     analyses = sobol.analyze(problem, computed.Y, study.metric_columns, second_order,
                              study.resamples, study.sobol_confidence, study.seed)
+    check_rows = min(X.shape[0], aliasing.CHECK_ROWS)
+    alias = aliasing.check(study, X[:check_rows], computed.Y[:check_rows],
+                           Path(study.output) / job)
     folder = Path(study.output)
     files = {"indices": folder / "sobol_indices.json", "ranking": folder / "sobol_ranking.txt"}
     if plots:
         files["bars"] = report.plot_sobol(study, analyses, folder / "sobol_bars.png")
         files["convergence"] = report.plot_convergence(study, analyses,
                                                        folder / "sobol_convergence.png")
-    result = SobolResult(study, n, second_order, X, computed.Y, analyses, computed, files)
+    result = SobolResult(study, n, second_order, X, computed.Y, analyses, computed, alias, files)
     files["ranking"].write_text(result.table() + "\n")
     report.write_json(files["indices"], result.to_json())
     return result
 
 
+SAMPLE_MEMORY_SHARE = 0.25   # the Saltelli matrix may take at most this share of the memory
+
+
+def _check_sample_memory(problem: dict, n: int, second_order: bool) -> None:
+    """Refuse a Sobol n whose sample matrix alone would not fit in memory (no --yes helps)."""
+    rows = n * sobol.rows_per_base_sample(problem, second_order)
+    size = rows * problem["num_vars"] * 8
+    memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if size > SAMPLE_MEMORY_SHARE * memory:
+        raise InputError("n", n, f"gives {rows} Sobol rows whose sample matrix alone takes "
+                         f"{size_text(size)}, more than {SAMPLE_MEMORY_SHARE:.0%} of this machine's "
+                         f"{size_text(memory)} of memory: choose a smaller n")
+
+
+def _warn_load(study: Study, log) -> None:
+    warning = study.load_warning
+    if warning and log is not None:
+        log(f"warning: {warning}")
+
+
 def _load(study_path, output) -> Study:
+    if output is not None:
+        output_folder("output", output)
     if isinstance(study_path, Study):
         if output is None:
             return study_path
@@ -280,4 +420,6 @@ def _load(study_path, output) -> Study:
         return replace(study_path, output=Path(output))
     if not isinstance(study_path, (str, Path)):
         raise InputError("study", study_path, "must be a study file path or a Study")
-    return load_study(study_path, output)
+    study = load_study(study_path, output)
+    output_folder("output", study.output)
+    return study

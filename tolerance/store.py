@@ -121,25 +121,35 @@ class JobStore:
         self.columns = study.metric_columns
         self._remove_stale_temporaries()
 
-    def paths(self, start: int, stop: int) -> list[Path]:
-        """The file(s) of rows [start, stop): batch-<start>-<stop>-<sha256 of the file, 16 hex>.parquet."""
-        return sorted(self.folder.glob(f"batch-{start:09d}-{stop:09d}-*.parquet"))
+    def load(self, n_rows: int, rows) -> dict:
+        """Verified results of the batches of rows [0, n_rows) that have a file.
 
-    def load(self, batches, rows) -> dict:
-        """Verified results of the `batches` ((start, stop) pairs) that have a file.
-
+        Batches are the study's batch_size rows each, at fixed boundaries (the
+        last one may be shorter); files of other ranges are left alone.
         rows(start, stop) -> the sample rows of that batch, to check that the
         file was computed from them.  Returns {(start, stop): BatchResult}.
+        The folder is listed once, so a job of millions of batches costs one
+        listing, not one look-up per batch.
         """
+        size = self.study.batch_size
         found = {}
-        for start, stop in batches:
-            paths = self.paths(start, stop)
+        for (start, stop), paths in self.files().items():
+            if start >= n_rows or start % size or stop != min(start + size, n_rows):
+                continue
             if len(paths) > 1:
                 raise InputError("batch", str(paths[1]), f"is a second file for rows {start}-{stop} "
                                  f"beside {paths[0].name}; delete one of them")
-            if paths:
-                found[(start, stop)] = self.read(paths[0], start, stop, rows(start, stop))
+            found[(start, stop)] = self.read(paths[0], start, stop, rows(start, stop))
         return found
+
+    def files(self) -> dict:
+        """{(start, stop): [paths]} of every batch file in the job's folder."""
+        files = {}
+        for path in sorted(self.folder.glob("batch-*-*-*.parquet")):
+            parts = path.stem.split("-")
+            if len(parts) == 4 and parts[1].isdigit() and parts[2].isdigit():
+                files.setdefault((int(parts[1]), int(parts[2])), []).append(path)
+        return files
 
     def read(self, path: Path, start: int, stop: int, X: np.ndarray) -> BatchResult:
         """Read one batch file and check it against this study, its range and its rows."""

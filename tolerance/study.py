@@ -49,6 +49,7 @@ from pathlib import Path
 from rvfmu.core.checks import InputError, finite_number, integer
 from rvfmu.core.design import PRESET_NAMES, RVDesign, load_design
 from rvfmu.core.errors import ERROR_NAMES, ErrorSet, error_file_values, load_errors
+from rvfmu.core.limits import check_load
 from rvfmu.core.quasistatic import default_points
 
 from . import sampling
@@ -173,7 +174,7 @@ class Study:
         integer("windup_positions", self.windup_positions, 1, where=where)
         integer("batch_size", self.batch_size, 1, MAX_BATCH, where=where)
         integer("seed", self.seed, 0, 2 ** 63 - 1, where=where)
-        finite_number("load_Nm", self.load_Nm, where)
+        check_load("operating.load_Nm", self.load_Nm, self.design.rated_torque, where)
         if not self.factors:
             raise InputError("tolerances", None, "a study needs at least one [tolerances.NAME] "
                              f"table; NAME is one of {', '.join(ERROR_NAMES)}", where)
@@ -200,6 +201,12 @@ class Study:
                 raise InputError(key, value, "must be between 0 and 1 (e.g. 0.95)", where)
         if self.base_errors is not None:
             self.base_errors.check(self.design)
+
+    @property
+    def load_warning(self) -> str | None:
+        """A warning when the load is above the momentary maximum class (rvfmu.core.limits)."""
+        where = self.path.name if self.path else self.name
+        return check_load("operating.load_Nm", self.load_Nm, self.design.rated_torque, where)
 
     # -- the problem definition ----------------------------------------------------------
     @cached_property

@@ -20,6 +20,7 @@ from . import metrics
 from .checks import InputError, finite_number, integer
 from .design import RVDesign
 from .equivalent import EquivalentModel
+from .limits import check_load
 from .errors import ErrorSet, zero_errors
 from .solver import solve_pairs
 from .units import ARCMIN, rad_to_arcsec
@@ -113,6 +114,8 @@ def equilibria(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=
     """
     theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
     tau_load = np.atleast_1d(np.asarray(tau_load, dtype=float))
+    if tau_load.size:
+        check_load("tau_load", tau_load[np.argmax(np.abs(tau_load))], design.rated_torque)
     S, T, A = errors.samples, tau_load.size, theta_in.size
     out = {name: np.empty((S, T, A)) for name in ("te", "tau_in", "pin_force_max")}
     ok = np.empty((S, T, A), dtype=bool)

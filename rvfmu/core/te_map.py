@@ -23,8 +23,10 @@ from .errors import ErrorSet, zero_errors
 from .quasistatic import default_points, equilibria, input_angles
 
 # Torque levels as fractions of rated torque: dense near zero, where contacts and
-# clearances close, sparse at high load, where the windup is nearly linear.
-TORQUE_FRACTIONS = (0.0, 0.005, 0.015, 0.03, 0.06, 0.1, 0.15, 0.25, 0.35, 0.5, 0.75, 1.0, 1.25, 1.5)
+# clearances close, sparse at high load, where the windup is nearly linear; up to the
+# momentary maximum class (limits.MOMENTARY_FACTOR), beyond which a host is warned.
+TORQUE_FRACTIONS = (0.0, 0.005, 0.015, 0.03, 0.06, 0.1, 0.15, 0.25, 0.35, 0.5, 0.75, 1.0, 1.25, 1.5,
+                    2.0, 2.5)
 
 
 @dataclass(frozen=True)

@@ -7,20 +7,25 @@ from pathlib import Path
 
 from ..api import resolve_design, resolve_errors
 from ..core.checks import InputError
+from ..outputs import output_file
+from ..progress import counter as progress_counter
 
 
 def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress=None) -> Path:
     """Build the reducer FMU; returns its path.  progress(total, done): optional."""
-    from ..api import ProgressCounter
     from ..core.quasistatic import default_points
     from ..core.te_map import TORQUE_FRACTIONS
     from .build import build_fmu
 
-    design = resolve_design(design)
-    points = default_points(design) if points is None else points
+    output = Path(output)
+    output = output_file("output", output if output.suffix == ".fmu" else output.with_suffix(".fmu"))
+    points = default_points(resolve_design(design)) if points is None else points
     total = 2 * len(TORQUE_FRACTIONS) * points
-    counter = None if progress is None else ProgressCounter(total, progress)
-    return build_fmu(design, resolve_errors(design, errors), output, points=points, progress=counter)
+    sources = {"design": design if isinstance(design, (str, Path)) else None,
+               "errors": errors if isinstance(errors, (str, Path)) else None}
+    design = resolve_design(design)
+    return build_fmu(design, resolve_errors(design, errors), output, points=points,
+                     progress=progress_counter(total, progress), sources=sources)
 
 
 def fmu_info(path) -> str:
@@ -32,6 +37,7 @@ def fmu_info(path) -> str:
         raise InputError("fmu", str(path), "must be an FMU file (a zip archive)")
     md = read_model_description(str(path))
     lines = [f"{md.modelName}  FMI {md.fmiVersion} co-simulation  ({md.generationTool})",
+             *_bundled(path),
              f"{'name':<24} {'causality':<10} {'variability':<12} {'start':>12}  {'unit':<7} description"]
     for v in md.modelVariables:
         start = "" if v.start is None else str(v.start)
@@ -41,3 +47,40 @@ def fmu_info(path) -> str:
         e = md.defaultExperiment
         lines.append(f"default experiment: start {e.startTime}, stop {e.stopTime}, step {e.stepSize}")
     return "\n".join(lines)
+
+
+def _bundled(path: Path) -> list[str]:
+    """Lines naming the design and the error set the FMU carries (from its resources)."""
+    import tomllib
+
+    from .build import SOURCE_PREFIX
+    from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS
+
+    lines = []
+    with zipfile.ZipFile(path) as archive:
+        names = set(archive.namelist())
+        for label, name in (("design", BUNDLED_DESIGN), ("errors", BUNDLED_ERRORS)):
+            member = f"resources/{name}"
+            if member not in names:
+                lines.append(f"{label:<8} (none bundled)")
+                continue
+            text = archive.read(member).decode()
+            first = text.splitlines()[0] if text else ""
+            source = first[len(SOURCE_PREFIX):] if first.startswith(SOURCE_PREFIX) else ""
+            values = tomllib.loads(text)
+            if label == "design":
+                what = (f"{values.get('name', '?')} (z_s {values.get('z_s')}, z_pl "
+                        f"{values.get('z_pl')}, z_p {values.get('z_p')}, rated torque "
+                        f"{values.get('rated_torque_Nm')} N*m)")
+            else:
+                nonzero = [k for k, v in values.items() if _any_nonzero(v)]
+                what = (f"{len(nonzero)} nonzero: {', '.join(nonzero)}" if nonzero
+                        else "none: the error-free reducer")
+            lines.append(f"{label:<8} {what}" + (f"  [from {source}]" if source else ""))
+    return lines
+
+
+def _any_nonzero(value) -> bool:
+    if isinstance(value, list):
+        return any(_any_nonzero(v) for v in value)
+    return isinstance(value, (int, float)) and value != 0

@@ -41,8 +41,12 @@ DEFAULT_STEP = 1e-3
 
 
 def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Path = "RVReducer.fmu",
-              points: int | None = None, progress=None) -> Path:
-    """Write the reducer FMU for `design` and one reducer's `errors` to `output`."""
+              points: int | None = None, progress=None, sources: dict | None = None) -> Path:
+    """Write the reducer FMU for `design` and one reducer's `errors` to `output`.
+
+    sources: {"design": ..., "errors": ...}, where they came from (a preset name,
+    a file path), recorded in the bundled files for `rvte fmu info`.
+    """
     from pythonfmu import FmuBuilder
 
     errors = zero_errors(design) if errors is None else errors.check(design)
@@ -56,8 +60,11 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
         shutil.copytree(PACKAGE / "core", package / "core",
                         ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
         (package / "__init__.py").write_text((PACKAGE / "__init__.py").read_text())
-        (tmp / BUNDLED_DESIGN).write_text(_toml(design.file_values()))
-        (tmp / BUNDLED_ERRORS).write_text(_toml(error_file_values(errors)))
+        sources = sources or {}
+        (tmp / BUNDLED_DESIGN).write_text(_source_line(sources.get("design"))
+                                          + _toml(design.file_values()))
+        (tmp / BUNDLED_ERRORS).write_text(_source_line(sources.get("errors"))
+                                          + _toml(error_file_values(errors)))
         np.savez(tmp / BUNDLED_MAP, **te_map.to_arrays())
         script = tmp / "src" / f"{MODULE_NAME}.py"
         script.parent.mkdir()
@@ -113,6 +120,13 @@ def complete_model_description(fmu: Path) -> None:
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
         for name, data in entries.items():
             archive.writestr(name, data)
+
+
+SOURCE_PREFIX = "# source: "
+
+
+def _source_line(source) -> str:
+    return f"{SOURCE_PREFIX}{source}\n" if source else ""
 
 
 def _toml(values: dict) -> str:

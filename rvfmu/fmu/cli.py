@@ -22,15 +22,11 @@ def add_fmu_commands(subparsers) -> None:
 
 
 def _build(args):
+    from ..progress import ProgressBar
     from .api import fmu_build
 
-    from ..cli import ProgressBar
-
-    bar = ProgressBar("TE map")
-    try:
+    with ProgressBar("TE map") as bar:
         path = fmu_build(args.design, args.errors, args.output, points=args.points, progress=bar)
-    finally:
-        bar.close()
     print(f"wrote {path}")
 
 

@@ -26,6 +26,7 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from rvfmu.core.checks import InputError
 from rvfmu.core.design import load_design
 from rvfmu.core.errors import load_errors, zero_errors
+from rvfmu.core.limits import MOMENTARY_FACTOR, check_load
 from rvfmu.core.reducer_model import MODELS
 from rvfmu.core.te_map import TEMap, build_te_map
 from rvfmu.core.units import ARCSEC
@@ -68,6 +69,8 @@ class RVReducer(Fmi2Slave):
         self.map_points = 0
         self._reducer = None
         self._failed = None
+        self._rated_torque = self._momentary_torque = math.inf
+        self._load_warned = False
 
         cont, par = Fmi2Variability.continuous, Fmi2Variability.fixed
         for name, text in (("theta_in", "input shaft (sun) angle [rad]"),
@@ -82,15 +85,17 @@ class RVReducer(Fmi2Slave):
                            ("tau_in", "torque of the reducer on the input shaft [N.m]")):
             self.register_variable(Real(name, causality=Fmi2Causality.output, variability=cont,
                                         initial=Fmi2Initial.calculated, description=text))
-        for name, text in (("design_file", "design TOML file; empty: the design bundled at build"),
-                           ("errors_file", "error TOML file; empty: the errors bundled at build"),
+        for name, text in (("design_file", "a preset name or a design TOML path; empty: the design "
+                                           "bundled at build"),
+                           ("errors_file", "an error TOML path; empty: the errors bundled at build"),
                            ("model", "reducer model: quasistatic")):
             self.register_variable(String(name, causality=Fmi2Causality.parameter, variability=par,
                                           description=text))
         for name, text in (("pin_stiffness_scale", "factor on the pin-disc contact stiffness [1]"),
                            ("bearing_stiffness_scale", "factor on every bearing stiffness [1]"),
                            ("mesh_stiffness_scale", "factor on the sun-planet mesh and sun support [1]"),
-                           ("error_scale", "factor on every manufacturing error and clearance [1]")):
+                           ("error_scale", "factor on every manufacturing error and clearance "
+                                           "[1]; 0: the error-free reducer")):
             self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=par,
                                         description=text))
         self.register_variable(Integer("map_points", causality=Fmi2Causality.parameter,
@@ -121,7 +126,7 @@ class RVReducer(Fmi2Slave):
     def exit_initialization_mode(self):
         try:
             self._reducer = self._make_reducer()
-            message = _bad_inputs(self.theta_in, self.tau_load)
+            message = self._bad_inputs(self.theta_in, self.tau_load)
             if message:
                 raise FmuInputError(message)
             self._show(self._reducer.initialize(0.0, self.theta_in, self.tau_load))
@@ -136,10 +141,13 @@ class RVReducer(Fmi2Slave):
             self._fail(self._failed or "do_step before the end of initialisation")
             return False
         theta_in, tau_load = self.theta_in, self.tau_load
-        if not (isfinite(theta_in) and isfinite(tau_load) and step_size >= 0.0):
-            self._fail(_bad_inputs(theta_in, tau_load)
-                       or f"communication step size = {step_size}: must be >= 0")
-            return False
+        if not (isfinite(theta_in) and step_size >= 0.0
+                and abs(tau_load) <= self._momentary_torque):  # False for NaN: checked in full
+            message = (f"communication step size = {step_size}: must be >= 0" if step_size < 0
+                       else self._bad_inputs(theta_in, tau_load))
+            if message:
+                self._fail(message)
+                return False
         try:
             out = self._reducer.step(current_time, step_size, theta_in, tau_load)
         except Exception as exc:  # noqa: BLE001
@@ -162,6 +170,24 @@ class RVReducer(Fmi2Slave):
             self._reducer.set_state(reducer_state)
 
     # -- helpers --------------------------------------------------------------------------
+    def _bad_inputs(self, theta_in, tau_load):
+        """The message for the first input the model cannot take, or None.
+
+        tau_load beyond the emergency-stop class is refused; beyond the momentary
+        maximum class a warning is logged once per instance (rvfmu.core.limits).
+        """
+        for name, value in (("theta_in", theta_in), ("tau_load", tau_load)):
+            if not isfinite(value):
+                return f"input {name} = {value}: must be finite"
+        try:
+            warning = check_load("tau_load", tau_load, self._rated_torque)
+        except InputError as exc:
+            return f"input {exc}"
+        if warning and not self._load_warned:
+            self._load_warned = True
+            self.log(f"input {warning}", Fmi2Status.warning)
+        return None
+
     def _make_reducer(self):
         if self.model not in MODELS:
             raise FmuInputError(f"model = {self.model!r}: must be one of {', '.join(MODELS)}")
@@ -175,8 +201,11 @@ class RVReducer(Fmi2Slave):
             errors = zero_errors(design)
         scales = {name: getattr(self, name) for name in SCALES}
         for name, value in scales.items():
+            if name == "error_scale" and math.isfinite(value) and value == 0.0:
+                continue  # no errors at all: the exact reducer
             if not (math.isfinite(value) and value > 0):
-                raise FmuInputError(f"{name} = {value}: must be a finite number > 0")
+                allowed = ">= 0 (0: no errors)" if name == "error_scale" else "> 0"
+                raise FmuInputError(f"{name} = {value}: must be a finite number {allowed}")
         if self.map_points < 0:
             raise FmuInputError(f"map_points = {self.map_points}: must be >= 0")
         bundled = (not self.design_file and not self.errors_file and self.map_points == 0
@@ -197,6 +226,8 @@ class RVReducer(Fmi2Slave):
                 sun_support_stiffness=design.sun_support_stiffness * scales["mesh_stiffness_scale"])
             te_map = build_te_map(design, errors.scaled(scales["error_scale"]),
                                   points=self.map_points or None)
+        self._rated_torque = design.rated_torque
+        self._momentary_torque = MOMENTARY_FACTOR * design.rated_torque
         return MODELS[self.model](te_map)
 
     def _show(self, outputs):
@@ -209,14 +240,6 @@ class RVReducer(Fmi2Slave):
     def _fail(self, message):
         self._failed = message
         self.log(message, Fmi2Status.error)
-
-
-def _bad_inputs(theta_in, tau_load):
-    """The message for the first non-finite input, or None."""
-    for name, value in (("theta_in", theta_in), ("tau_load", tau_load)):
-        if not isfinite(value):
-            return f"input {name} = {value}: must be finite"
-    return None
 
 
 def _describe(exc):

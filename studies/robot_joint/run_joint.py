@@ -24,8 +24,8 @@ Each 1 ms communication step, in this order:
 
 The move: 0 -> 60 deg in 1.5 s (quintic, zero speed and acceleration at both
 ends), then a 0.5 s hold.  It is run twice, once with the reducer's errors and
-once with `error_scale` = 1e-9 (no errors; set before initialisation, so the
-FMU solves its TE map again); everything else is equal, so the difference of
+once with `error_scale` = 0 (the error-free reducer; set before initialisation,
+so the FMU solves its TE map again); everything else is equal, so the difference of
 the arm angles is the arm position error that the errors cause through TE.
 
     python studies/robot_joint/run_joint.py [--points 3120] [--stop-time 2.0] [--output DIR]
@@ -64,7 +64,7 @@ STEP = 1e-3              # s, communication step
 MOVE_DEG = 60.0          # arm move [deg]
 MOVE_TIME = 1.5          # s
 STOP_TIME = 2.0          # s: the move and a 0.5 s hold
-NO_ERRORS = 1e-9         # error_scale of the reference run (0 is not allowed by the FMU)
+NO_ERRORS = 0.0          # error_scale of the reference run: the error-free reducer
 
 # Every parameter is set explicitly on its FMU; the values are the FMU sources' defaults,
 # chosen for an RV-40E-121 joint (README.md says why).
@@ -263,7 +263,7 @@ def plot(with_errors: JointRun, without: JointRun, path, points=POINTS) -> Path:
     fig, axes = plt.subplots(4, 1, figsize=(9, 11), sharex=True, constrained_layout=True)
     ax = axes[0]
     ax.plot(t, with_errors.arm_error_arcsec, color="C3", lw=1, label="with seed 002 errors")
-    ax.plot(t, without.arm_error_arcsec, color="C0", lw=1, label="without errors (error_scale 1e-9)")
+    ax.plot(t, without.arm_error_arcsec, color="C0", lw=1, label="without errors (error_scale 0)")
     ax.plot(t, with_errors.servo_error_arcsec, color="0.4", lw=0.8, ls="--",
             label="servo error (motor angle / i - reference)")
     ax.set_ylabel("arm angle - reference [arcsec]")
