@@ -1,7 +1,8 @@
 """One public function per job; the `rvte` CLI is a thin layer over these.
 
-Each function takes file paths or preset names and plain numbers, runs the
-core, writes the files it was asked for and returns a small record.
+Each function takes file paths or preset names and plain numbers, checks the
+output paths before any work (`rvfmu.outputs`), runs the core, writes the
+files it was asked for and returns a small record.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ class TEReport:
     def summary(self) -> str:
         c = self.curve
         d = c.design
-        orders, amplitudes = metrics.largest_orders(c.te_arcsec, HARMONICS_SHOWN)
+        orders, amplitudes = metrics.significant_orders(c.te_arcsec, HARMONICS_SHOWN)
         nyquist = c.points // 2
         pin_order = d.z_p * d.z_c
         lines = [
@@ -63,8 +64,10 @@ class TEReport:
             + ("  (no load: the output's turn-back from its nominal place to the first contact,"
                " i.e. the free play that the profile modifications, errors and clearances leave)"
                if c.tau_load == 0 else ""),
-            "largest orders    " + ", ".join(
-                f"{o}: {a:.3f}\u2033" for o, a in zip(orders[0], amplitudes[0])),
+            "largest orders    " + (", ".join(
+                f"{o}: {a:.3f}\u2033" for o, a in zip(orders[0], amplitudes[0])) if len(orders[0])
+                else f"none above the noise floor of {metrics.noise_floor(c.te_arcsec)[0]:.3g}\u2033"
+                     " (the TE is flat)"),
             f"lost motion       {self.lost_motion_arcmin:.3f} arcmin (windup span at +-3 % of "
             f"{d.rated_torque:g} N*m)",
             f"torsional rigidity {self.torsional_rigidity_Nm_per_arcmin:.1f} N*m/arcmin "
@@ -92,7 +95,9 @@ def te(design, errors=None, load: float = 0.0, points: int | None = None,
        csv_path: str | Path | None = None, plot_path: str | Path | None = None,
        progress=None) -> TEReport:
     """TE curve of one reducer at a resisting load [N*m] (0: no-load limit), with lost
-    motion and torsional rigidity; writes the CSV and the plot if paths are given.
+    motion and torsional rigidity; writes the CSV and the plot if paths are given
+    (both checked before any work).  A load beyond 5x the rated torque raises
+    InputError; beyond 2.5x the report carries a warning (`rvfmu.core.limits`).
 
     progress(total, done): optional, called as the curve's angles are solved.
     """
@@ -118,7 +123,7 @@ def te(design, errors=None, load: float = 0.0, points: int | None = None,
 
 
 def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:
-    """Columns theta_in_rad, theta_out_rad, te_arcsec (MODEL.md names)."""
+    """Columns theta_in_rad, theta_out_rad, te_arcsec (names of docs/model.md section 5)."""
     path = Path(path)
     with path.open("w", newline="") as handle:
         writer = csv.writer(handle)
@@ -126,6 +131,18 @@ def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:
         for row in zip(curve.theta_in, curve.theta_out[sample], curve.te_arcsec[sample]):
             writer.writerow([f"{row[0]:.12g}", f"{row[1]:.12g}", f"{row[2]:.6f}"])
     return path
+
+
+def errors_template(design, output: str | Path | None = None) -> str:
+    """A complete, commented error file for `design` (every name of docs/model.md
+    section 4, zero values of the right shapes); written to `output` if given."""
+    from .core.errors import error_template_text
+
+    output = None if output is None else output_file("output", output, ("toml",))
+    text = error_template_text(resolve_design(design))
+    if output is not None:
+        output.write_text(text)
+    return text
 
 
 @dataclass(frozen=True)
@@ -166,4 +183,4 @@ def profile(design, csv_path: str | Path | None = None, dxf_path: str | Path | N
     return prof.disc_profile(design, points)
 
 
-__all__ = ["te", "presets", "profile", "TEReport", "default_points", "write_te_csv"]
+__all__ = ["te", "presets", "profile", "errors_template", "TEReport", "default_points", "write_te_csv"]

@@ -46,6 +46,14 @@ def _profile(args):
             print(f"wrote {label} {path} ({prof.x.size} points, mm)")
 
 
+def _errors(args):
+    text = api.errors_template(args.template, args.output)
+    if args.output:
+        print(f"wrote error template {args.output} (every error of docs/model.md section 4, zero)")
+    else:
+        sys.stdout.write(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rvte", description="Transmission error of RV reducers from design and manufacturing errors.")
@@ -53,7 +61,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("te", help="TE curve over one output revolution")
     p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
-    p.add_argument("--errors", help="error TOML file (MODEL.md names, um and deg)")
+    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um and deg "
+                   "(`rvte errors --template DESIGN` writes one to fill)")
     p.add_argument("--load", type=float, default=0.0,
                    help="resisting output torque in N*m (0: no-load limit; negative: the load drives)")
     p.add_argument("--points", type=int, help="points per output revolution "
@@ -64,6 +73,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("presets", help="list the shipped reducer presets")
     p.set_defaults(run=_presets)
+
+    p = sub.add_parser("errors", help="write a complete error file to fill in")
+    p.add_argument("--template", metavar="DESIGN", required=True,
+                   help="preset name or design TOML file: every error of docs/model.md section 4 "
+                        "with zero values of the design's shapes")
+    p.add_argument("-o", "--output", help="TOML file to write (default: standard output)")
+    p.set_defaults(run=_errors)
 
     p = sub.add_parser("profile", help="write the cycloid disc profile")
     p.add_argument("design", help="preset name or design TOML file")
@@ -87,12 +103,10 @@ def add_plugin_commands(subparsers) -> None:
     """
     for entry in sorted(metadata.entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
         try:
-            add = entry.load()
-        except Exception as exc:  # noqa: BLE001 - any failure of a plugin's import
+            entry.load()(subparsers)
+        except Exception as exc:  # noqa: BLE001 - any failure of a plugin's import or set-up
             print(f"rvte: the {entry.name!r} commands ({entry.value}) are unavailable: "
                   f"{type(exc).__name__}: {exc}", file=sys.stderr)
-            continue
-        add(subparsers)
 
 
 def main(argv=None) -> int:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .core import metrics
 from .core.quasistatic import TECurve, Windup
 from .core.units import ARCMIN, rad_to_arcsec
 
@@ -22,40 +23,94 @@ def _pyplot():
     return plt
 
 
-def plot_te(curve: TECurve, path: str | Path, sample: int = 0, title: str | None = None) -> Path:
-    """TE against output angle (top) and its order spectrum (bottom), written to `path`."""
-    plt = _pyplot()
+SPECTRUM_MARGIN = 1.4  # the order axis ends this factor beyond the last order or marker shown
+
+
+def marker_orders(curve: TECurve) -> list[tuple[int, str]]:
+    """The orders an engineer looks for, with their labels, as they show in the spectrum.
+
+    The crank order z_p (once per crank turn: z_p crank turns per output turn)
+    and the pin-passing order z_p*z_c; an order above the Nyquist order
+    (points/2) shows aliased at |k - points * round(k / points)|, and is labelled so.
+    """
+    design = curve.design
+    nyquist = curve.points // 2
+    out = []
+    for order, label in ((design.z_p, "crank order (z_p)"),
+                         (design.z_p * design.z_c, "pin-passing order (z_p·z_c)")):
+        if order <= nyquist:
+            out.append((order, f"{label} = {order}"))
+        else:
+            alias = abs(order - curve.points * round(order / curve.points))
+            if alias > 0:
+                out.append((alias, f"{label} = {order}, aliased to {alias}"))
+    return out
+
+
+def figure_te(curve: TECurve, sample: int = 0, title: str | None = None):
+    """TE against output angle (top) and its order spectrum (bottom): a matplotlib Figure.
+
+    The spectrum shows only the orders above the noise floor
+    (`metrics.significant_spectrum`): below it the amplitudes are round-off,
+    invisible on the linear amplitude axis anyway, and a line there would claim
+    an order that is not there.  The order axis ends a little beyond the highest
+    significant order or the crank and pin-passing markers, whichever is higher,
+    not at the Nyquist order; a TE with no order above the floor is said to be flat.
+    """
+    from matplotlib.figure import Figure
+
     design = curve.design
     te = curve.te_arcsec[sample]
     out_deg = np.degrees(curve.theta_in / design.ratio)
-    orders, amplitude = curve.spectrum_arcsec()
-    amplitude = amplitude[sample]
-    fig, (ax_te, ax_sp) = plt.subplots(2, 1, figsize=(9, 7), constrained_layout=True)
+    orders, amplitude, significant = metrics.significant_spectrum(te)
+    amplitude, significant = amplitude[0], significant[0]
+    floor = float(metrics.noise_floor(te)[0])
+    fig = Figure(figsize=(9, 7), layout="constrained")
+    ax_te, ax_sp = fig.subplots(2, 1)
     ax_te.plot(out_deg, te, lw=0.8, color="C0")
     ax_te.axhline(te.mean(), color="0.5", lw=0.6, ls="--", label=f"mean {te.mean():.2f}″")
     ax_te.set_xlabel("output angle θ_out [deg]")
     ax_te.set_ylabel("transmission error [arcsec]")
     ax_te.set_xlim(0, 360)
+    if np.ptp(te) <= 2 * floor:
+        # Flat: round-off alone would be blown up to fill the axis, with an offset.
+        ax_te.set_ylim(te.mean() - 0.5, te.mean() + 0.5)
+    ax_te.ticklabel_format(axis="y", useOffset=False)
     load = -curve.tau_load
     ax_te.set_title(title or (f"{design.name}: TE at load {load:g} N·m "
                               f"(te_pp {np.ptp(te):.2f}″, {curve.points} points/rev)"))
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
-    shown = orders[1:]
-    ax_sp.vlines(shown, 0, amplitude[1:], color="C1", lw=1.0)
+
+    shown = orders[significant]
+    ax_sp.vlines(shown, 0, amplitude[significant], color="C1", lw=1.0, zorder=3)
     ax_sp.set_xscale("log")
     ax_sp.set_xlabel("order [cycles per output revolution]")
     ax_sp.set_ylabel("amplitude [arcsec]")
-    marks = ((design.z_p, "crank in carrier z_p"), (design.z_p * design.z_c, "pin passing z_p·z_c"))
+    marks = marker_orders(curve)
+    last = max([int(shown.max()) if shown.size else 1] + [order for order, _ in marks])
+    ax_sp.set_xlim(0.8, SPECTRUM_MARGIN * last)
+    top = 1.1 * float(amplitude[significant].max()) if shown.size else 1.0
+    ax_sp.set_ylim(0, top)
     for order, label in marks:
-        if order <= orders[-1]:
-            ax_sp.axvline(order, color="0.6", lw=0.6, ls=":")
-            ax_sp.annotate(label, (order, ax_sp.get_ylim()[1] * 0.9), fontsize=7, rotation=90,
-                           ha="right", va="top", color="0.4")
+        ax_sp.axvline(order, color="0.6", lw=0.6, ls=":")
+        ax_sp.annotate(label, (order, 0.97 * top), xytext=(-3, 0), textcoords="offset points",
+                       fontsize=7, rotation=90, ha="right", va="top", color="0.3", zorder=1,
+                       bbox=dict(fc="white", ec="none", alpha=0.7, pad=0.5))
+    if shown.size:
+        ax_sp.set_title(f"orders above the noise floor of {floor:.3g}″ "
+                        f"({shown.size} of {orders.size - 1})", fontsize=8)
+    else:
+        ax_sp.text(0.5, 0.5, f"flat TE: no order above the noise floor of {floor:.3g}″",
+                   transform=ax_sp.transAxes, ha="center", va="center", fontsize=10, color="0.3")
     ax_sp.grid(alpha=0.3, which="both")
+    return fig
+
+
+def plot_te(curve: TECurve, path: str | Path, sample: int = 0, title: str | None = None) -> Path:
+    """TE against output angle (top) and its order spectrum (bottom), written to `path`."""
     path = Path(path)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    figure_te(curve, sample, title).savefig(path, dpi=130)
     return path
 
 
@@ -76,4 +131,4 @@ def plot_windup(windup: Windup, path: str | Path, sample: int = 0) -> Path:
     return path
 
 
-__all__ = ["plot_te", "plot_windup", "rad_to_arcsec"]
+__all__ = ["figure_te", "marker_orders", "plot_te", "plot_windup", "rad_to_arcsec"]

@@ -28,7 +28,7 @@ def main(path=Path(__file__).with_name("seed002_errors.toml")):
     def row(values):
         return "[" + ", ".join(f"{v:.3f}" for v in values) + "]"
 
-    text = f'''# Seed 002 error set of the RV-40E-121 (MODEL.md section 4 names and units: um, deg).
+    text = f'''# Seed 002 error set of the RV-40E-121 (docs/model.md section 4 names and units: um, deg).
 # Tables 2 and 3 verbatim; table 4's tolerances realised as per-tooth sequences drawn
 # once by studies/make_seed002_errors.py (seed {SEED}) and stored here.
 # Seed 002 neglects the stage-1 errors and gives no clearances: they are zero here.

@@ -30,7 +30,7 @@ def perp(v):
 
 
 def hand_pin_geometry(design, theta_in):
-    """Pin contact normals and closing rates from the kinematics of MODEL.md section 2, by hand.
+    """Pin contact normals and closing rates from the kinematics of docs/model.md section 2, by hand.
 
     Returns normal (A, 2, z_p, 2), pin centre (z_p, 2), closing rate (A, 2, z_p): the
     rate at which each pin's interference grows per radian the carrier turns BACK

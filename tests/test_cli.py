@@ -48,7 +48,7 @@ def test_profile_writes_csv_and_dxf(tmp_path):
     assert proc.returncode == 0, proc.stderr
     xy = np.loadtxt(tmp_path / "disc.csv", delimiter=",", skiprows=1)
     radius = np.hypot(xy[:, 0], xy[:, 1])
-    # valley and tip radii of MODEL.md section 3 with the preset's modifications, in mm
+    # valley and tip radii of docs/model.md section 3 with the preset's modifications, in mm
     assert abs(radius.min() - (66.0 - 0.01 - 1.5 - 3.0 - 0.01)) < 2e-3
     assert abs(radius.max() - (66.0 - 0.01 + 1.5 - 3.0 - 0.01)) < 2e-3
     assert (tmp_path / "disc.dxf").read_text().count("LWPOLYLINE") >= 1

@@ -1,4 +1,4 @@
-"""The equivalent model's geometry against the kinematics of MODEL.md section 2, by hand."""
+"""The equivalent model's geometry against the kinematics of docs/model.md section 2, by hand."""
 
 import numpy as np
 import pytest

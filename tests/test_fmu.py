@@ -5,7 +5,6 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
-from xml.etree import ElementTree as ET
 
 import numpy as np
 import pytest
@@ -138,7 +137,10 @@ def test_bad_inputs_are_refused_with_a_logged_message_not_a_crash(fmu_path, desc
     good = inst.get("te_arcsec")
     for values, size, expected in (({"theta_in": float("nan"), "tau_load": -100.0}, STEP, "theta_in"),
                                    ({"theta_in": 1.0, "tau_load": float("inf")}, STEP, "tau_load"),
-                                   ({"theta_in": 1.0, "tau_load": -100.0}, -STEP, "step size")):
+                                   ({"theta_in": 1.0, "tau_load": -100.0}, -STEP, "step size"),
+                                   ({"theta_in": 1.0, "tau_load": -100.0}, 0.0, "step size = 0.0"),
+                                   ({"theta_in": 1.0, "tau_load": -100.0}, float("nan"),
+                                    "step size = nan")):
         inst.set(**values)
         with pytest.raises(Exception, match="status 2|status 3"):
             inst.step(STEP, size)
@@ -164,6 +166,15 @@ def test_a_bad_design_parameter_is_reported_at_initialisation(fmu_path, descript
     with pytest.raises(Exception, match="status 2|status 3"):
         inst.step(0.0, STEP)
     assert expected in capfd.readouterr().out
+
+
+def test_info_names_the_bundled_design_and_errors(fmu_path):
+    from rvfmu.fmu.api import fmu_info
+
+    text = fmu_info(fmu_path)
+    assert "design   RV-40E-121 (z_s 12, z_pl 36, z_p 40, rated torque 412.0 N*m)" in text
+    assert "errors   8 nonzero: crank_cam_eccentricity, disc_crank_hole" in text
+    assert "a preset name or a design TOML path" in text      # design_file, as the README says
 
 
 def test_load_above_the_momentary_class_warns_once_and_above_emergency_stop_is_refused(

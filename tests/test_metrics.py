@@ -1,4 +1,4 @@
-"""TE metrics of MODEL.md section 5 on signals whose answers are known by hand."""
+"""TE metrics of docs/model.md section 5 on signals whose answers are known by hand."""
 
 import numpy as np
 import pytest
@@ -101,7 +101,7 @@ def test_amplitude_beyond_nyquist_raises():
 
 
 def test_aliasing_of_an_order_above_nyquist():
-    # MODEL.md section 5: a curve sampled too coarsely aliases the ripple.  Order 13 on
+    # docs/model.md section 5: a curve sampled too coarsely aliases the ripple.  Order 13 on
     # 16 points shows up at order 16 - 13 = 3 with the same amplitude.
     te = 0.7 * np.sin(13 * angles(16))
     orders, amplitude = largest_orders(te, count=1)

@@ -1,6 +1,6 @@
 """The shipped presets and the stiffness estimates they are built from.
 
-Every preset loads, has the ratio and geometry of MODEL.md section 6, and each
+Every preset loads, has the ratio and geometry of docs/model.md section 6, and each
 of its stiffnesses is recomputed here from its `[sources]` table and its
 geometry with rvfmu/core/stiffness.py.  The stiffness formulas themselves are
 checked on hand-checkable cases and against independent computations.
@@ -22,7 +22,7 @@ from rvfmu.core.units import DEG, MM
 
 RATIOS = {"RV-40E-121": 121, "RV-40E-81": 81, "RV-20E": 53, "RV-110E": 161}
 
-# MODEL.md section 6: z_s, z_pl, m (mm), z_p, z_c, R_p (mm), e (mm), cranks
+# docs/model.md section 6: z_s, z_pl, m (mm), z_p, z_c, R_p (mm), e (mm), cranks
 TABLE = {
     "RV-40E-121": (12, 36, 1.5, 40, 39, 64.05, 1.3, 2),
     "RV-40E-81": (16, 32, 1.5, 40, 39, 66.0, 1.5, 2),
@@ -64,7 +64,7 @@ def test_preset_loads_with_every_field_from_its_file(name):
 def test_preset_ratio(name, ratio):
     design, values = preset(name), preset_file(name)
     assert design.ratio == pytest.approx(ratio, rel=1e-12)
-    # MODEL.md section 2, from the file's own tooth counts
+    # docs/model.md section 2, from the file's own tooth counts
     assert 1 + values["z_pl"] / values["z_s"] * values["z_p"] == pytest.approx(ratio, rel=1e-12)
 
 
@@ -81,7 +81,7 @@ def test_preset_geometry_is_that_of_model_md(name):
 
 @pytest.mark.parametrize("name", PRESET_NAMES)
 def test_preset_has_the_usual_modification_pairing(name):
-    # MODEL.md section 3 and the footnote of section 6: negative shift, positive equidistant.
+    # docs/model.md section 3 and the footnote of section 6: negative shift, positive equidistant.
     d = preset(name)
     assert d.d_rp == pytest.approx(-0.01 * MM)
     assert d.d_rrp == pytest.approx(+0.01 * MM)

@@ -14,7 +14,7 @@ from rvfmu.core.profile import (Profile, _closed_form, disc_profile, disc_profil
                                 write_profile_dxf)
 from rvfmu.core.units import MM, UM
 
-# Geometry of MODEL.md section 6; the other fields only need to be plausible here.
+# Geometry of docs/model.md section 6; the other fields only need to be plausible here.
 GEOMETRY = {
     "RV-40E-121": dict(z_s=12, z_pl=36, R_p=64.05 * MM, e=1.3 * MM),
     "RV-40E-81": dict(z_s=16, z_pl=32, R_p=66.0 * MM, e=1.5 * MM),
@@ -57,7 +57,7 @@ def test_closed_form_matches_independent_envelope(name, mods):
     angles, radius = numerical_envelope(d, rays, poses=1000)
     assert np.all(np.isfinite(radius))
     assert np.max(np.abs(radius - profile_radius_at(d, angles))) < 0.1 * UM
-    # The envelope alone gives the valley and tip radii of MODEL.md section 3.
+    # The envelope alone gives the valley and tip radii of docs/model.md section 3.
     valley, tip = valley_tip_radii(d)
     n = 500
     assert np.allclose(radius[n:n + d.z_c], valley, rtol=0, atol=0.1 * UM)

@@ -58,7 +58,7 @@ def test_signs_and_the_static_start_follow_the_model_contract(joint):
     gravity = run_joint.ARM["mass"] * run_joint.ARM["g"] * run_joint.ARM["com_distance"]
     ratio = run_joint.SERVO["ratio"]
     for run in (with_errors, without):
-        # the arm held up resists positive rotation: tau_load < 0 (MODEL.md section 2)
+        # the arm held up resists positive rotation: tau_load < 0 (docs/model.md section 2)
         assert np.all(run.tau_load < 0)
         assert run.tau_load[0] == pytest.approx(-gravity, rel=1e-3)
         # the drive starts holding it through the ratio

@@ -119,7 +119,7 @@ def test_sobol_cli_json_is_machine_readable(toy_sobol, capsys):
     assert main(["sobol", str(path), "--json", "--no-plots"]) == 0
     captured = capsys.readouterr()
     data = json.loads(captured.out)
-    assert "sobol-n32: 20 batches (20 reused, 0 computed)" in captured.err
+    assert "sobol-n32: 160 reducers in 20 batches of 8 (20 reused, 0 computed)" in captured.err
     ranking = data["metrics"]["te_pp_arcsec"]["groups"]
     assert ranking[0]["name"] == "crank_cam_eccentricity" and ranking[0]["rank"] == 1
     assert set(ranking[0]) >= {"S1", "S1_conf", "ST", "ST_conf", "S1_reported", "ST_reported", "notes"}

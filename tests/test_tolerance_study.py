@@ -40,7 +40,7 @@ def test_unknown_keys_and_sections_are_refused(tmp_path):
 
 
 def test_a_factor_that_names_no_error_is_refused(tmp_path):
-    error = refused(tmp_path, "names no error of MODEL.md", tolerances={"cam_runout": {"position_um": 3.0}})
+    error = refused(tmp_path, "names no error of docs/model.md", tolerances={"cam_runout": {"position_um": 3.0}})
     assert error.field == "tolerances.cam_runout"
 
 

@@ -8,7 +8,7 @@ SALib's scheme over the quasi-static model:
 - `evaluate(study, X) -> (Y, converged)`: the metrics of those reducers (pure, batched).
 - `analyze_mc(study, Y, converged)`, `analyze_sobol(problem, Y, columns, ...)`.
 - `run_mc(study_path, n=None, ...)`, `run_sobol(study_path, n=None, ...)`: the whole jobs
-  (store, backends, report), behind `rvte mc` and `rvte sobol`.
+  (store, backends, cost estimate, aliasing check, report), behind `rvte mc` and `rvte sobol`.
 
 Names other than `evaluate` are imported on first use, so that `rvte te` does
 not pay for SALib, pyarrow and Dask.

@@ -1,8 +1,10 @@
-"""`rvte mc` and `rvte sobol`: registered on the `rvte` parser by `add_study_commands`.
+"""`rvte mc` and `rvte sobol`: registered on the `rvte` parser by `add_study_commands`,
+which `rvte` finds through the entry-point group `rvte.commands` (pyproject.toml).
 
 Each sub-command is a few lines over `tolerance.run_mc` / `tolerance.run_sobol`.
 The table goes to stdout, or with --json one JSON document (for scripts);
-the progress bar and the one-line run summary go to stderr.
+the progress bar, the load warning, the cost estimate and the one-line run
+summary go to stderr.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ def _show(result, as_json):
 def _common(p):
     p.add_argument("study", help="study TOML file (see docs/studies.md)")
     p.add_argument("-o", "--output", help="output folder (default: the study's [study] output, "
-                   "or <study name>/output beside the study file)")
+                   "or <study file name>/output beside the study file)")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--processes", type=int, metavar="N", help="evaluate on N local worker processes")
     where.add_argument("--workers", type=int, metavar="N",
@@ -70,7 +72,7 @@ def add_study_commands(subparsers) -> None:
     p = subparsers.add_parser("sobol", help="Sobol ranking of the tolerances of a study")
     _common(p)
     p.add_argument("-n", type=int, help="base samples, a power of 2 (default: the study's "
-                   "[sobol] n); the model runs n*(factors+2) times")
+                   "[sobol] n); the model runs n*(G+2) times for G Sobol groups")
     p.add_argument("--second-order", action="store_true", help="also second-order indices "
-                   "(n*(2*factors+2) runs)")
+                   "(n*(2G+2) runs)")
     p.set_defaults(run=_sobol)

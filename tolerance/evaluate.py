@@ -11,7 +11,7 @@ Metrics (study file names, then the column that holds them and its unit):
 te_pp -> te_pp_arcsec, rms -> rms_arcsec (about the mean), order_<k> ->
 order_<k>_arcsec (amplitude of k cycles per output revolution), lost_motion
 -> lost_motion_arcmin, torsional_rigidity -> torsional_rigidity_Nm_per_arcmin
-(catalogue definitions, MODEL.md section 5).
+(catalogue definitions, docs/model.md section 5).
 """
 
 from __future__ import annotations
@@ -86,6 +86,7 @@ def _metrics(study, errors: ErrorSet):
         columns["rms"] = metrics.te_rms(te)
     if any(metric_kind(m) in WINDUP_METRICS for m in study.metrics):
         wind = windup(design, errors, positions=study.windup_positions)
+        converged &= wind.converged
         columns["lost_motion"] = wind.lost_motion_arcmin()
         columns["torsional_rigidity"] = wind.torsional_rigidity_Nm_per_arcmin()
     Y = np.empty((errors.samples, len(study.metrics)))

@@ -1,20 +1,36 @@
 """Reports of tolerance studies for people and for scripts: tables, figures, JSON.
 
-Reporting knows the result records and matplotlib (Agg), never the model.
+Reporting knows the result records and matplotlib, never the model.
 Units are those of the metric columns (arcsec, arcmin, N*m/arcmin); yields and
-Sobol indices are fractions, shown in % or as plain numbers.
+Sobol indices are fractions, shown in % or as plain numbers.  Tables and JSON
+name metrics by their columns (the spec keys of the study file); figures are
+for people and name them by `column_label`.  Each figure is built by a
+`figure_*` function (a matplotlib Figure, no pyplot state) and written by the
+matching `plot_*` function.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
+import textwrap
 from pathlib import Path
 
 import numpy as np
 
 from .montecarlo import PERCENTILES, MCAnalysis
-from .sobol import CONVERGED_CHANGE
+from .sobol import CONVERGED_CHANGE, WIDE_CI
+
+# Figures speak to people: a metric column is labelled by `column_label`; tables and
+# JSON keep the column names, which are also the spec keys of the study file.
+_LABELS = {
+    "te_pp_arcsec": "TE peak-to-peak [arcsec]",
+    "rms_arcsec": "TE RMS about the mean [arcsec]",
+    "lost_motion_arcmin": "lost motion [arcmin]",
+    "torsional_rigidity_Nm_per_arcmin": "torsional rigidity [N·m/arcmin]",
+}
+_ORDER_COLUMN = re.compile(r"order_([0-9]+)_arcsec$")
 
 
 def operating_text(study) -> str:
@@ -27,6 +43,30 @@ def operating_text(study) -> str:
                f"below the pin-passing order {pin_order}: its effect is measured by the "
                "aliasing check")
     return f"{d.name}, {load}, {study.points} points per output revolution ({resolve})"
+
+
+def column_label(column: str) -> str:
+    """A column as people read it, with unit: 'te_pp_arcsec' -> 'TE peak-to-peak [arcsec]'.
+
+    order_<k>_arcsec -> 'TE order <k> amplitude [arcsec]'; an unknown column is returned as is.
+    """
+    if column in _LABELS:
+        return _LABELS[column]
+    order = _ORDER_COLUMN.match(column)
+    return f"TE order {int(order.group(1))} amplitude [arcsec]" if order else column
+
+
+def _limit_label(limit) -> str:
+    """A spec limit for a figure legend: 'spec <= 30 arcsec' (its axis names the metric)."""
+    label = column_label(limit.column)
+    unit = label[label.rfind("[") + 1:-1] if label.endswith("]") else ""
+    sense = "≤" if limit.sense == "max" else "≥"
+    return f"spec {sense} {limit.limit:g} {unit}".rstrip()
+
+
+def _suptitle(fig, text: str) -> None:
+    """A figure title wrapped to the figure's width (9 pt: about 13 characters per inch)."""
+    fig.suptitle(textwrap.fill(text, width=int(13 * fig.get_figwidth())), fontsize=9)
 
 
 # -- Monte Carlo ------------------------------------------------------------------------------
@@ -82,41 +122,66 @@ def mc_json(study, analysis: MCAnalysis, extra: dict) -> dict:
     }
 
 
-def plot_mc(study, Y: np.ndarray, analysis: MCAnalysis, path: Path) -> Path:
-    """Histogram (left) and empirical CDF (right) of every metric, spec limits marked."""
-    plt = _pyplot()
+def figure_mc(study, Y: np.ndarray, analysis: MCAnalysis):
+    """Histogram (left) and empirical CDF (right) of every metric, spec limits marked: a Figure.
+
+    Y: (n, M) in the study's metric columns; one row of two panels per column.
+    """
+    from matplotlib.figure import Figure
+
     M = len(study.metric_columns)
-    fig, axes = plt.subplots(M, 2, figsize=(10, 3.2 * M), squeeze=False, constrained_layout=True)
+    fig = Figure(figsize=(10, 3.2 * M), layout="constrained")
+    axes = fig.subplots(M, 2, squeeze=False)
     limits = {s.column: s for s in study.spec}
     for j, column in enumerate(study.metric_columns):
         v = np.sort(Y[np.isfinite(Y[:, j]), j])
+        label = column_label(column)
         ax_h, ax_c = axes[j]
         ax_h.hist(v, bins=max(10, min(60, int(np.sqrt(v.size)) + 1)), color="C0", alpha=0.8)
-        ax_h.set_xlabel(column)
+        ax_h.set_xlabel(label)
         ax_h.set_ylabel("reducers")
+        ax_h.set_title(f"{label}: distribution", fontsize=9)
         ax_c.step(v, np.arange(1, v.size + 1) / max(v.size, 1), where="post", color="C0")
-        ax_c.set_xlabel(column)
-        ax_c.set_ylabel("fraction of reducers <= value")
+        ax_c.set_xlabel(label)
+        ax_c.set_ylabel("fraction of reducers ≤ value")
         ax_c.set_ylim(0, 1.02)
+        ax_c.set_title(f"{label}: cumulative", fontsize=9)
         if column in limits:
             limit = limits[column]
-            label = str(limit)
             for ax in (ax_h, ax_c):
-                ax.axvline(limit.limit, color="C3", ls="--", lw=1.0, label=label)
-            y = next((y for y in analysis.yields if y.label == label), None)
+                ax.axvline(limit.limit, color="C3", ls="--", lw=1.0, label=_limit_label(limit))
+            y = next((y for y in analysis.yields if y.label == str(limit)), None)
             if y is not None:
-                ax_c.set_title(f"yield {100 * y.fraction:.1f} % ({100 * y.low:.1f}-"
+                ax_c.set_title(f"{label}: yield {100 * y.fraction:.1f} % ({100 * y.low:.1f}-"
                                f"{100 * y.high:.1f} %, {100 * y.confidence:g} % Wilson)", fontsize=9)
             ax_h.legend(fontsize=8)
         for ax in (ax_h, ax_c):
             ax.grid(alpha=0.3)
-    fig.suptitle(f"{study.name}: {analysis.n} reducers — {operating_text(study)}", fontsize=9)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _suptitle(fig, f"{study.name}: {analysis.n} reducers — {operating_text(study)}")
+    return fig
+
+
+def plot_mc(study, Y: np.ndarray, analysis: MCAnalysis, path: Path) -> Path:
+    """Histogram and empirical CDF of every metric, spec limits marked (`figure_mc`), to `path`."""
+    figure_mc(study, Y, analysis).savefig(path, dpi=120)
     return Path(path)
 
 
 # -- Sobol ------------------------------------------------------------------------------------
+
+# What the notes of the Sobol table mean (tolerance.sobol, "Reading the estimates").
+NOTES_LEGEND = (
+    "Notes:",
+    "  < 0 within its CI: negative estimates are sampling noise around zero: reported as 0 "
+    "(SALib's maintainers' advice when the CI includes 0).",
+    "  < 0 beyond its CI / > 1: reported as 0 / 1; beyond the CI the estimate has not "
+    "converged: raise n.",
+    "  S1 > ST beyond their CIs: the true S1 never exceeds ST (ST adds the interactions), so "
+    "this is sampling noise: raise n.",
+    f"  CI wide: the interval is wider than +-{WIDE_CI:g}; factors whose indices differ by less "
+    "cannot be ranked.",
+)
+
 
 def sobol_table(study, analyses: dict, n: int, evaluations: int, second_order: bool) -> str:
     """Ranking table of every metric, with intervals, notes and the convergence check."""
@@ -150,8 +215,7 @@ def sobol_table(study, analyses: dict, n: int, evaluations: int, second_order: b
             top = sorted(pairs, key=lambda p: -p[0])[:5]
             lines.append("  largest S2: " + ", ".join(f"{a} x {b} {v:.3f}" for v, a, b in top))
     lines.append("")
-    lines.append("  Negative estimates are sampling noise around zero: reported as 0 (SALib's "
-                 "maintainers' advice when the CI includes 0); see the notes.")
+    lines += ["  " + line for line in NOTES_LEGEND]
     return "\n".join(lines)
 
 
@@ -189,13 +253,17 @@ def sobol_json(study, analyses: dict, n: int, evaluations: int, second_order: bo
             "metrics": metrics, **extra}
 
 
-def plot_sobol(study, analyses: dict, path: Path) -> Path:
-    """S1 and ST bars (reported values) with their bootstrap intervals, one panel per metric."""
-    plt = _pyplot()
+def figure_sobol(study, analyses: dict):
+    """S1 and ST bars (reported values) with bootstrap intervals, a panel per metric: a Figure.
+
+    analyses: {column: SobolAnalysis}; factors ranked by ST, named as in the study file.
+    """
+    from matplotlib.figure import Figure
+
     M = len(analyses)
     G = len(study.groups)
-    fig, axes = plt.subplots(M, 1, figsize=(max(7, 0.9 * G + 3), 3.6 * M), squeeze=False,
-                             constrained_layout=True)
+    fig = Figure(figsize=(max(7, 0.9 * G + 3), 3.6 * M), layout="constrained")
+    axes = fig.subplots(M, 1, squeeze=False)
     for ax, (column, result) in zip(axes[:, 0], analyses.items(), strict=True):
         ind = result.indices
         order = ind.ranking()
@@ -205,35 +273,50 @@ def plot_sobol(study, analyses: dict, path: Path) -> Path:
         ax.bar(x + 0.2, ind.ST_reported[order], 0.4, yerr=ind.ST_conf[order], capsize=3,
                label="ST (with interactions)", color="C1")
         ax.set_xticks(x, [ind.names[g] for g in order], rotation=30, ha="right", fontsize=8)
-        ax.set_ylabel("Sobol index")
+        ax.set_xlabel("tolerance factors, ranked by ST")
+        ax.set_ylabel("Sobol index (share of variance)")
         ax.set_ylim(0, 1.05)
-        ax.set_title(f"{column}: {100 * ind.confidence:g} % bootstrap intervals, "
+        ax.set_title(f"{column_label(column)}: {100 * ind.confidence:g} % bootstrap intervals, "
                      f"N = {ind.n}", fontsize=9)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3, axis="y")
-    fig.suptitle(f"{study.name}: {operating_text(study)}", fontsize=9)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _suptitle(fig, f"{study.name}: {operating_text(study)}")
+    return fig
+
+
+def plot_sobol(study, analyses: dict, path: Path) -> Path:
+    """S1 and ST bars with their bootstrap intervals, one panel per metric (`figure_sobol`)."""
+    figure_sobol(study, analyses).savefig(path, dpi=120)
     return Path(path)
 
 
-def plot_convergence(study, analyses: dict, path: Path) -> Path:
-    """ST of every factor against the base sample count N/4, N/2, N."""
-    plt = _pyplot()
+def figure_convergence(study, analyses: dict):
+    """ST of every factor against the base samples N/4, N/2, N, a panel per metric: a Figure."""
+    from matplotlib.figure import Figure
+
     M = len(analyses)
-    fig, axes = plt.subplots(1, M, figsize=(5.5 * M + 2.5, 4), squeeze=False, constrained_layout=True)
+    fig = Figure(figsize=(5.5 * M + 2.5, 4), layout="constrained")
+    axes = fig.subplots(1, M, squeeze=False)
     for ax, (column, result) in zip(axes[0], analyses.items(), strict=True):
         conv = result.convergence
         for g, name in enumerate(result.indices.names):
             ax.plot(conv.n, conv.ST[:, g], "o-", ms=3, lw=1, label=name)
         ax.set_xscale("log", base=2)
+        ax.set_xticks(conv.n, [str(m) for m in conv.n])
+        ax.minorticks_off()
         ax.set_xlabel("base samples N")
-        ax.set_ylabel("ST")
-        ax.set_title(f"{column}: max change N/2 -> N {conv.max_change:.3f}", fontsize=9)
+        ax.set_ylabel("total Sobol index ST")
+        ax.set_title(f"{column_label(column)}: ST moves by at most {conv.max_change:.3f} "
+                     f"from N/2 to N", fontsize=9)
         ax.grid(alpha=0.3)
     axes[0, -1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _suptitle(fig, f"{study.name}: convergence of the Sobol ranking")
+    return fig
+
+
+def plot_convergence(study, analyses: dict, path: Path) -> Path:
+    """ST of every factor against the base sample count N/4, N/2, N (`figure_convergence`)."""
+    figure_convergence(study, analyses).savefig(path, dpi=120)
     return Path(path)
 
 
@@ -242,20 +325,6 @@ def plot_convergence(study, analyses: dict, path: Path) -> Path:
 def write_json(path: Path, data: dict) -> Path:
     Path(path).write_text(json.dumps(data, indent=1, default=_json_default) + "\n")
     return Path(path)
-
-
-def error_file_text(values: dict, header: str = "") -> str:
-    """An error file (MODEL.md names, um and deg) from `error_file_values` output."""
-    lines = [f"# {line}" for line in header.splitlines()]
-    for name, value in values.items():
-        lines.append(f"{name} = {_toml_value(value)}")
-    return "\n".join(lines) + "\n"
-
-
-def _toml_value(value) -> str:
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    return f"{float(value):.6g}"
 
 
 def _num(value) -> float | None:
@@ -272,11 +341,3 @@ def _json_default(value):
         return str(value)
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt

@@ -4,6 +4,12 @@ Both follow SALib's scheme over the store and a backend: sample the rows,
 read and check the batches the output folder holds, compute the missing ones
 (each written the moment it is done), analyse all rows, report.  A run that
 was killed is simply started again.
+
+Before the bulk of the work, the first missing batch is computed and timed:
+a run estimated above a day, or above the free disk, stops there unless told
+`yes` (`compute`).  A study whose points do not resolve the pin-passing order
+recomputes a few of its reducers at full resolution and reports how much that
+moves its answers (`aliasing`).
 """
 
 from __future__ import annotations
@@ -19,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from rvfmu.core.checks import InputError, integer
-from rvfmu.core.errors import error_file_values
+from rvfmu.core.errors import error_file_values, toml_text
 from rvfmu.core.quasistatic import TECurve, te_curve
 from rvfmu.outputs import output_folder
 
@@ -238,14 +244,18 @@ def run_mc(study_path, n: int | None = None, *, output=None, processes: int | No
            plots: bool = True, log=None, yes: bool = False) -> MCResult:
     """Monte Carlo of a study file: n reducers (default: the study's [montecarlo] n).
 
+    Rows are computed in whole batches (n rounded up to a multiple of the batch
+    size, so that a later, larger n reuses every batch); the first n are analysed.
     Backends: none of processes/workers/scheduler -> in-process; processes=k ->
     k local worker processes; workers=k -> a Dask LocalCluster of k workers;
     scheduler="tcp://host:port" -> that Dask cluster.  Writes to the study's
     output folder (or `output`): the batches, mc_summary.json, mc_samples.csv,
-    mc_distribution.png, and the worst reducer's TE curve (mc_worst_te.png /
-    .csv) and error file (mc_worst_errors.toml).  log(str) receives the cost
-    estimate and the one-line run summary; a run estimated above a day or above
-    the free disk stops after its first batch unless `yes` (see `compute`).
+    the worst reducer's error file (mc_worst_errors.toml) and TE curve
+    (mc_worst_te.csv), and with `plots` mc_distribution.png and mc_worst_te.png.
+    If the study aliases, its first aliasing.CHECK_ROWS reducers are recomputed
+    at full resolution (`aliasing.check`).  log(str) receives the load warning,
+    the cost estimate and the one-line run summary; a run estimated above a day
+    or above the free disk stops after its first batch unless `yes` (see `compute`).
     """
     study = _load(study_path, output)
     n = study.mc_n if n is None else integer("n", n, 1)
@@ -266,7 +276,7 @@ def run_mc(study_path, n: int | None = None, *, output=None, processes: int | No
              "worst_errors": folder / "mc_worst_errors.toml"}
     _write_samples(files["samples"], study, Y, converged)
     worst_errors = errors_from_unit(study, montecarlo.rows(study, analysis.worst, analysis.worst + 1))
-    files["worst_errors"].write_text(report.error_file_text(
+    files["worst_errors"].write_text(toml_text(
         error_file_values(worst_errors),
         f"Worst reducer (row {analysis.worst}) of study {study.name!r}, by {analysis.worst_column}.\n"
         f"Reproduce: rvte te {study.design_source or study.design.name} --errors {files['worst_errors']}"
@@ -353,9 +363,12 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     """Sobol indices of every metric of a study file over its tolerance factors.
 
     n: base samples (a power of 2; default the study's [sobol] n); the model
-    runs n * (G + 2) times, or n * (2G + 2) with second_order, G factors.
-    Backends as for `run_mc`.  Writes sobol_indices.json, sobol_ranking.txt,
-    sobol_bars.png and sobol_convergence.png to the output folder.
+    runs n * (G + 2) times, or n * (2G + 2) with second_order, G Sobol groups
+    (one per factor unless factors share a `group`).  An n whose sample matrix
+    would not fit in memory is refused, `yes` or not.  Backends, the cost
+    estimate, `yes`, `log` and the aliasing check as for `run_mc`.  Writes
+    sobol_indices.json and sobol_ranking.txt, and with `plots` sobol_bars.png and
+    sobol_convergence.png, to the output folder.
     """
     study = _load(study_path, output)
     n = study.sobol_n if n is None else sobol_base_samples("n", n)

@@ -2,7 +2,7 @@
 
 The engineering question: a drawing gives a tolerance per error source; which
 reducers does a shop that holds those tolerances actually build?  Each
-tolerance of MODEL.md section 4 is one *factor* with a statistical model:
+tolerance of docs/model.md section 4 is one *factor* with a statistical model:
 
 - zone (every [E, beta] error): a true-position tolerance is a disc of
   diameter `position_um` around the nominal place, so the offset is drawn
@@ -132,7 +132,7 @@ def factor_values(factor, design: RVDesign, U: np.ndarray) -> np.ndarray:
     """The error array of `factor` for S rows of its own columns U (S, n_draws), SI units.
 
     Returns (S, *error_shapes(design)[factor.name]): complex E*exp(i*beta) [m]
-    for zones (phase in the frame MODEL.md names), real [m] otherwise.
+    for zones (phase in the frame docs/model.md section 4 names), real [m] otherwise.
     """
     shape = error_shapes(design)[factor.name]
     S = U.shape[0]

@@ -18,6 +18,9 @@ Reading the estimates:
   A negative estimate whose interval excludes zero means too few samples:
   it is also reported as 0, flagged "not converged".  Totals above 1 are
   clipped to 1 the same way.
+- S1 above ST.  ST adds a factor's interactions to its S1, so S1 <= ST
+  holds for the true indices; an estimated S1 above ST beyond both intervals
+  (S1 - S1_conf > ST + ST_conf) is sampling noise: flagged, raise n.
 - Wide intervals.  An index known only to +-WIDE_CI cannot rank factors whose
   indices differ by less; it is flagged.
 - Convergence.  The indices are computed again from the first N/4 and N/2
@@ -92,7 +95,7 @@ class Indices:
         return np.clip(self.ST, 0.0, 1.0)
 
     def flags(self) -> list[list[str]]:
-        """Per group, the notes a reader needs: clipped, not converged, wide interval."""
+        """Per group, the notes a reader needs: clipped, not converged, S1 > ST, wide interval."""
         out = []
         for g in range(len(self.names)):
             notes = []
@@ -107,6 +110,9 @@ class Indices:
                                  + ("" if value - conf <= 1 else ", not converged, raise n"))
                 if conf > WIDE_CI:
                     notes.append(f"{label} CI wide (+-{conf:.2f})")
+            if self.S1[g] - self.S1_conf[g] > self.ST[g] + self.ST_conf[g]:
+                notes.append(f"S1 {self.S1[g]:.3f} > ST {self.ST[g]:.3f} beyond their CIs: "
+                             "sampling noise, raise n")
             out.append(notes)
         return out
 

@@ -21,7 +21,8 @@ Nothing is mixed silently:
 
 Layout: <output>/manifest.json, inputs.json (the hashed inputs), study.toml (the
 study file as last run), and one folder per job (`mc`, `sobol-n1024`, ...)
-holding `batch-<start>-<stop>-<sha256, 16 hex>.parquet` for rows [start, stop).
+holding `batch-<start>-<stop>-<sha256, 16 hex>.parquet` for rows [start, stop)
+and, if the study aliases, `aliasing_check.json` (tolerance/aliasing.py).
 """
 
 from __future__ import annotations

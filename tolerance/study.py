@@ -1,9 +1,9 @@
 """A tolerance study: the study file (TOML) -> a frozen, checked `Study` and its problem definition.
 
 The question a study answers: for this design at this operating point, with
-these tolerances on the manufacturing errors of MODEL.md section 4, what TE do
+these tolerances on the manufacturing errors of docs/model.md section 4, what TE do
 the reducers we build have, how many meet the spec (Monte Carlo), and which
-tolerances decide it (Sobol)?  The file speaks MODEL.md units (um, deg, N*m,
+tolerances decide it (Sobol)?  The file speaks the units of docs/model.md section 1 (um, deg, N*m,
 arcsec) and names every tolerance by its error name:
 
     [study]
@@ -31,9 +31,11 @@ arcsec) and names every tolerance by its error name:
     group = "crankshaft"           # optional: Sobol group shared with other factors
 
 The statistical model of each kind of tolerance is in tolerance/sampling.py.
-The study hash (`Study.inputs_hash`) covers everything that changes a computed
-number; the spec, the sample counts and the analysis settings are left out, so
-changing them reuses the stored batches.
+A load_Nm beyond 5x the rated torque is refused; beyond 2.5x the runs warn
+(`Study.load_warning`, rvfmu.core.limits).  The study hash
+(`Study.inputs_hash`) covers everything that changes a computed number; the
+spec, the sample counts and the analysis settings are left out, so changing
+them reuses the stored batches.
 """
 
 from __future__ import annotations
@@ -92,7 +94,7 @@ class Factor:
     def __post_init__(self):
         here = f"tolerances.{self.name}"
         if self.name not in ERROR_NAMES:
-            raise InputError(here, self.name, "names no error of MODEL.md section 4; "
+            raise InputError(here, self.name, "names no error of docs/model.md section 4; "
                              f"known names: {', '.join(ERROR_NAMES)}")
         if self.kind != sampling.KIND_OF[self.name]:
             raise InputError(f"{here}.kind", self.kind, f"must be {sampling.KIND_OF[self.name]}")
@@ -380,6 +382,9 @@ def _factors(table: dict, where: str) -> tuple[Factor, ...]:
             raise InputError(f"tolerances.{name}", values, "must be a table with its tolerance "
                              f"({', '.join(sampling.KEYS[kind])})", where)
         values = values if isinstance(values, dict) else {}
+        if kind is None:   # an unknown error name: say so, whatever keys its table holds
+            raise InputError(f"tolerances.{name}", name, "names no error of docs/model.md "
+                             f"section 4; the errors are {', '.join(ERROR_NAMES)}", where)
         if kind is not None:
             keys = sampling.KEYS[kind]
             _known(values, keys + FACTOR_KEYS, f"[tolerances.{name}]", where)

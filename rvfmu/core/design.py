@@ -1,11 +1,12 @@
 """The RV reducer design: geometry, stiffnesses, inertias and ratings.
 
 A design is plain, frozen data in SI units, checked once when it is built.
-Files speak the units of MODEL.md section 1 and carry the unit in the key
+Files speak the units of docs/model.md section 1 and carry the unit in the key
 (`R_p_mm`, `mesh_stiffness_N_per_m`); `DESIGN_FIELDS` is the one table that
 maps a file key to a field and its scale.  A design file is either complete
 or names a shipped preset (`preset = "RV-40E-121"`) and overrides any field by
-its file key.
+its file key.  The masses, inertias and damping ratio are checked and kept for
+the planned dynamic model; the quasi-static model does not use them.
 """
 
 from __future__ import annotations
@@ -84,7 +85,7 @@ PRESET_NAMES = ("RV-40E-121", "RV-40E-81", "RV-20E", "RV-110E")
 
 @dataclass(frozen=True)
 class RVDesign:
-    """An RV reducer (MODEL.md sections 2, 3 and 6), SI units throughout.
+    """An RV reducer (docs/model.md sections 2, 3 and 6), SI units throughout.
 
     Build it with `RVDesign(**fields)`, `load_design(...)` or `preset(...)`;
     the constructor checks every field and every relation between fields.
@@ -129,7 +130,7 @@ class RVDesign:
             object.__setattr__(self, spec.field, _checked(spec, getattr(self, spec.field), self.name))
         _check_relations(self)
 
-    # -- derived quantities (MODEL.md section 2) --------------------------------
+    # -- derived quantities (docs/model.md section 2) --------------------------------
     @property
     def ratio(self) -> float:
         """Reduction ratio with fixed housing and carrier output, i = 1 + z_pl/z_s * z_p."""
@@ -150,7 +151,7 @@ class RVDesign:
 
     @property
     def tip_root_clearance(self) -> float:
-        """Radial pin clearance at every lobe tip and root, d_rrp - d_rp [m] (MODEL.md section 3)."""
+        """Radial pin clearance at every lobe tip and root, d_rrp - d_rp [m] (docs/model.md section 3)."""
         return self.d_rrp - self.d_rp
 
     def with_fields(self, **changes) -> "RVDesign":
@@ -190,7 +191,7 @@ def _check_relations(d: RVDesign) -> None:
         raise InputError("z_c", d.z_c, f"must be z_p - 1 = {d.z_p - 1}", where)
     if d.z_p % 2:
         raise InputError("z_p", d.z_p, "must be even: disc 1 is disc 0 turned by 180 deg, "
-                         "which is conjugate only for even z_p (MODEL.md section 4)", where)
+                         "which is conjugate only for even z_p (docs/model.md section 4)", where)
     if d.z_p < 6:
         raise InputError("z_p", d.z_p, "must be >= 6", where)
     if d.n_c not in (2, 3):

@@ -54,7 +54,7 @@ def _c2v(z):
 
 @dataclass(frozen=True)
 class Pose:
-    """Nominal kinematics (MODEL.md section 2) at input angles theta_in, shape (A,)."""
+    """Nominal kinematics (docs/model.md section 2) at input angles theta_in, shape (A,)."""
 
     theta_in: np.ndarray
     theta_out: np.ndarray   # carrier angle, theta_in / i
@@ -82,8 +82,9 @@ class EquivalentModel:
     - `pins`: pin k against disc j, unilateral along the contact normal, rows
       (A, 2, z_p, 3) over that disc's own three unknowns.
     A positive element deflection is compression (interference).
-    `flank` is +1 when the sun drives the planets forward (a resisting load or
-    none), -1 when the load drives the output.
+    `flank` is +1 when the sun drives the planets forward (a resisting load, or
+    the no-load limit approached from one), -1 when the load drives the output
+    (or the no-load limit is approached from that side).
     """
 
     def __init__(self, design: RVDesign, theta_in, flank: int = 1):
@@ -187,7 +188,7 @@ class EquivalentModel:
         disc_angle -= np.array([0.0, np.pi])[None, :, None]
         self._lobe = np.floor(np.mod(disc_angle, 2.0 * np.pi) * d.z_c / (2.0 * np.pi)).astype(int)
         self._lobe = np.minimum(self._lobe, d.z_c - 1)
-        # Profile modifications as gaps (MODEL.md section 3): d_rrp opens every normal, d_rp
+        # Profile modifications as gaps (docs/model.md section 3): d_rrp opens every normal, d_rp
         # moves the generating pin circle out, closing the gap by d_rp (n . e_k).
         gap = d.d_rrp - d.d_rp * radial_dot                                         # (A, 2, z_p)
         # Everything the error offsets need per angle, gathered in one take.

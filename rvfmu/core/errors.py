@@ -1,19 +1,23 @@
-"""Manufacturing errors of MODEL.md section 4, for one reducer or a batch of them.
+"""Manufacturing errors of docs/model.md section 4, for one reducer or a batch of them.
 
 An `ErrorSet` holds every error of a batch of reducers as arrays with a
 leading sample axis, in SI units.  Eccentricity and position errors [E, beta]
-are stored as complex numbers E*exp(i*beta) in the frame that MODEL.md names
+are stored as complex numbers E*exp(i*beta) in the frame that docs/model.md section 4 names
 for their phase: the model turns them into the fixed frame by one complex
 multiplication per pose, and a sum of two error sets is their superposition.
 
-Files (TOML) use the names of MODEL.md with E in um and beta in degrees; a
+Files (TOML) use the names of docs/model.md section 4 with E in um and beta in degrees; a
 missing key means zero.  Unknown names, wrong lengths, NaN, negative
 magnitudes and negative clearances are refused with the field named.
+`error_template_text` writes a complete file of zeros to fill in, and
+`toml_text` is the one writer of such files (and of other flat TOML
+documents of numbers, strings and nested lists).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import textwrap
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -120,7 +124,7 @@ def stack(error_sets) -> ErrorSet:
 
 
 def errors_from_file_values(design: RVDesign, values: dict, where: str = "errors") -> ErrorSet:
-    """One reducer's errors from MODEL.md names in file units (um, deg)."""
+    """One reducer's errors from docs/model.md section 4 names in file units (um, deg)."""
     unknown = [key for key in values if key not in ERROR_NAMES]
     if unknown:
         raise InputError(unknown[0], values[unknown[0]],
@@ -168,3 +172,125 @@ def load_errors(path: str | Path, design: RVDesign) -> ErrorSet:
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputError("errors", str(path), f"is not valid TOML ({exc})") from None
     return errors_from_file_values(design, values, where=path.name)
+
+
+# -- writing error files --------------------------------------------------------------------
+
+# One short line per error of docs/model.md section 4, in its order: definition, unit, sign and
+# the frame of the phase.  "{n_c}", "{z_p}", "{z_c}" are filled in from the design.
+ERROR_NOTES = {
+    "sun_eccentricity": "[E um, beta deg]: sun pitch circle centre off the input axis; "
+                        "beta in the sun frame (turns with theta_in)",
+    "sun_assembly": "[E um, beta deg]: input axis off the pin circle (housing) centre; "
+                    "beta in the fixed frame",
+    "planet_eccentricity": "{n_c} x [E um, beta deg], [crank i]: planet pitch circle centre off "
+                           "its crank axis; beta in the crank frame (x axis along cam 0)",
+    "crank_cam_eccentricity": "{n_c} x 2 x [E um, beta deg], [crank i][disc j]: centre of cam j "
+                              "off its nominal place; beta in the crank frame (x along cam 0, "
+                              "both cams)",
+    "disc_crank_hole": "2 x {n_c} x [E um, beta deg], [disc j][crank i]: position of crank hole "
+                       "i of disc j off nominal; beta in the disc frame (turns with theta_out)",
+    "carrier_crank_hole": "{n_c} x [E um, beta deg], [crank i]: crank bearing seat i in the "
+                          "carrier off nominal; beta in the carrier frame",
+    "carrier_assembly": "[E um, beta deg]: carrier rotation axis off the pin circle centre; "
+                        "beta in the fixed frame",
+    "pin_radial": "{z_p} values um, [pin k]: radial offset of the pin centre, + outward",
+    "pin_pitch": "{z_p} values um, [pin k]: cumulative pitch deviation (tangential offset on "
+                 "the pin circle, not summed again), + counter-clockwise",
+    "pin_radius": "{z_p} values um, [pin k]: pin radius deviation, + larger",
+    "disc_profile": "2 x {z_c} values um, [disc j][lobe m]: normal deviation of lobe m "
+                    "(valley m to valley m+1), + material added",
+    "disc_pitch": "2 x {z_c} values um, [disc j][lobe m]: cumulative pitch deviation of lobe m, "
+                  "tangential at radius R_p*z_c/z_p, + counter-clockwise",
+    "crank_disc_clearance": "um >= 0: radial internal clearance (ISO 5753, total travel) of "
+                            "every crank-disc needle bearing",
+    "crank_carrier_clearance": "um >= 0: radial internal clearance (ISO 5753) of every "
+                               "crankshaft support bearing in the carrier",
+    "main_bearing_clearance": "um >= 0: radial internal clearance (ISO 5753) of the carrier "
+                              "main bearings",
+}
+
+NUMBERS_PER_LINE = 10  # long per-tooth lists are wrapped so that a tooth is easy to find
+COMMENT_WIDTH = 92     # comment lines wrap here: readable in any editor beside the values
+
+
+def error_template_text(design: RVDesign) -> str:
+    """A complete, commented error file for `design`: every error of docs/model.md section 4.
+
+    Every name appears in section-4 order under a comment line (definition, unit,
+    sign, frame of the phase) with zero values shaped for the design's n_c, z_p and
+    z_c; `load_errors` reads it back as the error-free reducer.
+    """
+    n_c, z_p, z_c = design.n_c, design.z_p, design.z_c
+    name = " ".join(str(design.name).split())  # one line, whatever the design file said
+    header = (f"Manufacturing errors of {name} (z_p = {z_p}, z_c = {z_c}, n_c = {n_c}): every\n"
+              "error of docs/model.md section 4, in its order, all zero.  Fill in what you know;\n"
+              "a key left out means zero.  Magnitudes and deviations in um, phases beta in deg\n"
+              "in the frame named; indices start at 0.  Use: rvte te DESIGN --errors FILE")
+    shapes = error_shapes(design)
+    values, notes = {}, {}
+    for key in ERROR_NAMES:
+        shape = shapes[key] + ((2,) if key in PHASED else ())
+        values[key] = np.zeros(shape).tolist() if shape else 0.0
+        notes[key] = ERROR_NOTES[key].format(n_c=n_c, z_p=z_p, z_c=z_c)
+    return toml_text(values, header=header, notes=notes)
+
+
+def toml_text(values: dict, header: str = "", notes: dict | None = None,
+              digits: int | None = None) -> str:
+    """A flat TOML document: `key = value` per entry, in the order of `values`.
+
+    values: numbers, strings, booleans and nested lists of numbers (as
+    `error_file_values` or `RVDesign.file_values` give them); header: comment
+    lines at the top; notes: {key: comment}, written before that key after a
+    blank line and wrapped at COMMENT_WIDTH; digits: significant digits of
+    floats (None: the shortest text that reads back to the same float).  Lists
+    of more than NUMBERS_PER_LINE numbers are wrapped, that many a line.
+    """
+    notes = notes or {}
+    lines = [f"# {line}".rstrip() for line in header.splitlines()]
+    for key, value in values.items():
+        if key in notes:
+            lines += [""] + textwrap.wrap(notes[key], COMMENT_WIDTH, initial_indent="# ",
+                                          subsequent_indent="#   ", break_on_hyphens=False)
+        prefix = f"{key} = "
+        lines.append(prefix + _toml_value(value, len(prefix), digits))
+    return "\n".join(lines) + "\n"
+
+
+_LISTS = (list, tuple, np.ndarray)
+
+
+def _toml_value(value, column: int, digits: int | None) -> str:
+    """TOML text of one value whose first character sits at `column` (for wrapped lines)."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if not isinstance(value, (list, tuple)):
+        return _toml_float(value, digits)
+    if not any(isinstance(v, _LISTS) for v in value):
+        items = [_toml_value(v, 0, digits) for v in value]
+        rows = [", ".join(items[k:k + NUMBERS_PER_LINE])
+                for k in range(0, len(items), NUMBERS_PER_LINE)] or [""]
+        return "[" + (",\n" + " " * (column + 1)).join(rows) + "]"
+    items = [_toml_value(v, column + 1, digits) for v in value]
+    one_line = "[" + ", ".join(items) + "]"
+    # Pairs [E, beta] of a short list share a line; deeper lists give each item its own.
+    flat_items = all(isinstance(v, _LISTS) and not any(isinstance(w, _LISTS) for w in v)
+                     for v in value)
+    if flat_items and "\n" not in one_line and column + len(one_line) <= 100:
+        return one_line
+    return "[" + (",\n" + " " * (column + 1)).join(items) + "]"
+
+
+def _toml_float(value, digits: int | None) -> str:
+    value = float(value)
+    text = repr(value) if digits is None else f"{value:.{digits}g}"
+    if text in ("nan", "inf", "-inf"):
+        return text
+    return text if any(c in text for c in ".e") else text + ".0"  # a float stays a float

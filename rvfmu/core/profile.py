@@ -1,4 +1,4 @@
-"""The cycloid disc profile (MODEL.md section 3): closed form, check and export.
+"""The cycloid disc profile (docs/model.md section 3): closed form, check and export.
 
 Engineering question: what shape must be ground on a disc so that it meshes
 with the pins of a design, including its shift (`d_rp`) and equidistant
@@ -11,7 +11,7 @@ centre trochoid offset inwards by the pin radius.  A closed form is easy to get
 subtly wrong (a sign of the phase, a frame turned by a pitch, a modification
 applied the wrong way), and every later result - contact, clearance, TE - rests
 on it.  So `numerical_envelope` computes the same curve a second way that
-shares no formula with it: it moves the disc through the kinematics of MODEL.md
+shares no formula with it: it moves the disc through the kinematics of docs/model.md
 section 2 and carves it with all the pins, pose by pose.  The tests require the
 two to agree to 0.1 um.
 """
@@ -93,7 +93,7 @@ def disc_profile_for(design: RVDesign, disc: int, points: int = DEFAULT_POINTS) 
     """Profile of disc `disc` (0 or 1) in its own frame [m], shape (points,).
 
     Disc 1 is the same part as disc 0 turned by pi about its own centre
-    (MODEL.md section 2), so its points are those of disc 0 negated.
+    (docs/model.md section 2), so its points are those of disc 0 negated.
     """
     if disc not in (0, 1):
         raise ValueError(f"disc = {disc!r}: must be 0 or 1")
@@ -108,7 +108,7 @@ def numerical_envelope(design: RVDesign, rays: int | np.ndarray = 720, poses: in
 
     Independent of the closed form: for `poses` output angles theta_out the disc
     centre is e*(cos psi_j, sin psi_j), psi_j = theta_out + beta + j*pi (for disc
-    0 that is -z_c*theta_out), its rotation theta_out (MODEL.md section 2, beta
+    0 that is -z_c*theta_out), its rotation theta_out (docs/model.md section 2, beta
     taken at theta_in = i*theta_out); all z_p generating pins (radius
     r_rp + d_rrp, centres at radius R_p + d_rp, angles 2*pi*k/z_p) are put into
     the disc frame, and along each ray from the disc centre the nearest entry

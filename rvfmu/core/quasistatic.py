@@ -2,12 +2,19 @@
 
 For each input angle the reducer is in static equilibrium under the output
 torque (`solver`), with the input held at that angle; the carrier's rotation
-away from theta_in / i is the TE of MODEL.md section 5.  One call evaluates a
+away from theta_in / i is the TE of docs/model.md section 5.  One call evaluates a
 whole batch of reducers: arrays are shaped (samples, angles).
 
-Zero load means the no-load limit of MODEL.md section 5, not a singular solve:
-the equilibrium under a resisting probe torque of NO_LOAD_PROBE times the
-rated torque, taken back to zero along its own load path.
+Zero load means the no-load limit of docs/model.md section 5, not a singular solve
+(`solver.solve_pairs`).  Without bearing clearances it is exact and needs no
+iteration: the linear parts take the shape the errors force on them, then the
+carrier turns along the zero-energy mechanism mode until the first pin
+touches.  Only where that pose leaves a pin in interference, and wherever
+bearings have clearance (parts float in it), is an elastic solve needed: the
+equilibrium under a probe torque of NO_LOAD_PROBE times the rated torque
+(with bearing clearances reached by continuation from 1000 times the probe),
+taken back to zero load along its tangent.  The probe resists by default
+(zero_side = -1) or drives (+1): the side the limit is approached from.
 """
 
 from __future__ import annotations
@@ -25,7 +32,9 @@ from .errors import ErrorSet, zero_errors
 from .solver import solve_pairs
 from .units import ARCMIN, rad_to_arcsec
 
-NO_LOAD_PROBE = 1e-4     # of the rated torque: 0.04 N*m on an RV-40E, deflections of ~1e-4 um
+# Probe torque of the elastic no-load solves, x rated torque: 0.04 N*m on an RV-40E, pin
+# deflections of ~1e-3 um, small enough that its contacts are those of zero load.
+NO_LOAD_PROBE = 1e-4
 POINTS_PER_PIN_PASS = 8  # default sampling: 8 points per pin-passing period (order z_p*z_c)
 LOST_MOTION_FRACTION = 0.03                      # catalogue: windup span at +-3 % rated torque
 RIGIDITY_FRACTIONS = (0.5, 1.0)                  # catalogue: slope between 50 % and 100 %
@@ -42,7 +51,7 @@ class TECurve:
 
     theta_in: (A,) [rad], input angles, evenly over one output revolution;
     theta_out: (S, A) [rad]; te: (S, A) [rad] = theta_out - theta_in / i;
-    tau_load: [N*m] (MODEL.md sign: negative resists); converged: (S,) bool.
+    tau_load: [N*m] (docs/model.md section 2 sign: negative resists); converged: (S,) bool.
     """
 
     design: RVDesign
@@ -94,7 +103,7 @@ class Equilibria:
     """Quasi-static results on a grid of (sample, load, angle), each array (S, T, A).
 
     te [rad]; tau_in [N*m]: torque the reducer exerts on the input shaft (flange
-    convention of MODEL.md section 2, about tau_load / i); pin_force_max [N];
+    convention of docs/model.md section 2, about tau_load / i); pin_force_max [N];
     converged: bool.
     """
 
@@ -109,8 +118,9 @@ def equilibria(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=
     """Quasi-static equilibrium at every (sample, load, angle) of the grid.
 
     theta_in: (A,) [rad]; tau_load: (T,) [N*m].  A zero load is the no-load limit
-    approached from a resisting load (zero_side = -1, MODEL.md section 5) or from a
-    driving one (zero_side = +1).
+    approached from a resisting load (zero_side = -1, docs/model.md section 5) or from a
+    driving one (zero_side = +1).  A load beyond the emergency-stop class (5x rated,
+    `limits`) raises InputError; the momentary-class warning is left to the callers.
     """
     theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
     tau_load = np.atleast_1d(np.asarray(tau_load, dtype=float))
@@ -150,7 +160,7 @@ def te_curve(design: RVDesign, errors: ErrorSet | None = None, tau_load: float =
              points: int | None = None, progress=None) -> TECurve:
     """TE over one output revolution of every reducer in `errors` at output torque `tau_load`.
 
-    tau_load [N*m] follows MODEL.md: a resisting load T is tau_load = -T; 0 gives
+    tau_load [N*m] follows docs/model.md section 2: a resisting load T is tau_load = -T; 0 gives
     the no-load TE.  points: per output revolution (default `default_points`).
     """
     errors = _checked_errors(design, errors)
@@ -168,13 +178,15 @@ class Windup:
     """Output windup against output torque with the input locked (catalogue test).
 
     tau_load: (T,) [N*m]; theta_in: (P,) input positions [rad];
-    windup: (S, T, P) [rad], output rotation from its nominal place.
+    windup: (S, T, P) [rad], output rotation from its nominal place;
+    converged: (S,) bool, the equilibrium converged at every torque and position.
     """
 
     design: RVDesign
     tau_load: np.ndarray
     theta_in: np.ndarray
     windup: np.ndarray
+    converged: np.ndarray
 
     def lost_motion_arcmin(self):
         """(S,) windup span at +-3 % rated torque, mean over the positions [arcmin]."""
@@ -216,5 +228,5 @@ def windup(design: RVDesign, errors: ErrorSet | None = None, tau_load=None,
         raise InputError("tau_load", 0.0, "windup needs nonzero torques (the curve has a jump at 0)")
     # Offset by half a pin pitch of the output so that positions do not all sit on a pin.
     theta_in = input_angles(design, positions) + np.pi * design.ratio / (design.z_p * positions)
-    te, _, _ = equilibrium_te(design, errors, theta_in, tau_load)
-    return Windup(design, tau_load, theta_in, te)
+    te, _, ok = equilibrium_te(design, errors, theta_in, tau_load)
+    return Windup(design, tau_load, theta_in, te, ok.all(axis=(1, 2)))

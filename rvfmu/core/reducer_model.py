@@ -4,8 +4,8 @@ This is the interface that a system simulation (the FMU, or any other host)
 drives.  A model is a small object with one job: `step` to the end of a
 communication interval given the inputs there, returning the outputs there.
 Its whole state is a small dict, so that a master can save and restore it.
-The quasi-static model is the first implementation; a dynamic one will offer
-the same methods.
+The quasi-static model is the only implementation so far; a dynamic one is
+planned and will offer the same methods.
 """
 
 from __future__ import annotations

@@ -13,7 +13,9 @@ Speed comes from structure, not from approximations:
   runs on the six disc unknowns (more when bearings have clearance);
 - the no-load limit without bearing clearance needs no iteration at all: the
   linear parts take their (pre)stressed shape, then the reducer turns along its
-  zero-energy mechanism mode until the first pin touches (MODEL.md section 5);
+  zero-energy mechanism mode until the first pin touches (docs/model.md section 5);
+  only where that leaves a pin in interference, or with bearing clearance, is
+  the equilibrium under a small probe torque solved and taken back to zero;
 - all pairs are iterated together in numpy, pairs that have converged leave
   the batch, and the pairs come in chunks so that memory stays bounded.
 """
@@ -148,10 +150,11 @@ class ReducedSystem:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
         tau_load == 0 gives the no-load limit from the side of the signed probe
-        torque `probe` (negative: a resisting load, MODEL.md section 5; positive: a
+        torque `probe` (negative: a resisting load, docs/model.md section 5; positive: a
         driving one); where it needs an elastic solve (interference, bearing
-        clearance) the equilibrium under `probe` is taken back to zero load along
-        its tangent.
+        clearance) the equilibrium under `probe` (with bearing clearance reached
+        by continuation over CONTINUATION x probe) is taken back to zero load
+        along its tangent.
         first_count: (B, 2) int, optional: how many pins of each disc probably touch
         (from the error-free reducer); the first guess takes that many, those the
         load closes first.
@@ -297,9 +300,11 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     """Equilibria of many (reducer, angle) pairs, in chunks.
 
     sample, angle: (B,) indices into `errors` and `model.pose`; tau_load: (B,) [N*m].
-    Where tau_load is zero the result is the no-load limit of MODEL.md section 5,
+    Where tau_load is zero the result is the no-load limit of docs/model.md section 5,
     approached from a resisting load (zero_side = -1) or a driving one (+1);
     no_load_probe [N*m] > 0 is the size of the probe torque it uses where needed.
+    A bearing with clearance in any reducer of `errors` stays nonlinear for all
+    of them, so then every zero-load pair takes the probe-and-continuation route.
     """
     probe = no_load_probe if zero_side > 0 else -no_load_probe
     sample, angle = np.asarray(sample), np.asarray(angle)

@@ -7,7 +7,10 @@ angle over one output revolution (i input revolutions).  So it is solved once on
 a grid and interpolated: linearly and periodically in the input angle (points
 dense enough to resolve the pin-passing order), linearly in the torque, with
 separate branches for resisting and driving loads because the TE jumps by the
-lost motion where the torque changes sign.
+lost motion where the torque changes sign.  The torque levels reach the
+momentary maximum class, 2.5x the rated torque (`limits`); beyond it the map
+is extrapolated linearly from its last two levels (the FMU warns there, and
+refuses loads beyond the emergency-stop class, 5x).
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ class TEMap:
     theta_in: (A,) input angles evenly over one output revolution [rad];
     torque_magnitude: (T,) ascending torque magnitudes [N*m], the first zero;
     te: (2, T, A), tau_in: (2, T, A) -- branch 0 resisting loads (tau_load = -magnitude,
-    the zero level the no-load limit of MODEL.md section 5), branch 1 driving loads
+    the zero level the no-load limit of docs/model.md section 5), branch 1 driving loads
     (tau_load = +magnitude, the zero level the limit from that side).
     """
 
@@ -129,7 +132,11 @@ class TEMap:
 
 def build_te_map(design: RVDesign, errors: ErrorSet | None = None, points: int | None = None,
                  torque_fractions=TORQUE_FRACTIONS, progress=None) -> TEMap:
-    """Solve the quasi-static model on the grid (one reducer: `errors` of one sample)."""
+    """Solve the quasi-static model on the grid (one reducer: `errors` of one sample).
+
+    torque_fractions: magnitudes as fractions of the rated torque, ascending from 0,
+    solved on both branches; points: per output revolution (default `default_points`).
+    """
     errors = zero_errors(design) if errors is None else errors.check(design)
     if errors.samples != 1:
         raise InputError("errors", f"{errors.samples} reducers", "a TE map is for one reducer")

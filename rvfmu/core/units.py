@@ -1,4 +1,4 @@
-"""Unit conversions at the boundary (MODEL.md section 1).
+"""Unit conversions at the boundary (docs/model.md section 1).
 
 Inside the code every quantity is SI (m, rad, N, N*m, kg).  Files, the CLI
 and reports speak mm, um, deg and arcsec; these factors are the only place

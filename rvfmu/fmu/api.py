@@ -12,7 +12,13 @@ from ..progress import counter as progress_counter
 
 
 def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress=None) -> Path:
-    """Build the reducer FMU; returns its path.  progress(total, done): optional."""
+    """Build the reducer FMU; returns its path.  progress(total, done): optional.
+
+    design: a preset name, a design file or an RVDesign; errors: an error file, an
+    ErrorSet or None (no errors).  The output path (given the suffix .fmu) is
+    checked before the TE map is solved; file and preset names are recorded in
+    the FMU for `fmu_info`.
+    """
     from ..core.quasistatic import default_points
     from ..core.te_map import TORQUE_FRACTIONS
     from .build import build_fmu
@@ -29,7 +35,8 @@ def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress
 
 
 def fmu_info(path) -> str:
-    """A table of the FMU's variables: name, causality, variability, start, unit, description."""
+    """The FMU's bundled design and errors, then a table of its variables: name,
+    causality, variability, start, unit, description."""
     from fmpy import read_model_description
 
     path = Path(path)

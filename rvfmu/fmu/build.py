@@ -1,10 +1,12 @@
 """Build the reducer FMU: solve its TE map, bundle code and data, complete the XML.
 
-`build_fmu` is the whole job behind `rvte fmu build`.  The FMU carries the
-physics core (`rvfmu.core`, pure numpy/scipy) in its resources, so it runs in
-any Python with numpy and scipy, rvte installed or not; pythonfmu provides
-the FMI binary.  pythonfmu writes neither unit definitions nor units on the
-variables, so the model description is completed here.
+`build_fmu` does the work behind `rvte fmu build` (`rvfmu.fmu.api.fmu_build`
+checks the output path and resolves the inputs first).  The FMU carries the
+physics core (`rvfmu.core`, pure numpy; only the reference solver, which the
+FMU never imports, needs scipy) in its resources, so it runs in any Python
+3.11+ with numpy, rvte installed or not; pythonfmu provides the FMI binary and
+embeds its own Python package.  pythonfmu writes neither unit definitions nor
+units on the variables, so the model description is completed here.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from ..core.design import RVDesign
-from ..core.errors import ErrorSet, error_file_values, zero_errors
+from ..core.errors import ErrorSet, error_file_values, toml_text, zero_errors
 from ..core.te_map import build_te_map
 from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS, BUNDLED_MAP
 
@@ -44,6 +46,9 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
               points: int | None = None, progress=None, sources: dict | None = None) -> Path:
     """Write the reducer FMU for `design` and one reducer's `errors` to `output`.
 
+    output: given the suffix .fmu if it has another; points: TE map points per
+    output revolution (default `default_points`); progress(count): the solver's
+    per-chunk counts (`rvfmu.progress.ProgressCounter`), optional.
     sources: {"design": ..., "errors": ...}, where they came from (a preset name,
     a file path), recorded in the bundled files for `rvte fmu info`.
     """
@@ -62,9 +67,9 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
         (package / "__init__.py").write_text((PACKAGE / "__init__.py").read_text())
         sources = sources or {}
         (tmp / BUNDLED_DESIGN).write_text(_source_line(sources.get("design"))
-                                          + _toml(design.file_values()))
+                                          + toml_text(design.file_values()))
         (tmp / BUNDLED_ERRORS).write_text(_source_line(sources.get("errors"))
-                                          + _toml(error_file_values(errors)))
+                                          + toml_text(error_file_values(errors)))
         np.savez(tmp / BUNDLED_MAP, **te_map.to_arrays())
         script = tmp / "src" / f"{MODULE_NAME}.py"
         script.parent.mkdir()
@@ -127,23 +132,3 @@ SOURCE_PREFIX = "# source: "
 
 def _source_line(source) -> str:
     return f"{SOURCE_PREFIX}{source}\n" if source else ""
-
-
-def _toml(values: dict) -> str:
-    """A flat TOML document of numbers, strings and nested lists of numbers."""
-    lines = []
-    for key, value in values.items():
-        lines.append(f"{key} = {_toml_value(value)}")
-    return "\n".join(lines) + "\n"
-
-
-def _toml_value(value):
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, (bool, np.bool_)):
-        return "true" if value else "false"
-    if isinstance(value, (int, np.integer)):
-        return str(int(value))
-    return repr(float(value))

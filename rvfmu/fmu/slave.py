@@ -1,17 +1,27 @@
 """The RV reducer FMU slave (pythonfmu): input angle and load torque in, output angle out.
 
 A thin adapter: it maps FMI variables onto a reducer model of
-`rvfmu.core.reducer_model` and turns every problem into a logged fmi2Error
-instead of an exception: pythonfmu reports any Python exception as fmi2Fatal
-and drops the instance, so nothing here raises; a failed initialisation is
-logged as an error and every step after it returns fmi2Discard with the reason.  The design, the error
-set and the quasi-static TE map are bundled in the FMU's resources at build
-time; the parameters `design_file` and `errors_file` replace them, and the
-scale parameters change the physics, in which case the TE map is solved again
-when initialisation ends.
+`rvfmu.core.reducer_model`, and nothing here raises: pythonfmu reports any
+Python exception as fmi2Fatal, after which the instance is unusable.  Every
+problem is instead logged with status fmi2Error.  A failed initialisation is
+logged (fmi2ExitInitializationMode itself returns fmi2OK) and every step
+after it returns fmi2Discard (do_step returns False) with the reason logged
+again; a step with a bad input (not finite, a negative step size, or tau_load
+beyond the emergency-stop class, 5x the rated torque, `rvfmu.core.limits`)
+returns fmi2Discard the same way (after which pythonfmu also answers
+fmi2GetBooleanStatus(fmi2Terminated) with true).  Above the momentary maximum
+class, 2.5x rated, the step is computed and a warning is logged once per
+instance.
 
-This file is the FMU's entry module: pythonfmu copies it into the FMU and finds
-the class below by its `class RVReducer(Fmi2Slave):` line.
+The design, the error set and the quasi-static TE map are bundled in the
+FMU's resources at build time; the parameters `design_file` (a preset name or
+a design file) and `errors_file` replace them, and `map_points` and the scale
+parameters change the grid or the physics (error_scale = 0: the error-free
+reducer), in which case the TE map is solved again when initialisation ends.
+
+This file is the FMU's entry module: pythonfmu copies it into the FMU and, at
+build and at run time, takes the class below as the module's Fmi2Slave
+subclass (the deepest one in the class hierarchy: keep it the only one).
 """
 
 import math
@@ -131,8 +141,8 @@ class RVReducer(Fmi2Slave):
                 raise FmuInputError(message)
             self._show(self._reducer.initialize(0.0, self.theta_in, self.tau_load))
         except Exception as exc:  # noqa: BLE001
-            # pythonfmu turns any exception into fmi2Fatal and drops the instance, so a
-            # failure is logged here and every step then returns fmi2Discard with it.
+            # pythonfmu turns any exception into fmi2Fatal (the instance is then unusable),
+            # so a failure is logged here and every step then returns fmi2Discard with it.
             self._reducer = None
             self._fail(f"initialisation failed: {_describe(exc)}")
 
@@ -141,10 +151,10 @@ class RVReducer(Fmi2Slave):
             self._fail(self._failed or "do_step before the end of initialisation")
             return False
         theta_in, tau_load = self.theta_in, self.tau_load
-        if not (isfinite(theta_in) and step_size >= 0.0
+        if not (isfinite(theta_in) and step_size > 0.0
                 and abs(tau_load) <= self._momentary_torque):  # False for NaN: checked in full
-            message = (f"communication step size = {step_size}: must be >= 0" if step_size < 0
-                       else self._bad_inputs(theta_in, tau_load))
+            message = (self._bad_inputs(theta_in, tau_load) if step_size > 0.0
+                       else f"communication step size = {step_size}: must be a number > 0")
             if message:
                 self._fail(message)
                 return False

@@ -11,7 +11,7 @@ and `theta_arm` the arm's own angle, the link twist is theta - theta_arm and
     tau_load = -tau_link                                                  [N m]
 
 `tau_load` is the torque of the arm on the flange in the sign convention of
-MODEL.md section 2 (positive in the positive direction of rotation: an arm held
+docs/model.md section 2 (positive in the positive direction of rotation: an arm held
 up against gravity gives a negative, resisting, `tau_load`); at rest it is
 -m * g * l * cos(theta_arm), and in general -(J * alpha + m * g * l * cos(theta_arm)).
 

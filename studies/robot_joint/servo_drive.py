@@ -16,7 +16,7 @@ do), so a moving reference gives almost no following error.
 
 The motor shaft: J_m * d(omega)/dt = tau_motor + tau_in - b * omega, where
 `tau_in` is the torque of the reducer on its input shaft (negative when the
-reducer resists the motor, see MODEL.md section 2 and the reducer FMU).  It is
+reducer resists the motor, see docs/model.md section 2 and the reducer FMU).  It is
 integrated with semi-implicit (symplectic) Euler over `substeps` sub-steps per
 communication step, and the controller runs at that sub-step rate, like a
 drive's fast velocity loop; `tau_in` is held over the communication step.

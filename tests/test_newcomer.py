@@ -1,0 +1,98 @@
+"""Output a newcomer can follow: counts that add up, orders that are there, lines that explain
+themselves, the aliasing of a coarse study measured, and the error template."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from rvfmu import api, cli
+from rvfmu.core import metrics
+from rvfmu.core.errors import load_errors
+from tolerance import montecarlo, run_mc
+from tolerance.evaluate import evaluate
+from tolerance.study import load_study
+from tolerance_toy import write_study
+
+
+@pytest.fixture(scope="module")
+def toy_run(tmp_path_factory):
+    """30 reducers in batches of 8 at 64 points: 32 computed, 30 analysed, the points alias."""
+    folder = tmp_path_factory.mktemp("newcomer")
+    path = write_study(folder, montecarlo={"n": 30})
+    lines = []
+    return path, run_mc(path, output=folder / "out", plots=False, log=lines.append), lines
+
+
+def test_mc_counts_say_what_was_analysed_and_what_was_computed(toy_run):
+    _, result, lines = toy_run
+    table = result.table()
+    assert "30 reducers analysed (32 computed in 4 batches of 8; the rest are kept for a " \
+           "larger -n)" in table.splitlines()[0]
+    assert lines[-1].startswith("mc: 32 reducers in 4 batches of 8 (0 reused, 4 computed)")
+    summary = result.to_json()
+    assert (summary["n"], summary["computed_rows"], summary["batch_size"]) == (30, 32, 8)
+
+
+def test_the_aliasing_check_recomputes_reducers_at_full_resolution(toy_run):
+    path, result, _ = toy_run
+    check = result.aliasing
+    study = load_study(path)
+    assert (check.points, check.full_points, check.rows) == (64, 8 * 40 * 39, 16)
+    # an independent evaluation of the same reducers at 12480 points
+    fine = dataclasses.replace(study, points=12480, spec=())
+    Y, _ = evaluate(fine, montecarlo.rows(study, 0, 16))
+    np.testing.assert_allclose(check.full, Y, rtol=1e-12)
+    np.testing.assert_array_equal(check.coarse, result.Y[:16])
+    change = np.abs(Y - result.Y[:16]).max(axis=0)
+    np.testing.assert_allclose(check.max_change(), change)
+    # the yield bound: the share of reducers within that change of the spec line
+    near = np.mean(np.abs(result.Y[:, 0] - 30.0) <= change[0])
+    assert check.yield_at_risk == {"te_pp_arcsec <= 30": pytest.approx(near)}
+    table = result.table()
+    assert "aliasing check: 64 points per revolution do not resolve the pin-passing order; 16 " \
+           "reducers of this study recomputed at 12480 points change te_pp_arcsec by at most" in table
+    assert "aliasing moves the yield by at most that much" in table
+
+
+def test_a_study_that_resolves_the_pin_passing_order_needs_no_aliasing_check(tmp_path):
+    from tolerance import aliasing
+
+    study = load_study(write_study(tmp_path, operating={"points": 3200}))
+    assert not aliasing.aliases(study)
+    assert aliasing.check(study, np.zeros((1, len(study.columns))), np.zeros((1, 2))) is None
+
+
+def test_no_order_below_the_noise_floor_is_listed():
+    report = api.te("RV-110E", load=500.0, points=1248)
+    listed = report.summary().split("largest orders", 1)[1].splitlines()[0]
+    amplitudes = [float(part.split(":")[1].strip(" \u2033")) for part in listed.split(",")]
+    assert amplitudes and min(amplitudes) >= metrics.NOISE_FLOOR_ARCSEC
+    assert "0.000\u2033" not in listed
+    flat_curve = dataclasses.replace(report.curve, te=np.full_like(report.curve.te, 1e-4))
+    flat = dataclasses.replace(report, curve=flat_curve).summary()
+    assert "largest orders    none above the noise floor of 0.001\u2033 (the TE is flat)" in flat
+
+
+def test_the_no_load_mean_is_explained_and_a_loaded_one_is_not():
+    no_load = api.te("RV-20E", points=64).summary()
+    mean_line = next(line for line in no_load.splitlines() if line.startswith("mean"))
+    assert "no load: the output's turn-back from its nominal place to the first contact" in mean_line
+    assert "free play" in mean_line
+    loaded = api.te("RV-20E", load=50.0, points=64).summary()
+    assert "turn-back" not in loaded
+
+
+def test_the_error_template_command_writes_a_file_that_loads_back_to_zero(tmp_path, capsys):
+    from rvfmu.core.design import preset
+
+    out = tmp_path / "my_errors.toml"
+    assert cli.main(["errors", "--template", "RV-110E", "-o", str(out)]) == 0
+    assert "wrote error template" in capsys.readouterr().out
+    errors = load_errors(out, preset("RV-110E"))
+    assert all(not np.any(array) for array in errors.arrays().values())
+    assert cli.main(["errors", "--template", "RV-40E-121"]) == 0
+    printed = capsys.readouterr().out
+    assert printed.count("\npin_pitch = [") == 1 and "docs/model.md section 4" in printed
+    assert cli.main(["errors", "--template", "RV-40E-121", "-o", str(tmp_path / "e.txt")]) == 2
+    assert "output = " in capsys.readouterr().err
