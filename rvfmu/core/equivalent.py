@@ -30,8 +30,10 @@ from .design import RVDesign
 from .errors import CLEARANCES, ErrorSet
 
 
-def dof_names(n_c: int) -> list[str]:
-    names = ["sun_x", "sun_y"]
+def dof_names(n_c: int, sun_rotation: bool = False) -> list[str]:
+    """Unknowns in order; with `sun_rotation` the sun's rotation too (the dynamic model's
+    input shaft twists; the quasi-static model holds the sun at its input angle)."""
+    names = ["sun_x", "sun_y"] + (["sun_rot"] if sun_rotation else [])
     for i in range(n_c):
         names += [f"crank{i}_x", f"crank{i}_y", f"crank{i}_rot"]
     for j in range(2):
@@ -87,11 +89,12 @@ class EquivalentModel:
     (or the no-load limit is approached from that side).
     """
 
-    def __init__(self, design: RVDesign, theta_in, flank: int = 1):
+    def __init__(self, design: RVDesign, theta_in, flank: int = 1, sun_rotation: bool = False):
         self.design = design
         self.pose = Pose.at(design, theta_in)
         self.flank = 1 if flank >= 0 else -1
-        self.names = dof_names(design.n_c)
+        self.sun_rotation = sun_rotation
+        self.names = dof_names(design.n_c, sun_rotation)
         self.n_dof = len(self.names)
         self.index = {name: k for k, name in enumerate(self.names)}
         self.scale = design.R_p  # rotation unknowns are arc lengths at R_p
@@ -131,6 +134,9 @@ class EquivalentModel:
             # planet point C - O_p = -r_pl e_i turns with the crank: u = rot * k x (C - O_p)
             lever = _perp(-r_pl * e_i[:, i])
             mesh[:, i, cr] = -np.einsum("ax,ax->a", w[:, i], lever) / self.scale
+            if self.sun_rotation:
+                # sun point C - O_s = r_s e_i turns with the sun: u = rot * r_s t_i, w . t_i = flank cos
+                mesh[:, i, sun[2]] = self.flank * np.cos(alpha) * r_s / self.scale
         support = np.zeros((A, 2, n))
         support[:, 0, sun[0]] = 1.0
         support[:, 1, sun[1]] = 1.0

@@ -1,0 +1,302 @@
+"""The dynamic model: the reducer's lumped masses, springs and dampers in the time domain.
+
+The question the quasi-static model cannot answer: what TE does the reducer
+show while it turns at speed, with its own inertias, near its resonances and
+under a load step?  Seeds 000-002 answer it with a lumped-parameter model:
+every part a rigid body in the plane, every mesh, bearing and pin contact a
+spring with a damper, integrated in time (seed 002, eqs. (1)-(5)).
+
+This model uses the same elements, gaps and error displacements as the
+quasi-static one (`EquivalentModel`: one implementation of the geometry), over
+its unknowns plus the sun's rotation: the input shaft is stiff but not rigid,
+so the sun follows the prescribed input angle through `INPUT_SHAFT_FACTOR`
+times the torsional mesh stiffness, and the shaft's twist gives the input
+torque.  Unknowns are small displacements from the nominal kinematics of
+docs/model.md section 2 (rotations as arc length at R_p, as in the quasi-static
+model); the nominal motion itself enters as d'Alembert forces: every body's
+nominal acceleration (centripetal terms of the cranks and discs, and the
+angular accelerations during a speed ramp) times its mass.
+
+    M q'' + C(q) q' + f(q, t) = F_load(t) + F_nominal(t)
+
+- Pin-disc contacts are unilateral: `linear` spring-damper, or the IMPACT law
+  of seeds 000/001/004 (k delta^e with the damping ramped from 0 to c_max
+  over the penetration d_max); bearing clearances are dead zones; the
+  sun-planet meshes are bilateral springs on the loaded flank.
+- The mesh stiffness varies over the mesh cycle (`mesh_stiffness_factor`):
+  single pair c' and double pair 1.75 c', whose mean over the cycle is ISO
+  6336-1's c_gamma = c' (0.75 eps_alpha + 0.25), the preset's mesh stiffness.
+- Damping: each element a dashpot c = 2 zeta sqrt(k m), zeta the design's
+  damping ratio and m the reduced translational mass of the two bodies it joins
+  (bodies fixed to the housing count as infinite).
+
+Nothing here integrates: `DynamicModel` gives the mass matrix, the loads and
+the element forces with their tangent stiffness and damping at a time step;
+the integrators (`newmark.py`) and `simulate` (`simulation.py`) drive it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .design import RVDesign
+from .equivalent import EquivalentModel
+from .errors import ErrorSet
+from .stiffness import transverse_contact_ratio
+
+INPUT_SHAFT_FACTOR = 10.0  # input shaft torsional stiffness / torsional mesh stiffness at the sun
+DOUBLE_PAIR = 1.75         # double-pair / single-pair mesh stiffness: ISO 6336-1's c_gamma = c'(0.75 eps + 0.25)
+IMPACT_EXPONENT = 1.5      # IMPACT law exponent e (Hertz-like, seeds 000/001)
+IMPACT_PENETRATION = 1e-6  # d_max [m]: the damping reaches c_max over 1 um of penetration
+CHUNK = 512                # time steps whose geometry is built at once
+CONTACT_LAWS = ("linear", "impact")
+MESH_MODELS = ("varying", "constant")
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Prescribed input: angle [rad], speed [rad/s] and acceleration [rad/s^2] at times t, each (T,)."""
+
+    time: np.ndarray
+    theta_in: np.ndarray
+    omega_in: np.ndarray
+    alpha_in: np.ndarray
+
+
+def ramp_motion(time, speed: float, ramp: float) -> Motion:
+    """Input speed raised smoothly from 0 to `speed` [rad/s] over `ramp` [s] (half a cosine,
+    as seed 004's start ramp), then constant; theta_in(0) = 0."""
+    t = np.asarray(time, dtype=float)
+    if ramp <= 0.0:
+        return Motion(t, speed * t, np.full_like(t, speed), np.zeros_like(t))
+    inside = t < ramp
+    x = np.minimum(t, ramp)
+    theta = 0.5 * speed * (x - ramp / math.pi * np.sin(math.pi * x / ramp)) \
+        + speed * np.maximum(t - ramp, 0.0)
+    omega = np.where(inside, 0.5 * speed * (1.0 - np.cos(math.pi * x / ramp)), speed)
+    alpha = np.where(inside, 0.5 * speed * math.pi / ramp * np.sin(math.pi * x / ramp), 0.0)
+    return Motion(t, theta, omega, alpha)
+
+
+def mesh_stiffness_factor(design: RVDesign, theta_in, theta_out, model: str = "varying"):
+    """(T, n_c) mesh stiffness over its mean (ISO c_gamma): 1 for `constant`; for `varying`
+    single-pair and double-pair levels by the position in the mesh cycle.
+
+    The cycle position is the count of sun teeth passed relative to the carrier,
+    z_s (theta_in - theta_out) / 2 pi; planet i is shifted by i z_s / n_c teeth.
+    The first eps_alpha - 1 of each cycle has two pairs in contact.
+    """
+    theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
+    if model == "constant":
+        return np.ones((theta_in.size, design.n_c))
+    eps = transverse_contact_ratio(design.z_s, design.z_pl, design.m, design.pressure_angle)
+    teeth = design.z_s * (theta_in - np.asarray(theta_out, dtype=float)) / (2.0 * math.pi)
+    phase = np.mod(teeth[:, None] + design.z_s * np.arange(design.n_c) / design.n_c, 1.0)
+    single = 1.0 / (0.75 * eps + 0.25)
+    return np.where(phase < eps - 1.0, DOUBLE_PAIR * single, single)
+
+
+class DynamicModel:
+    """Masses, loads and element forces of one reducer over a prescribed input motion.
+
+    errors: one reducer (an ErrorSet of one sample); tau_load: [N*m] constant or a
+    function of time (docs/model.md section 2 sign); flank: the loaded flank of the
+    meshes (+1: the sun drives, -1: the load drives; default from the load's sign).
+    """
+
+    def __init__(self, design: RVDesign, errors: ErrorSet, contact: str = "linear",
+                 mesh: str = "varying", flank: int = 1):
+        if errors.samples != 1:
+            raise ValueError("the dynamic model simulates one reducer at a time")
+        self.design, self.errors = design, errors
+        self.contact, self.mesh, self.flank = contact, mesh, flank
+        probe = EquivalentModel(design, [0.0], flank, sun_rotation=True)
+        self.names, self.n = probe.names, probe.n_dof
+        self.index = probe.index
+        self.scale = probe.scale
+        self.carrier_rot, self.sun_rot = probe.index["carrier_rot"], probe.index["sun_rot"]
+        self.pin_dofs = probe.pin_dofs
+        self.bearing_k = probe.bearing_k
+        self.half_clearance = probe.clearance_halves(errors)[0]
+        self.mass = self._mass_diagonal()
+        r_b = design.sun_base_radius
+        self.shaft_k = INPUT_SHAFT_FACTOR * design.n_c * design.mesh_stiffness * r_b ** 2  # N*m/rad
+        zeta = design.damping_ratio
+        m = self._masses()
+        reduced = lambda a, b: a * b / (a + b) if math.isfinite(b) else a  # noqa: E731
+        self.linear_c = 2 * zeta * np.sqrt(
+            np.array([design.mesh_stiffness] * design.n_c + [design.sun_support_stiffness] * 2)
+            * np.array([reduced(m["sun"], m["crank"])] * design.n_c + [m["sun"]] * 2))
+        pairs = ([(m["crank"], m["carrier"])] * design.n_c + [(m["crank"], m["disc"])] * 2 * design.n_c
+                 + [(m["carrier"], math.inf)])
+        self.bearing_c = 2 * zeta * np.sqrt(self.bearing_k * np.array([reduced(a, b) for a, b in pairs]))
+        self.pin_k = design.pin_disc_stiffness
+        self.pin_c = 2 * zeta * math.sqrt(self.pin_k * m["disc"])
+        self.shaft_c = 2 * zeta * math.sqrt(self.shaft_k * design.sun_inertia)
+        # IMPACT: k delta^e equals the linear law at the pin deflection under rated torque
+        self.impact_k = self.pin_k * self._rated_pin_deflection() ** (1.0 - IMPACT_EXPONENT)
+        self._geometry = None
+
+    # -- constant parts --------------------------------------------------------------
+    def _masses(self) -> dict:
+        d = self.design
+        return {"sun": d.sun_mass, "crank": d.crank_mass, "disc": d.disc_mass, "carrier": d.carrier_mass}
+
+    def _mass_diagonal(self) -> np.ndarray:
+        d, s2 = self.design, self.design.R_p ** 2
+        values = {"sun": (d.sun_mass, d.sun_inertia), "crank": (d.crank_mass, d.crank_inertia),
+                  "disc": (d.disc_mass, d.disc_inertia), "carrier": (d.carrier_mass, d.carrier_inertia)}
+        out = np.empty(self.n)
+        for k, name in enumerate(self.names):
+            body = name.split("_")[0].rstrip("0123456789")
+            mass, inertia = values[body]
+            out[k] = inertia / s2 if name.endswith("_rot") else mass
+        return out
+
+    def _rated_pin_deflection(self) -> float:
+        from .stiffness import largest_pin_force
+
+        force = largest_pin_force(0.5 * self.design.rated_torque, self.design.R_p, self.design.e,
+                                  self.design.z_p)
+        return force / self.pin_k
+
+    # -- per step ----------------------------------------------------------------------
+    def prepare(self, motion: Motion) -> None:
+        """Keep the motion; element geometry is built chunk by chunk as steps ask for it."""
+        self.motion = motion
+        self._geometry = None
+
+    def geometry(self, step: int):
+        """Rows and offsets of every element at time step `step` of the motion."""
+        g = self._geometry
+        if g is None or not g["start"] <= step < g["stop"]:
+            start, stop = step, min(step + CHUNK, self.motion.time.size)
+            theta = self.motion.theta_in[start:stop]
+            model = EquivalentModel(self.design, theta, self.flank, sun_rotation=True)
+            A = stop - start
+            lin, brg, pins = model.offsets(self.errors, np.zeros(A, dtype=int), np.arange(A))
+            factor = mesh_stiffness_factor(self.design, theta, theta / self.design.ratio, self.mesh)
+            k_lin = np.tile(model.linear_k, (A, 1))
+            k_lin[:, :self.design.n_c] *= factor
+            g = self._geometry = {"start": start, "stop": stop, "L": model.linear_rows,
+                                  "B": model.bearing_rows, "P": model.pin_rows, "lin": lin,
+                                  "brg": brg, "pins": pins, "k_lin": k_lin}
+        a = step - g["start"]
+        return (g["L"][a], g["B"][a], g["P"][a], g["lin"][a], g["brg"][a], g["pins"][a],
+                g["k_lin"][a])
+
+    def nominal_force(self, step: int) -> np.ndarray:
+        """(n,) d'Alembert forces of the nominal motion at a step [N]: minus mass times the
+        nominal acceleration of every body (docs/model.md section 2 kinematics)."""
+        d, m = self.design, self.motion
+        th_in, w_in, a_in = m.theta_in[step], m.omega_in[step], m.alpha_in[step]
+        i = d.ratio
+        th_out, w_out, a_out = th_in / i, w_in / i, a_in / i
+        k_beta = -d.z_s / d.z_pl
+        w_psi = w_out + k_beta * (w_in - w_out)
+        a_psi = a_out + k_beta * (a_in - a_out)
+        psi = th_out + k_beta * (th_in - th_out)
+        f = np.zeros(self.n)
+        idx, s = self.index, self.scale
+        f[idx["sun_rot"]] = -d.sun_inertia * a_in / s
+        f[idx["carrier_rot"]] = -d.carrier_inertia * a_out / s
+        a = d.crank_circle_radius
+        for c in range(d.n_c):
+            ang = th_out + 2 * math.pi * c / d.n_c
+            er, et = np.array([math.cos(ang), math.sin(ang)]), np.array([-math.sin(ang), math.cos(ang)])
+            acc = a * (a_out * et - w_out ** 2 * er)
+            f[idx[f"crank{c}_x"]], f[idx[f"crank{c}_y"]] = -d.crank_mass * acc
+            f[idx[f"crank{c}_rot"]] = -d.crank_inertia * a_psi / s
+        for j in range(2):
+            ang = psi + j * math.pi
+            er, et = np.array([math.cos(ang), math.sin(ang)]), np.array([-math.sin(ang), math.cos(ang)])
+            acc = d.e * (a_psi * et - w_psi ** 2 * er)
+            f[idx[f"disc{j}_x"]], f[idx[f"disc{j}_y"]] = -d.disc_mass * acc
+            f[idx[f"disc{j}_rot"]] = -d.disc_inertia * a_out / s
+        return f
+
+    def forces(self, step: int, q: np.ndarray, v: np.ndarray):
+        """Internal forces at a step: (f (n,), K (n, n), C (n, n)), f = K-secant forces plus damping.
+
+        f is what the elements push back with (the EOM is M a + f = F); K and C are
+        its derivatives in q and v (tangent stiffness and damping).  The input shaft
+        ties the sun's rotation to the prescribed angle.
+        """
+        L, B, P, lin_off, brg_off, pin_off, k_lin = self.geometry(step)
+        n = self.n
+        # linear elements: meshes and sun support
+        delta = L @ q + lin_off
+        rate = L @ v
+        f = L.T @ (k_lin * delta + self.linear_c * rate)
+        K = (L.T * k_lin) @ L
+        C = (L.T * self.linear_c) @ L
+        # bearings: 2-D springs with a dead zone of half the radial clearance
+        d = np.einsum("bxn,n->bx", B, q) + brg_off                 # (nb, 2)
+        r = np.sqrt((d ** 2).sum(axis=1))
+        c_half = self.half_clearance
+        touching = r > c_half
+        for b in np.flatnonzero(touching):
+            Bb = B[b]
+            if c_half[b] > 0.0:
+                u = d[b] / r[b]
+                force = self.bearing_k[b] * (r[b] - c_half[b]) * u
+                ratio = c_half[b] / r[b]
+                Kb = self.bearing_k[b] * ((1.0 - ratio) * np.eye(2) + ratio * np.outer(u, u))
+            else:
+                force = self.bearing_k[b] * d[b]
+                Kb = self.bearing_k[b] * np.eye(2)
+            f += Bb.T @ (force + self.bearing_c[b] * (Bb @ v))
+            K += Bb.T @ Kb @ Bb
+            C += self.bearing_c[b] * (Bb.T @ Bb)
+        # pins: unilateral along their normals, over each disc's own three unknowns
+        for j in range(2):
+            dofs = self.pin_dofs[j]
+            rows = P[j]                                              # (z_p, 3)
+            delta = rows @ q[dofs] + pin_off[j]
+            on = delta > 0.0
+            if not on.any():
+                continue
+            R = rows[on]
+            dn, rate = delta[on], R @ v[dofs]
+            if self.contact == "impact":
+                k_eff = IMPACT_EXPONENT * self.impact_k * dn ** (IMPACT_EXPONENT - 1.0)
+                ramp = np.clip(dn / IMPACT_PENETRATION, 0.0, 1.0)
+                ramp = ramp * ramp * (3.0 - 2.0 * ramp)              # IMPACT's cubic step
+                c_eff = self.pin_c * ramp
+                normal = self.impact_k * dn ** IMPACT_EXPONENT + c_eff * rate
+                dc = self.pin_c * 6.0 * (dn / IMPACT_PENETRATION) * (1 - dn / IMPACT_PENETRATION) \
+                    / IMPACT_PENETRATION * (dn < IMPACT_PENETRATION)
+                k_eff = k_eff + dc * rate
+            else:
+                k_eff = np.full(dn.shape, self.pin_k)
+                c_eff = np.full(dn.shape, self.pin_c)
+                normal = self.pin_k * dn + self.pin_c * rate
+            # a contact pulls nothing: a separating dashpot cannot drag the surfaces together
+            pulling = normal < 0.0
+            normal = np.where(pulling, 0.0, normal)
+            k_eff, c_eff = np.where(pulling, 0.0, k_eff), np.where(pulling, 0.0, c_eff)
+            idx = np.ix_(dofs, dofs)
+            f[dofs] += R.T @ normal
+            K[idx] += (R.T * k_eff) @ R
+            C[idx] += (R.T * c_eff) @ R
+        # input shaft: the sun's rotation deviation against a torsional spring to the housing
+        s2 = self.scale ** 2
+        k = self.sun_rot
+        f[k] += (self.shaft_k * q[k] + self.shaft_c * v[k]) / s2
+        K[k, k] += self.shaft_k / s2
+        C[k, k] += self.shaft_c / s2
+        return f, K, C
+
+    def input_torque(self, q, v) -> float:
+        """Torque of the reducer on the input shaft [N*m] (docs/model.md section 2): the shaft's twist."""
+        k = self.sun_rot
+        return (self.shaft_k * q[k] + self.shaft_c * v[k]) / self.scale
+
+    def load_vector(self) -> np.ndarray:
+        """(n,) generalised force of tau_load = 1 N*m on the carrier."""
+        g = np.zeros(self.n)
+        g[self.carrier_rot] = 1.0 / self.scale
+        return g

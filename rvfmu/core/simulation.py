@@ -1,0 +1,196 @@
+"""Simulating the dynamic model: a prescribed input motion and load in, TE(t) and its spectrum out.
+
+The run starts at rest in the elastic equilibrium under the initial load (from
+the quasi-static solution, refined with the input shaft's twist), raises the
+input speed over a smooth ramp (seed 004) and integrates with the Newmark
+stepper.  The metrics are taken over the constant-speed part after the ramp,
+where the spectrum by frequency shows the reducer's own excitations: input
+rotation, crank rotation, pin passing and stage-1 mesh (docs/model.md section 7).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .checks import InputError, finite_number, positive
+from .design import RVDesign
+from .dynamic import CONTACT_LAWS, MESH_MODELS, DynamicModel, Motion, ramp_motion
+from .equivalent import EquivalentModel
+from .errors import ErrorSet, zero_errors
+from .limits import check_load
+from .newmark import NewmarkStepper, static_equilibrium
+from .quasistatic import NO_LOAD_PROBE
+from .solver import solve_pairs
+from .units import rad_to_arcsec
+
+STEPS_PER_PERIOD = 20      # default step: 20 per period of the fastest excitation (mesh or pin passing)
+MIN_STEPS_PER_PERIOD = 8   # coarser than this misses the excitation: refused
+DEFAULT_RAMP_OUTPUT_TURNS = 0.02   # start ramp: 2 % of an output revolution's time at speed, >= 0.05 s
+
+
+@dataclass(frozen=True)
+class Excitations:
+    """Excitation frequencies [Hz] at an input speed (docs/model.md section 7)."""
+
+    input: float
+    output: float
+    crank: float
+    pin_passing: float
+    mesh: float
+
+    @classmethod
+    def at(cls, design: RVDesign, speed_rpm: float) -> "Excitations":
+        f_in = speed_rpm / 60.0
+        f_out = f_in / design.ratio
+        crank = (f_in - f_out) * design.z_s / design.z_pl
+        return cls(f_in, f_out, crank, design.z_c * crank, design.z_s * (f_in - f_out))
+
+    def items(self):
+        return (("input rotation", self.input), ("crank rotation", self.crank),
+                ("pin passing", self.pin_passing), ("stage-1 mesh", self.mesh))
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """A dynamic run of one reducer.
+
+    time, theta_in, theta_out, te [rad], tau_in [N*m], tau_load [N*m]: (T,);
+    q: (T, n) every unknown [m, rotations as arc length at R_p], names in `dofs`;
+    steady: index of the first step after the start ramp; step [s].
+    """
+
+    design: RVDesign
+    speed_rpm: float
+    time: np.ndarray
+    theta_in: np.ndarray
+    theta_out: np.ndarray
+    te: np.ndarray
+    tau_in: np.ndarray
+    tau_load: np.ndarray
+    q: np.ndarray
+    dofs: tuple
+    steady: int
+    step: float
+    failed_steps: int
+
+    @property
+    def te_arcsec(self) -> np.ndarray:
+        return rad_to_arcsec(self.te)
+
+    def steady_te_arcsec(self) -> np.ndarray:
+        return self.te_arcsec[self.steady:]
+
+    @property
+    def te_pp_arcsec(self) -> float:
+        te = self.steady_te_arcsec()
+        return float(te.max() - te.min())
+
+    def spectrum_hz(self):
+        """(frequencies [Hz], amplitudes [arcsec]) of the TE after the ramp, mean removed
+        (Hann window, amplitude-corrected)."""
+        te = self.steady_te_arcsec()
+        te = te - te.mean()
+        window = np.hanning(te.size)
+        amplitude = 2.0 * np.abs(np.fft.rfft(te * window)) / window.sum()
+        return np.fft.rfftfreq(te.size, self.step), amplitude
+
+    def peaks_hz(self, count: int = 5, floor: float = 1e-3):
+        """Up to `count` largest local maxima of the spectrum above `floor` arcsec: [(Hz, arcsec)]."""
+        f, a = self.spectrum_hz()
+        inner = np.flatnonzero((a[1:-1] > a[:-2]) & (a[1:-1] >= a[2:])) + 1
+        inner = inner[a[inner] > floor]
+        top = inner[np.argsort(-a[inner])][:count]
+        return [(float(f[k]), float(a[k])) for k in top]
+
+
+def default_step(design: RVDesign, speed_rpm: float) -> float:
+    """[s]: STEPS_PER_PERIOD steps per period of the faster of pin passing and stage-1 mesh."""
+    ex = Excitations.at(design, speed_rpm)
+    return 1.0 / (STEPS_PER_PERIOD * max(ex.pin_passing, ex.mesh))
+
+
+def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float = 1600.0,
+             load: float = 0.0, duration: float | None = None, revolutions: float | None = None,
+             contact: str = "linear", mesh: str = "varying", step: float | None = None,
+             ramp: float | None = None, progress=None) -> Simulation:
+    """Dynamic TE of one reducer at a constant input speed after a start ramp.
+
+    load: resisting output torque [N*m] (tau_load = -load); duration [s] or
+    revolutions (output revolutions at speed, after the ramp); step [s]
+    (default `default_step`); ramp [s] (default 2 % of an output revolution, at
+    least 0.05 s).  progress(total, done): optional.
+    """
+    errors = zero_errors(design) if errors is None else errors.check(design)
+    if errors.samples != 1:
+        raise InputError("errors", errors.samples, "the dynamic model simulates one reducer")
+    speed_rpm = positive("speed_rpm", speed_rpm)
+    load = finite_number("load", load)
+    check_load("load", load, design.rated_torque)
+    if contact not in CONTACT_LAWS:
+        raise InputError("contact", contact, f"must be one of {', '.join(CONTACT_LAWS)}")
+    if mesh not in MESH_MODELS:
+        raise InputError("mesh", mesh, f"must be one of {', '.join(MESH_MODELS)}")
+    speed = speed_rpm * 2.0 * math.pi / 60.0
+    out_period = 2.0 * math.pi * design.ratio / speed
+    ramp = max(0.05, DEFAULT_RAMP_OUTPUT_TURNS * out_period) if ramp is None else \
+        finite_number("ramp", ramp)
+    if ramp < 0:
+        raise InputError("ramp", ramp, "must be >= 0")
+    if duration is not None and revolutions is not None:
+        raise InputError("duration", duration, "give a duration or a number of revolutions, not both")
+    if revolutions is not None:
+        length = positive("revolutions", revolutions) * out_period
+    else:
+        length = out_period if duration is None else positive("duration", duration)
+    finest = default_step(design, speed_rpm)
+    step = finest if step is None else positive("step", step)
+    coarsest = finest * STEPS_PER_PERIOD / MIN_STEPS_PER_PERIOD
+    if step > coarsest:
+        ex = Excitations.at(design, speed_rpm)
+        raise InputError("step", step, f"must be <= {coarsest:.3g} s: at {speed_rpm:g} rpm the "
+                         f"stage-1 mesh ({ex.mesh:.0f} Hz) and pin passing ({ex.pin_passing:.0f} Hz) "
+                         f"need at least {MIN_STEPS_PER_PERIOD} steps per period")
+    count = int(math.ceil((ramp + length) / step)) + 1
+    time = np.arange(count) * step
+    motion = ramp_motion(time, speed, ramp)
+    tau_load = -load
+    flank = 1 if tau_load <= 0 else -1
+    model = DynamicModel(design, errors, contact, mesh, flank)
+    model.prepare(motion)
+    g = model.load_vector()
+
+    def external(k):
+        return tau_load * g + model.nominal_force(k)
+
+    q0 = static_equilibrium(model, external(0), 0, _quasi_static_start(model, design, errors,
+                                                                      tau_load, flank))
+    stepper = NewmarkStepper.starting_at(model, external, q0)
+    q = np.empty((count, model.n))
+    q[0] = q0
+    tau_in = np.empty(count)
+    tau_in[0] = model.input_torque(q0, stepper.state.v)
+    report = max(1, count // 200)
+    for k in range(1, count):
+        state = stepper.step()
+        q[k] = state.q
+        tau_in[k] = model.input_torque(state.q, state.v)
+        if progress is not None and (k % report == 0 or k == count - 1):
+            progress(count - 1, k)
+    te = q[:, model.carrier_rot] / model.scale
+    return Simulation(design, speed_rpm, time, motion.theta_in, motion.theta_in / design.ratio + te,
+                      te, tau_in, np.full(count, tau_load), q, tuple(model.names),
+                      int(np.searchsorted(time, ramp)), step, stepper.failed_steps)
+
+
+def _quasi_static_start(model, design, errors, tau_load, flank) -> np.ndarray:
+    """The quasi-static equilibrium at theta_in = 0 in the dynamic model's unknowns."""
+    qs_model = EquivalentModel(design, [0.0], flank)
+    eq = solve_pairs(qs_model, errors, [0], [0], [tau_load],
+                     no_load_probe=NO_LOAD_PROBE * design.rated_torque)
+    q0 = np.zeros(model.n)
+    for name, k in qs_model.index.items():
+        q0[model.index[name]] = eq.q[0, k]
+    return q0
