@@ -290,6 +290,20 @@ class DynamicModel:
         C[k, k] += self.shaft_c / s2
         return f, K, C
 
+    def energy(self, step: int, q: np.ndarray, v: np.ndarray) -> float:
+        """Kinetic plus elastic energy [J] at a step (linear contact law; for energy checks)."""
+        L, B, P, lin_off, brg_off, pin_off, k_lin = self.geometry(step)
+        delta = L @ q + lin_off
+        elastic = 0.5 * np.sum(k_lin * delta ** 2)
+        d = np.einsum("bxn,n->bx", B, q) + brg_off
+        stretch = np.maximum(np.sqrt((d ** 2).sum(axis=1)) - self.half_clearance, 0.0)
+        elastic += 0.5 * np.sum(self.bearing_k * stretch ** 2)
+        for j in range(2):
+            pin = np.maximum(P[j] @ q[self.pin_dofs[j]] + pin_off[j], 0.0)
+            elastic += 0.5 * self.pin_k * np.sum(pin ** 2)
+        elastic += 0.5 * self.shaft_k * (q[self.sun_rot] / self.scale) ** 2
+        return float(0.5 * np.sum(self.mass * v * v) + elastic)
+
     def input_torque(self, q, v) -> float:
         """Torque of the reducer on the input shaft [N*m] (docs/model.md section 2): the shaft's twist."""
         k = self.sun_rot

@@ -1,0 +1,152 @@
+"""The dynamic model against the quasi-static one, hand-known spectra, energy and bad input."""
+
+import math
+
+import numpy as np
+import pytest
+
+from rvfmu.core.checks import InputError
+from rvfmu.core.design import preset
+from rvfmu.core.dynamic import Motion, DynamicModel, mesh_stiffness_factor, ramp_motion
+from rvfmu.core.errors import ErrorSet, zero_errors
+from rvfmu.core.newmark import NewmarkStepper, static_equilibrium
+from rvfmu.core.quasistatic import equilibrium_te
+from rvfmu.core.simulation import Excitations, simulate
+from rvfmu.core.stiffness import transverse_contact_ratio
+from rvfmu.core.units import rad_to_arcsec
+
+
+def with_error(design, name, index, value):
+    arrays = zero_errors(design).arrays()
+    array = arrays[name].copy()
+    array[(0,) + index] = value
+    arrays[name] = array
+    return ErrorSet(**arrays)
+
+
+def spectrum(signal, step):
+    signal = signal - signal.mean()
+    window = np.hanning(signal.size)
+    return (np.fft.rfftfreq(signal.size, step),
+            2.0 * np.abs(np.fft.rfft(signal * window)) / window.sum())
+
+
+def test_at_slow_speed_the_dynamic_te_is_the_quasi_static_te(rv40, seed002):
+    sim = simulate(rv40, seed002, speed_rpm=5.0, load=300.0, revolutions=0.02, mesh="constant",
+                   ramp=0.5)
+    assert sim.failed_steps == 0
+    theta = sim.theta_in[sim.steady:][::5]
+    dynamic = sim.steady_te_arcsec()[::5]
+    te, _, _ = equilibrium_te(rv40, seed002, theta, [-300.0])
+    static = rad_to_arcsec(te[0, 0])
+    pp = np.ptp(static)
+    assert pp > 5.0                                     # a real TE curve, not a flat one
+    assert np.ptp(dynamic) == pytest.approx(pp, rel=0.02)
+    assert np.max(np.abs(dynamic - static)) < 0.05 * pp
+
+
+def test_at_a_small_load_and_slow_speed_the_dynamic_te_is_the_no_load_limit(rv40, seed002):
+    small = 5e-4 * rv40.rated_torque                    # 0.2 N*m
+    sim = simulate(rv40, seed002, speed_rpm=5.0, load=small, revolutions=0.01, mesh="constant",
+                   ramp=0.5)
+    theta = sim.theta_in[sim.steady:][::5]
+    te, _, _ = equilibrium_te(rv40, seed002, theta, [0.0])
+    no_load = rad_to_arcsec(te[0, 0])
+    dynamic = sim.steady_te_arcsec()[::5]
+    assert np.max(np.abs(dynamic - no_load)) < 0.05 * np.ptp(no_load)
+
+
+def test_exact_reducer_without_errors_runs_flat_and_the_varying_mesh_shows_at_its_frequency(rv40):
+    exact = rv40.with_fields(d_rp=0.0, d_rrp=0.0)
+    constant = simulate(exact, None, 1600.0, load=206.0, duration=0.25, mesh="constant")
+    assert constant.te_pp_arcsec < 0.05                 # arcsec: only the pin-passing load sharing
+    varying = simulate(exact, None, 1600.0, load=206.0, duration=0.25, mesh="varying")
+    mesh_hz = Excitations.at(exact, 1600.0).mesh
+    f, a = varying.spectrum_hz()
+    below = f < 1000.0                                  # the excitations, not the kHz modes
+    peak = f[below][np.argmax(a[below])]
+    assert abs(peak - mesh_hz) <= 2 * (f[1] - f[0])
+    assert varying.te_pp_arcsec > 5 * constant.te_pp_arcsec
+
+
+def test_mesh_stiffness_steps_between_single_and_double_pair_contact(rv40):
+    eps = transverse_contact_ratio(rv40.z_s, rv40.z_pl, rv40.m, rv40.pressure_angle)
+    teeth = np.linspace(0.0, 3.0, 3001)[:-1]
+    theta_in = 2 * math.pi * teeth / rv40.z_s
+    factor = mesh_stiffness_factor(rv40, theta_in, np.zeros_like(theta_in))[:, 0]
+    single = 1.0 / (0.75 * eps + 0.25)
+    assert set(np.round(factor / single, 12)) == {1.0, 1.75}
+    assert np.mean(factor == 1.75 * single) == pytest.approx(eps - 1.0, abs=2e-3)
+    assert factor.mean() == pytest.approx(1.0, abs=2e-3)     # the mean is ISO's c_gamma
+
+
+@pytest.fixture(scope="module")
+def base(rv40):
+    """The error-free RV-40E-121 at 1600 rpm and half its rated load, 0.5 s after the ramp."""
+    return simulate(rv40, None, 1600.0, load=206.0, duration=0.5, mesh="constant")
+
+
+def test_a_crank_cam_eccentricity_puts_its_te_at_the_crank_frequency(rv40, base):
+    cam = simulate(rv40, with_error(rv40, "crank_cam_eccentricity", (0, 0), 5e-6), 1600.0,
+                   load=206.0, duration=0.5, mesh="constant")
+    f, a = spectrum(cam.steady_te_arcsec() - base.steady_te_arcsec(), cam.step)
+    crank = Excitations.at(rv40, 1600.0).crank
+    assert abs(f[np.argmax(a)] - crank) <= 1.5 * (f[1] - f[0])
+
+
+def test_a_sun_eccentricity_turns_with_the_input_and_cancels_in_the_te(rv40, base):
+    """Each planet's mesh sees the eccentricity at the input rotation frequency relative to the
+    carrier; for equally spaced planets the tangential parts sum to zero (sum of t_i = 0), so
+    the TE keeps only a second-order trace, far below E / r_b / i of a fixed-axis pair."""
+    sun = simulate(rv40, with_error(rv40, "sun_eccentricity", (), 5e-6), 1600.0, load=206.0,
+                   duration=0.5, mesh="constant")
+    crank = sun.dofs.index("crank0_rot")
+    f, a = spectrum(sun.q[sun.steady:, crank] - base.q[base.steady:, crank], sun.step)
+    ex = Excitations.at(rv40, 1600.0)
+    assert abs(f[np.argmax(a)] - (ex.input - ex.output)) <= 1.5 * (f[1] - f[0])
+    fixed_axis = rad_to_arcsec(5e-6 / rv40.sun_base_radius / rv40.ratio)
+    change = np.ptp(sun.steady_te_arcsec() - base.steady_te_arcsec())
+    assert change < 0.1 * fixed_axis
+
+
+def test_newmark_conserves_energy_without_damping_load_or_input_motion(rv40, seed002):
+    design = rv40.with_fields(damping_ratio=0.0)
+    model = DynamicModel(design, seed002, contact="linear", mesh="constant")
+    steps = 4000
+    time = np.arange(steps) * 2e-6
+    model.prepare(Motion(time, np.zeros(steps), np.zeros(steps), np.zeros(steps)))
+    # released from its equilibrium under rated load: free vibration with pins opening and closing
+    q0 = static_equilibrium(model, -rv40.rated_torque * model.load_vector(), 0)
+    stepper = NewmarkStepper.starting_at(model, lambda k: np.zeros(model.n), q0)
+    energies = [model.energy(0, q0, np.zeros(model.n))]
+    for _ in range(steps - 1):
+        state = stepper.step()
+        energies.append(model.energy(stepper.k, state.q, state.v))
+    energies = np.array(energies)
+    assert energies[0] > 0
+    assert np.max(np.abs(energies / energies[0] - 1.0)) < 0.01     # stated tolerance: 1 %
+
+
+def test_ramp_motion_is_smooth_and_reaches_speed():
+    t = np.linspace(0.0, 0.2, 2001)
+    m = ramp_motion(t, 100.0, 0.1)
+    assert m.omega_in[0] == 0.0 and m.alpha_in[0] == 0.0 and m.omega_in[-1] == 100.0
+    np.testing.assert_allclose(np.gradient(m.theta_in, t), m.omega_in, atol=0.05)
+    assert m.theta_in[-1] == pytest.approx(100.0 * 0.05 + 100.0 * 0.1)
+
+
+@pytest.mark.parametrize("changes, field", [
+    ({"duration": -1.0}, "duration"),
+    ({"speed_rpm": 0.0}, "speed_rpm"),
+    ({"speed_rpm": float("nan")}, "speed_rpm"),
+    ({"step": 0.0}, "step"),
+    ({"step": 1e-2}, "step"),
+    ({"load": 5000.0}, "load"),
+    ({"contact": "soft"}, "contact"),
+    ({"duration": 1.0, "revolutions": 1.0}, "duration"),
+])
+def test_bad_simulation_input_is_refused_naming_the_field(rv40, changes, field):
+    options = {"speed_rpm": 1600.0, "duration": 0.01, **changes}
+    with pytest.raises(InputError) as info:
+        simulate(rv40, None, **options)
+    assert info.value.field == field
