@@ -133,6 +133,77 @@ def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:
     return path
 
 
+@dataclass(frozen=True)
+class SimulationReport:
+    """A dynamic run with the figures an engineer reads first (after the start ramp)."""
+
+    simulation: object
+    peaks: tuple
+
+    def summary(self) -> str:
+        sim = self.simulation
+        d = sim.design
+        te = sim.steady_te_arcsec()
+        start, stop = sim.time[sim.steady], sim.time[-1]
+        from .core.simulation import Excitations
+
+        ex = Excitations.at(d, sim.speed_rpm)
+        lines = [
+            f"design            {d.name} (ratio {d.ratio:g}), dynamic model",
+            f"input speed       {sim.speed_rpm:g} rpm; load {-sim.tau_load[0]:g} N*m resisting",
+            f"interval          {start:.4g} s to {stop:.4g} s at constant speed (after the start "
+            f"ramp), step {sim.step * 1e6:.4g} us, {sim.time.size} steps",
+            f"TE range          {te.min():.3f} to {te.max():.3f} arcsec",
+            f"te_pp             {te.max() - te.min():.3f} arcsec",
+            "largest peaks     " + (", ".join(f"{f:.1f} Hz: {a:.3f}\u2033" for f, a in self.peaks)
+                                    or "none above 0.001\u2033"),
+            "excitations       " + ", ".join(f"{name} {hz:.1f} Hz" for name, hz in ex.items()),
+        ]
+        if sim.failed_steps:
+            lines.append(f"warning           {sim.failed_steps} steps did not converge")
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        sim = self.simulation
+        te = sim.steady_te_arcsec()
+        return {"design": sim.design.name, "speed_rpm": sim.speed_rpm,
+                "load_Nm": float(-sim.tau_load[0]), "interval_s": [float(sim.time[sim.steady]),
+                                                                   float(sim.time[-1])],
+                "step_s": sim.step, "te_range_arcsec": [float(te.min()), float(te.max())],
+                "te_pp_arcsec": float(te.max() - te.min()),
+                "peaks": [[f, a] for f, a in self.peaks], "failed_steps": sim.failed_steps}
+
+
+def simulate(design, errors=None, speed_rpm: float = 1600.0, load: float = 0.0,
+             duration: float | None = None, revolutions: float | None = None,
+             contact: str = "linear", mesh: str = "varying", step: float | None = None,
+             csv_path: str | Path | None = None, plot_path: str | Path | None = None,
+             progress=None) -> SimulationReport:
+    """Dynamic TE of one reducer at a constant input speed (docs/model.md section 7); writes
+    the CSV (time_s, theta_in_rad, theta_out_rad, te_arcsec, tau_in_Nm) and the plot if asked."""
+    from .core.simulation import simulate as run
+
+    csv_path = None if csv_path is None else output_file("csv", csv_path)
+    plot_path = None if plot_path is None else figure_file("plot", plot_path)
+    design = resolve_design(design)
+    sim = run(design, resolve_errors(design, errors), speed_rpm=speed_rpm, load=load,
+              duration=duration, revolutions=revolutions, contact=contact, mesh=mesh, step=step,
+              progress=progress)
+    report = SimulationReport(sim, tuple(sim.peaks_hz()))
+    if csv_path is not None:
+        with csv_path.open("w", newline="") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(["time_s", "theta_in_rad", "theta_out_rad", "te_arcsec", "tau_in_Nm"])
+            for row in zip(sim.time, sim.theta_in, sim.theta_out, sim.te_arcsec, sim.tau_in):
+                writer.writerow([f"{row[0]:.9g}", f"{row[1]:.12g}", f"{row[2]:.12g}",
+                                 f"{row[3]:.6f}", f"{row[4]:.6g}"])
+    if plot_path is not None:
+        from .plots import plot_simulation
+
+        plot_simulation(sim, plot_path)
+    return report
+
+
 def errors_template(design, output: str | Path | None = None) -> str:
     """A complete, commented error file for `design` (every name of docs/model.md
     section 4, zero values of the right shapes); written to `output` if given."""
@@ -183,4 +254,4 @@ def profile(design, csv_path: str | Path | None = None, dxf_path: str | Path | N
     return prof.disc_profile(design, points)
 
 
-__all__ = ["te", "presets", "profile", "errors_template", "TEReport", "default_points", "write_te_csv"]
+__all__ = ["te", "presets", "profile", "errors_template", "simulate", "SimulationReport", "TEReport", "default_points", "write_te_csv"]

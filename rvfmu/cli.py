@@ -46,6 +46,23 @@ def _profile(args):
             print(f"wrote {label} {path} ({prof.x.size} points, mm)")
 
 
+def _simulate(args):
+    with ProgressBar("simulate", unit="step") as bar:
+        report = api.simulate(args.design, args.errors, speed_rpm=args.speed_rpm, load=args.load,
+                              duration=args.duration, revolutions=args.revolutions,
+                              contact=args.contact, mesh=args.mesh, step=args.step,
+                              csv_path=args.csv, plot_path=args.plot, progress=bar)
+    if args.json:
+        import json
+
+        print(json.dumps(report.to_json(), indent=1))
+        return
+    print(report.summary())
+    for label, path in (("csv", args.csv), ("plot", args.plot)):
+        if path:
+            print(f"wrote {label:<13} {path}")
+
+
 def _errors(args):
     text = api.errors_template(args.template, args.output)
     if args.output:
@@ -73,6 +90,28 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("presets", help="list the shipped reducer presets")
     p.set_defaults(run=_presets)
+
+    p = sub.add_parser("simulate", help="dynamic TE in time at a constant input speed "
+                       "(docs/model.md section 7)")
+    p.add_argument("design", help="preset name or design TOML file")
+    p.add_argument("--errors", help="error TOML file (docs/model.md section 4)")
+    p.add_argument("--speed-rpm", type=float, default=1600.0, help="input speed after the start "
+                   "ramp [rpm] (default 1600, as seeds 000/001)")
+    p.add_argument("--load", type=float, default=0.0, help="resisting output torque [N*m]")
+    length = p.add_mutually_exclusive_group()
+    length.add_argument("--duration", type=float, help="seconds at constant speed after the ramp")
+    length.add_argument("--revolutions", type=float,
+                        help="output revolutions at constant speed (default 1)")
+    p.add_argument("--contact", choices=("linear", "impact"), default="linear",
+                   help="pin-disc contact law (impact: k*delta^e with ramped damping)")
+    p.add_argument("--mesh", choices=("varying", "constant"), default="varying",
+                   help="sun-planet mesh stiffness over the mesh cycle")
+    p.add_argument("--step", type=float, help="time step [s] (default: 20 per period of the "
+                   "fastest excitation)")
+    p.add_argument("--csv", help="write time_s,theta_in_rad,theta_out_rad,te_arcsec,tau_in_Nm")
+    p.add_argument("--plot", help="write a figure of TE(t) and its spectrum in Hz")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(run=_simulate)
 
     p = sub.add_parser("errors", help="write a complete error file to fill in")
     p.add_argument("--template", metavar="DESIGN", required=True,

@@ -132,3 +132,40 @@ def plot_windup(windup: Windup, path: str | Path, sample: int = 0) -> Path:
 
 
 __all__ = ["figure_te", "marker_orders", "plot_te", "plot_windup", "rad_to_arcsec"]
+
+
+def plot_simulation(sim, path: str | Path) -> Path:
+    """TE against time (top, the start ramp shaded) and its spectrum in Hz after the ramp
+    (bottom) with the crank, pin-passing and stage-1 mesh frequencies marked."""
+    from .core.simulation import Excitations
+
+    plt = _pyplot()
+    fig, (ax_te, ax_sp) = plt.subplots(2, 1, figsize=(9, 7), constrained_layout=True)
+    ax_te.plot(sim.time, sim.te_arcsec, lw=0.6, color="C0")
+    ax_te.axvspan(0.0, sim.time[sim.steady], color="0.9", label="start ramp")
+    ax_te.set_xlabel("time [s]")
+    ax_te.set_ylabel("transmission error [arcsec]")
+    ax_te.set_xlim(0.0, sim.time[-1])
+    ax_te.set_title(f"{sim.design.name}: dynamic TE at {sim.speed_rpm:g} rpm, load "
+                    f"{-sim.tau_load[0]:g} N·m (te_pp {sim.te_pp_arcsec:.2f}″ after the ramp)")
+    ax_te.legend(loc="upper right", fontsize=8)
+    ax_te.grid(alpha=0.3)
+    f, a = sim.spectrum_hz()
+    ex = Excitations.at(sim.design, sim.speed_rpm)
+    top = 3.0 * max(ex.mesh, ex.pin_passing)
+    keep = (f > 0) & (f <= top)         # the mean is not a vibration
+    ax_sp.plot(f[keep], a[keep], lw=0.8, color="C1")
+    ax_sp.set_xscale("log")
+    ax_sp.set_xlabel("frequency [Hz]")
+    ax_sp.set_ylabel("amplitude [arcsec]")
+    ax_sp.set_xlim(f[1], top)
+    for name, hz in ex.items():
+        if hz <= top:
+            ax_sp.axvline(hz, color="0.6", lw=0.6, ls=":")
+            ax_sp.annotate(f"{name} {hz:.1f} Hz", (hz, ax_sp.get_ylim()[1] * 0.95), fontsize=7,
+                           rotation=90, ha="right", va="top", color="0.4")
+    ax_sp.grid(alpha=0.3)
+    path = Path(path)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path

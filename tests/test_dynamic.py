@@ -150,3 +150,26 @@ def test_bad_simulation_input_is_refused_naming_the_field(rv40, changes, field):
     with pytest.raises(InputError) as info:
         simulate(rv40, None, **options)
     assert info.value.field == field
+
+
+def test_rvte_simulate_prints_writes_and_speaks_json(tmp_path, capsys):
+    import json
+
+    from rvfmu import cli
+
+    csv_path, plot = tmp_path / "sim.csv", tmp_path / "sim.png"
+    assert cli.main(["simulate", "RV-40E-121", "--load", "206", "--duration", "0.05",
+                     "--csv", str(csv_path), "--plot", str(plot)]) == 0
+    out = capsys.readouterr().out
+    assert "at constant speed (after the start ramp)" in out and "te_pp" in out
+    assert "stage-1 mesh 317.4 Hz" in out and plot.stat().st_size > 0
+    rows = np.loadtxt(csv_path, delimiter=",", skiprows=1)
+    header = csv_path.read_text().splitlines()[0]
+    assert header == "time_s,theta_in_rad,theta_out_rad,te_arcsec,tau_in_Nm"
+    np.testing.assert_allclose(rad_to_arcsec(rows[:, 2] - rows[:, 1] / 121.0), rows[:, 3], atol=2e-6)
+    assert cli.main(["simulate", "RV-40E-121", "--duration", "0.05", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["te_pp_arcsec"] == pytest.approx(data["te_range_arcsec"][1] - data["te_range_arcsec"][0])
+    assert all(len(peak) == 2 for peak in data["peaks"])
+    assert cli.main(["simulate", "RV-40E-121", "--step", "-1"]) == 2
+    assert capsys.readouterr().err == "rvte simulate: error: step = -1.0: must be > 0\n"
