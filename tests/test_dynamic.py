@@ -173,3 +173,18 @@ def test_rvte_simulate_prints_writes_and_speaks_json(tmp_path, capsys):
     assert all(len(peak) == 2 for peak in data["peaks"])
     assert cli.main(["simulate", "RV-40E-121", "--step", "-1"]) == 2
     assert capsys.readouterr().err == "rvte simulate: error: step = -1.0: must be > 0\n"
+
+
+def test_newmark_agrees_with_scipys_adaptive_bdf_on_a_short_run(rv40, seed002):
+    """A hard start (1600 rpm in 4 ms) and 4 ms at speed: inertia, contacts and errors all act.
+    Newmark at a quarter of the default step against solve_ivp (BDF, rtol 1e-8)."""
+    from rvfmu.core.simulation import default_step
+
+    options = dict(speed_rpm=1600.0, load=206.0, duration=0.004, mesh="constant", ramp=0.004,
+                   step=default_step(rv40, 1600.0) / 4)
+    newmark = simulate(rv40, seed002, **options)
+    reference = simulate(rv40, seed002, method="BDF", **options)
+    span = np.ptp(reference.te_arcsec)
+    assert span > 3.0                                   # arcsec: the start moves the output
+    assert np.max(np.abs(newmark.te_arcsec - reference.te_arcsec)) < 0.02 * span
+    np.testing.assert_allclose(newmark.tau_in, reference.tau_in, atol=0.02 * np.ptp(reference.tau_in))

@@ -28,6 +28,7 @@ from .units import rad_to_arcsec
 
 STEPS_PER_PERIOD = 20      # default step: 20 per period of the fastest excitation (mesh or pin passing)
 MIN_STEPS_PER_PERIOD = 8   # coarser than this misses the excitation: refused
+METHODS = ("newmark", "Radau", "BDF")
 DEFAULT_RAMP_OUTPUT_TURNS = 0.02   # start ramp: 2 % of an output revolution's time at speed, >= 0.05 s
 
 
@@ -115,13 +116,14 @@ def default_step(design: RVDesign, speed_rpm: float) -> float:
 def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float = 1600.0,
              load: float = 0.0, duration: float | None = None, revolutions: float | None = None,
              contact: str = "linear", mesh: str = "varying", step: float | None = None,
-             ramp: float | None = None, progress=None) -> Simulation:
+             ramp: float | None = None, method: str = "newmark", progress=None) -> Simulation:
     """Dynamic TE of one reducer at a constant input speed after a start ramp.
 
     load: resisting output torque [N*m] (tau_load = -load); duration [s] or
     revolutions (output revolutions at speed, after the ramp); step [s]
     (default `default_step`); ramp [s] (default 2 % of an output revolution, at
-    least 0.05 s).  progress(total, done): optional.
+    least 0.05 s).  method: "newmark" (fixed step, the default) or "Radau" / "BDF"
+    (scipy's adaptive solve_ivp, the slow reference).  progress(total, done): optional.
     """
     errors = zero_errors(design) if errors is None else errors.check(design)
     if errors.samples != 1:
@@ -131,6 +133,8 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     check_load("load", load, design.rated_torque)
     if contact not in CONTACT_LAWS:
         raise InputError("contact", contact, f"must be one of {', '.join(CONTACT_LAWS)}")
+    if method not in METHODS:
+        raise InputError("method", method, f"must be one of {', '.join(METHODS)}")
     if mesh not in MESH_MODELS:
         raise InputError("mesh", mesh, f"must be one of {', '.join(MESH_MODELS)}")
     speed = speed_rpm * 2.0 * math.pi / 60.0
@@ -167,6 +171,9 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
 
     q0 = static_equilibrium(model, external(0), 0, _quasi_static_start(model, design, errors,
                                                                       tau_load, flank))
+    if method != "newmark":
+        return _reference(model, motion, external, q0, method, speed_rpm, design, tau_load, ramp,
+                          step)
     stepper = NewmarkStepper.starting_at(model, external, q0)
     q = np.empty((count, model.n))
     q[0] = q0
@@ -183,6 +190,44 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     return Simulation(design, speed_rpm, time, motion.theta_in, motion.theta_in / design.ratio + te,
                       te, tau_in, np.full(count, tau_load), q, tuple(model.names),
                       int(np.searchsorted(time, ramp)), step, stepper.failed_steps)
+
+
+def _reference(model, motion, external, q0, method, speed_rpm, design, tau_load, ramp, step):
+    """The same run by scipy's adaptive implicit `solve_ivp` (Radau or BDF), reported at the
+    Newmark steps' times: the reference the fixed-step integrator is checked against.
+
+    Geometry is rebuilt for every time scipy asks for (a one-instant motion), so
+    this is slow: for short runs and tests.
+    """
+    from scipy.integrate import solve_ivp
+
+    n, speed, M = model.n, motion.omega_in[-1], model.mass
+
+    def instant(t):
+        model.prepare(ramp_motion(np.array([t]), speed, ramp))
+        return external(0)
+
+    def rhs(t, y):
+        F = instant(t)
+        f, _, _ = model.forces(0, y[:n], y[n:])
+        return np.concatenate([y[n:], (F - f) / M])
+
+    def jacobian(t, y):
+        instant(t)
+        _, K, C = model.forces(0, y[:n], y[n:])
+        return np.block([[np.zeros((n, n)), np.eye(n)], [-K / M[:, None], -C / M[:, None]]])
+
+    time = motion.time
+    solution = solve_ivp(rhs, (time[0], time[-1]), np.concatenate([q0, np.zeros(n)]),
+                         method=method, t_eval=time, jac=jacobian, rtol=1e-8, atol=1e-13)
+    if not solution.success:
+        raise RuntimeError(f"solve_ivp ({method}) failed: {solution.message}")
+    q, v = solution.y[:n].T, solution.y[n:].T
+    tau_in = np.array([model.input_torque(a, b) for a, b in zip(q, v)])
+    te = q[:, model.carrier_rot] / model.scale
+    return Simulation(design, speed_rpm, time, motion.theta_in, motion.theta_in / design.ratio + te,
+                      te, tau_in, np.full(time.size, tau_load), q, tuple(model.names),
+                      int(np.searchsorted(time, ramp)), step, 0)
 
 
 def _quasi_static_start(model, design, errors, tau_load, flank) -> np.ndarray:
