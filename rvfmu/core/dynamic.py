@@ -139,6 +139,8 @@ class DynamicModel:
         # IMPACT: k delta^e equals the linear law at the pin deflection under rated torque
         self.impact_k = self.pin_k * self._rated_pin_deflection() ** (1.0 - IMPACT_EXPONENT)
         self._geometry = None
+        self._eye2 = np.eye(2)
+        self._disc_blocks = [np.ix_(dofs, dofs) for dofs in self.pin_dofs]
 
     # -- constant parts --------------------------------------------------------------
     def _masses(self) -> dict:
@@ -236,21 +238,18 @@ class DynamicModel:
         # bearings: 2-D springs with a dead zone of half the radial clearance
         d = np.einsum("bxn,n->bx", B, q) + brg_off                 # (nb, 2)
         r = np.sqrt((d ** 2).sum(axis=1))
-        c_half = self.half_clearance
-        touching = r > c_half
-        for b in np.flatnonzero(touching):
-            Bb = B[b]
-            if c_half[b] > 0.0:
-                u = d[b] / r[b]
-                force = self.bearing_k[b] * (r[b] - c_half[b]) * u
-                ratio = c_half[b] / r[b]
-                Kb = self.bearing_k[b] * ((1.0 - ratio) * np.eye(2) + ratio * np.outer(u, u))
-            else:
-                force = self.bearing_k[b] * d[b]
-                Kb = self.bearing_k[b] * np.eye(2)
-            f += Bb.T @ (force + self.bearing_c[b] * (Bb @ v))
-            K += Bb.T @ Kb @ Bb
-            C += self.bearing_c[b] * (Bb.T @ Bb)
+        on = np.flatnonzero(r > self.half_clearance)
+        if on.size:
+            Bo, k, c = B[on], self.bearing_k[on], self.bearing_c[on]
+            ratio = self.half_clearance[on] / r[on]                  # 0 without clearance
+            u = d[on] / r[on][:, None]
+            force = (k * (1.0 - ratio))[:, None] * d[on]             # k (r - c) u
+            Kb = (k * (1.0 - ratio))[:, None, None] * self._eye2 \
+                + (k * ratio)[:, None, None] * u[:, :, None] * u[:, None, :]
+            flat = Bo.reshape(-1, n)                                  # (2 nb_on, n)
+            f += flat.T @ (force + c[:, None] * (Bo @ v)).ravel()
+            K += flat.T @ np.matmul(Kb, Bo).reshape(-1, n)
+            C += (flat * np.repeat(c, 2)[:, None]).T @ flat
         # pins: unilateral along their normals, over each disc's own three unknowns
         for j in range(2):
             dofs = self.pin_dofs[j]
@@ -278,7 +277,7 @@ class DynamicModel:
             pulling = normal < 0.0
             normal = np.where(pulling, 0.0, normal)
             k_eff, c_eff = np.where(pulling, 0.0, k_eff), np.where(pulling, 0.0, c_eff)
-            idx = np.ix_(dofs, dofs)
+            idx = self._disc_blocks[j]
             f[dofs] += R.T @ normal
             K[idx] += (R.T * k_eff) @ R
             C[idx] += (R.T * c_eff) @ R
