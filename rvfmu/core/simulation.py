@@ -230,9 +230,9 @@ def _reference(model, motion, external, q0, method, speed_rpm, design, tau_load,
                       int(np.searchsorted(time, ramp)), step, 0)
 
 
-def _quasi_static_start(model, design, errors, tau_load, flank) -> np.ndarray:
-    """The quasi-static equilibrium at theta_in = 0 in the dynamic model's unknowns."""
-    qs_model = EquivalentModel(design, [0.0], flank)
+def _quasi_static_start(model, design, errors, tau_load, flank, theta_in: float = 0.0) -> np.ndarray:
+    """The quasi-static equilibrium at theta_in in the dynamic model's unknowns."""
+    qs_model = EquivalentModel(design, [theta_in], flank)
     eq = solve_pairs(qs_model, errors, [0], [0], [tau_load],
                      no_load_probe=NO_LOAD_PROBE * design.rated_torque)
     q0 = np.zeros(model.n)
