@@ -4,8 +4,9 @@ This is the interface that a system simulation (the FMU, or any other host)
 drives.  A model is a small object with one job: `step` to the end of a
 communication interval given the inputs there, returning the outputs there.
 Its whole state is a small dict, so that a master can save and restore it.
-The quasi-static model is the only implementation so far; a dynamic one is
-planned and will offer the same methods.
+Two implementations: the quasi-static TE map (`QuasiStaticReducer`, here) and
+the dynamic model (`dynamic_reducer.DynamicReducer`), with the same methods;
+`reducers.MODELS` names them.
 """
 
 from __future__ import annotations
@@ -64,6 +65,3 @@ class QuasiStaticReducer:
         if set(keys) - set(state) or not all(math.isfinite(float(state[k])) for k in keys):
             raise ValueError(f"not a state of this model: {sorted(state)}")
         self.time, self.theta_out, self.omega_out = (float(state[k]) for k in keys)
-
-
-MODELS = {QuasiStaticReducer.name: QuasiStaticReducer}

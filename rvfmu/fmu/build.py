@@ -32,11 +32,13 @@ UNITS = {  # unit name -> (base unit exponents, factor)
     "arcsec": ({"rad": "1"}, "4.84813681109536e-06"),
     "N.m": ({"kg": "1", "m": "2", "s": "-2"}, None),
     "1": ({}, None),
+    "s": ({"s": "1"}, None),
 }
 VARIABLE_UNITS = {
     "theta_in": "rad", "tau_load": "N.m", "theta_out": "rad", "omega_out": "rad/s", "te": "rad",
     "te_arcsec": "arcsec", "tau_in": "N.m", "pin_stiffness_scale": "1",
     "bearing_stiffness_scale": "1", "mesh_stiffness_scale": "1", "error_scale": "1",
+    "dynamic_step": "s",
 }
 DEFAULT_STOP_TIME = 1.0
 DEFAULT_STEP = 1e-3

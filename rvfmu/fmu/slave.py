@@ -37,7 +37,8 @@ from rvfmu.core.checks import InputError
 from rvfmu.core.design import load_design
 from rvfmu.core.errors import load_errors, zero_errors
 from rvfmu.core.limits import MOMENTARY_FACTOR, check_load
-from rvfmu.core.reducer_model import MODELS
+from rvfmu.core.dynamic_reducer import DEFAULT_INTERNAL_STEP
+from rvfmu.core.reducers import MODELS
 from rvfmu.core.te_map import TEMap, build_te_map
 from rvfmu.core.units import ARCSEC
 
@@ -77,6 +78,7 @@ class RVReducer(Fmi2Slave):
         self.mesh_stiffness_scale = 1.0
         self.error_scale = 1.0
         self.map_points = 0
+        self.dynamic_step = DEFAULT_INTERNAL_STEP
         self._reducer = None
         self._failed = None
         self._rated_torque = self._momentary_torque = math.inf
@@ -98,7 +100,8 @@ class RVReducer(Fmi2Slave):
         for name, text in (("design_file", "a preset name or a design TOML path; empty: the design "
                                            "bundled at build"),
                            ("errors_file", "an error TOML path; empty: the errors bundled at build"),
-                           ("model", "reducer model: quasistatic")):
+                           ("model", "reducer model: quasistatic (the TE map, default) or "
+                                     "dynamic (masses, springs and dampers in time)")):
             self.register_variable(String(name, causality=Fmi2Causality.parameter, variability=par,
                                           description=text))
         for name, text in (("pin_stiffness_scale", "factor on the pin-disc contact stiffness [1]"),
@@ -108,6 +111,9 @@ class RVReducer(Fmi2Slave):
                                            "[1]; 0: the error-free reducer")):
             self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=par,
                                         description=text))
+        self.register_variable(Real("dynamic_step", causality=Fmi2Causality.parameter,
+                                    variability=par, description="largest internal time step of "
+                                    "the dynamic model [s]"))
         self.register_variable(Integer("map_points", causality=Fmi2Causality.parameter,
                                        variability=par,
                                        description="TE map points per output revolution; "
@@ -201,6 +207,8 @@ class RVReducer(Fmi2Slave):
     def _make_reducer(self):
         if self.model not in MODELS:
             raise FmuInputError(f"model = {self.model!r}: must be one of {', '.join(MODELS)}")
+        if not (math.isfinite(self.dynamic_step) and self.dynamic_step > 0):
+            raise FmuInputError(f"dynamic_step = {self.dynamic_step}: must be a finite number > 0")
         resources = Path(self.resources) if self.resources else Path(".")
         design = load_design(self.design_file or resources / BUNDLED_DESIGN)
         if self.errors_file:
@@ -220,24 +228,18 @@ class RVReducer(Fmi2Slave):
             raise FmuInputError(f"map_points = {self.map_points}: must be >= 0")
         bundled = (not self.design_file and not self.errors_file and self.map_points == 0
                    and all(v == 1.0 for v in scales.values()) and (resources / BUNDLED_MAP).is_file())
+        self._rated_torque = design.rated_torque
+        self._momentary_torque = MOMENTARY_FACTOR * design.rated_torque
+        if self.model == "dynamic":
+            return MODELS["dynamic"](_scaled(design, scales), errors.scaled(scales["error_scale"]),
+                                     internal_step=self.dynamic_step)
         if bundled:
             with np.load(resources / BUNDLED_MAP) as arrays:
                 te_map = TEMap.from_arrays(arrays)
         else:
             self.log("solving the quasi-static TE map for the changed parameters", Fmi2Status.ok)
-            design = design.with_fields(
-                pin_disc_stiffness=design.pin_disc_stiffness * scales["pin_stiffness_scale"],
-                crank_disc_bearing_stiffness=design.crank_disc_bearing_stiffness
-                * scales["bearing_stiffness_scale"],
-                crank_carrier_bearing_stiffness=design.crank_carrier_bearing_stiffness
-                * scales["bearing_stiffness_scale"],
-                main_bearing_stiffness=design.main_bearing_stiffness * scales["bearing_stiffness_scale"],
-                mesh_stiffness=design.mesh_stiffness * scales["mesh_stiffness_scale"],
-                sun_support_stiffness=design.sun_support_stiffness * scales["mesh_stiffness_scale"])
-            te_map = build_te_map(design, errors.scaled(scales["error_scale"]),
+            te_map = build_te_map(_scaled(design, scales), errors.scaled(scales["error_scale"]),
                                   points=self.map_points or None)
-        self._rated_torque = design.rated_torque
-        self._momentary_torque = MOMENTARY_FACTOR * design.rated_torque
         return MODELS[self.model](te_map)
 
     def _show(self, outputs):
@@ -250,6 +252,18 @@ class RVReducer(Fmi2Slave):
     def _fail(self, message):
         self._failed = message
         self.log(message, Fmi2Status.error)
+
+
+def _scaled(design, scales):
+    """The design with the stiffness scale parameters applied."""
+    bearing, mesh = scales["bearing_stiffness_scale"], scales["mesh_stiffness_scale"]
+    return design.with_fields(
+        pin_disc_stiffness=design.pin_disc_stiffness * scales["pin_stiffness_scale"],
+        crank_disc_bearing_stiffness=design.crank_disc_bearing_stiffness * bearing,
+        crank_carrier_bearing_stiffness=design.crank_carrier_bearing_stiffness * bearing,
+        main_bearing_stiffness=design.main_bearing_stiffness * bearing,
+        mesh_stiffness=design.mesh_stiffness * mesh,
+        sun_support_stiffness=design.sun_support_stiffness * mesh)
 
 
 def _describe(exc):

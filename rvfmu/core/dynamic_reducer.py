@@ -1,0 +1,104 @@
+"""The dynamic model as a time-stepping reducer: the FMU's `model = "dynamic"`.
+
+A host gives the input angle and the load torque at the end of each
+communication step; inside the step the input angle is taken as a straight
+line from its previous value (constant speed over the step, the only motion
+the host's samples define) and the load is held at its new value, and the
+Newmark stepper runs internal steps of at most `internal_step` seconds.  The
+state is the displacements, velocities and accelerations of every unknown with
+the last input angle and time: a master can save it, roll back and re-step to
+the same results.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .dynamic import DynamicModel, Motion
+from .errors import ErrorSet
+from .newmark import NewmarkStepper, State, static_equilibrium
+from .reducer_model import Outputs
+
+DEFAULT_INTERNAL_STEP = 1e-4   # [s]: 10 kHz, 25 steps per stage-1 mesh period of an RV-110E at 1600 rpm
+
+
+class DynamicReducer:
+    """Time-stepping dynamic model of one reducer (docs/model.md section 7)."""
+
+    name = "dynamic"
+
+    def __init__(self, design, errors: ErrorSet, internal_step: float = DEFAULT_INTERNAL_STEP,
+                 contact: str = "linear", mesh: str = "varying"):
+        if not (math.isfinite(internal_step) and internal_step > 0):
+            raise ValueError(f"internal_step = {internal_step}: must be a number > 0")
+        self.design, self.errors = design, errors
+        self.internal_step = internal_step
+        self.contact, self.mesh = contact, mesh
+        self.model = None
+        self.time = self.theta_in = 0.0
+        self.state = None
+
+    def _model(self, tau_load: float) -> DynamicModel:
+        flank = 1 if tau_load <= 0 else -1
+        if self.model is None or self.model.flank != flank:
+            self.model = DynamicModel(self.design, self.errors, self.contact, self.mesh, flank)
+        return self.model
+
+    def _outputs(self, omega_in: float, tau_load: float) -> Outputs:
+        model, s = self.model, self.state
+        te = s.q[model.carrier_rot] / model.scale
+        omega_out = omega_in / self.design.ratio + s.v[model.carrier_rot] / model.scale
+        return Outputs(self.theta_in / self.design.ratio + te, omega_out, te,
+                       model.input_torque(s.q, s.v))
+
+    def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:
+        """At rest in the elastic equilibrium under tau_load at theta_in."""
+        from .simulation import _quasi_static_start
+
+        model = self._model(tau_load)
+        model.prepare(Motion(np.array([time]), np.array([theta_in]), np.zeros(1), np.zeros(1)))
+        force = tau_load * model.load_vector()
+        start = _quasi_static_start(model, self.design, self.errors, tau_load, model.flank,
+                                    theta_in)
+        q = static_equilibrium(model, force, 0, start)
+        self.time, self.theta_in = float(time), float(theta_in)
+        self.state = State(q, np.zeros(model.n), np.zeros(model.n))
+        self.omega_in = 0.0
+        return self._outputs(0.0, tau_load)
+
+    def step(self, time: float, step_size: float, theta_in: float, tau_load: float) -> Outputs:
+        """Outputs at time + step_size for the inputs there."""
+        count = max(1, math.ceil(step_size / self.internal_step - 1e-9))
+        t = time + step_size * np.arange(count + 1) / count
+        omega = (theta_in - self.theta_in) / step_size
+        angles = self.theta_in + omega * (t - time)
+        model = self._model(tau_load)
+        model.prepare(Motion(t, angles, np.full(t.size, omega), np.zeros(t.size)))
+        g = tau_load * model.load_vector()
+        # the nominal motion's d'Alembert forces at this constant speed (centripetal terms)
+        stepper = NewmarkStepper(model, lambda k: g + model.nominal_force(k), self.state)
+        for _ in range(count):
+            stepper.step()
+        self.state = stepper.state
+        self.time, self.theta_in, self.omega_in = time + step_size, float(theta_in), omega
+        return self._outputs(omega, tau_load)
+
+    def get_state(self) -> dict:
+        s = self.state
+        return {"time": self.time, "theta_in": self.theta_in, "omega_in": self.omega_in,
+                "q": s.q.tolist(), "v": s.v.tolist(), "a": s.a.tolist()}
+
+    def set_state(self, state: dict) -> None:
+        try:
+            arrays = [np.asarray(state[k], dtype=float) for k in ("q", "v", "a")]
+            scalars = [float(state[k]) for k in ("time", "theta_in", "omega_in")]
+        except (KeyError, TypeError, ValueError):
+            raise ValueError(f"not a state of this model: {sorted(state)}") from None
+        n = self.model.n if self.model is not None else arrays[0].size
+        if any(a.shape != (n,) or not np.all(np.isfinite(a)) for a in arrays) or \
+                not all(math.isfinite(x) for x in scalars):
+            raise ValueError("not a state of this model: wrong sizes or non-finite values")
+        self.time, self.theta_in, self.omega_in = scalars
+        self.state = State(*[a.copy() for a in arrays])
