@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from rvfmu.core.checks import InputError
-from rvfmu.core.design import preset
 from rvfmu.core.dynamic import Motion, DynamicModel, mesh_stiffness_factor, ramp_motion
 from rvfmu.core.errors import ErrorSet, zero_errors
 from rvfmu.core.newmark import NewmarkStepper, static_equilibrium

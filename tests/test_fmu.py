@@ -47,7 +47,13 @@ def run(fmu_path, stop, step, theta_of_t, tau_of_t, outputs=("theta_out", "te_ar
 
 
 class Instance:
-    """One FMU instance driven by hand through fmpy's FMI 2.0 API, with its log."""
+    """One FMU instance driven by hand through fmpy's FMI 2.0 API, with its log.
+
+    Every instance is freed after the test that made it (`free_instances`): an FMU
+    left to the interpreter's exit would be torn down after Python itself.
+    """
+
+    opened = []
 
     def __init__(self, fmu_path, description, name="reducer", strings=None, reals=None, ints=None):
         self.vr = {v.name: v.valueReference for v in description.modelVariables}
@@ -57,6 +63,7 @@ class Instance:
                              modelIdentifier=description.coSimulation.modelIdentifier,
                              instanceName=name)
         self.fmu.instantiate(loggingOn=True, callbacks=None)
+        Instance.opened.append(self.fmu)
         self.fmu.fmi2SetDebugLogging(self.fmu.component, True, 0, None)
         for key, value in (strings or {}).items():
             self.fmu.setString([self.vr[key]], [value])
@@ -76,6 +83,18 @@ class Instance:
 
     def step(self, time, size):
         return self.fmu.doStep(currentCommunicationPoint=time, communicationStepSize=size)
+
+
+@pytest.fixture(autouse=True)
+def free_instances():
+    yield
+    while Instance.opened:
+        fmu = Instance.opened.pop()
+        try:
+            fmu.terminate()
+        except Exception:  # noqa: BLE001 - an instance a test left in an error state
+            pass
+        fmu.freeInstance()
 
 
 def test_validates_with_units_and_default_experiment(fmu_path, description):

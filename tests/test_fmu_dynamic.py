@@ -7,7 +7,7 @@ from fmpy.validation import validate_fmu
 
 from rvfmu.core.units import ARCSEC
 from rvfmu.fmu.build import build_fmu
-from test_fmu import Instance
+from test_fmu import Instance, free_instances  # noqa: F401 - frees every instance after a test
 
 SLOW = 5 * 2 * np.pi / 60          # rad/s: 5 rpm input, where dynamics adds nothing
 FAST = 1600 * 2 * np.pi / 60

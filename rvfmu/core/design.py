@@ -6,7 +6,7 @@ Files speak the units of docs/model.md section 1 and carry the unit in the key
 maps a file key to a field and its scale.  A design file is either complete
 or names a shipped preset (`preset = "RV-40E-121"`) and overrides any field by
 its file key.  The masses, inertias and damping ratio are checked and kept for
-the planned dynamic model; the quasi-static model does not use them.
+the dynamic model (rvfmu/core/dynamic.py); the quasi-static model does not use them.
 """
 
 from __future__ import annotations

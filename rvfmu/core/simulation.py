@@ -17,7 +17,7 @@ import numpy as np
 
 from .checks import InputError, finite_number, positive
 from .design import RVDesign
-from .dynamic import CONTACT_LAWS, MESH_MODELS, DynamicModel, Motion, ramp_motion
+from .dynamic import CONTACT_LAWS, MESH_MODELS, DynamicModel, ramp_motion
 from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
 from .limits import check_load
