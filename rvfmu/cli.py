@@ -63,6 +63,19 @@ def _simulate(args):
             print(f"wrote {label:<13} {path}")
 
 
+def _modes(args):
+    report = api.modes(args.design, args.errors, load=args.load, speed_rpm=args.speed_rpm,
+                       count=args.count, plot_path=args.plot)
+    if args.json:
+        import json
+
+        print(json.dumps(report.to_json(), indent=1))
+        return
+    print(report.summary())
+    if args.plot:
+        print(f"wrote plot          {args.plot}")
+
+
 def _errors(args):
     text = api.errors_template(args.template, args.output)
     if args.output:
@@ -112,6 +125,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", help="write a figure of TE(t) and its spectrum in Hz")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(run=_simulate)
+
+    p = sub.add_parser("modes", help="natural frequencies at the loaded equilibrium beside the "
+                       "excitations at a speed; Campbell diagram")
+    p.add_argument("design", help="preset name or design TOML file")
+    p.add_argument("--errors", help="error TOML file (docs/model.md section 4)")
+    p.add_argument("--load", type=float, default=0.0, help="resisting output torque [N*m] "
+                   "(0: a probe of 1e-3 x rated closes the contacts)")
+    p.add_argument("--speed-rpm", type=float, default=1600.0,
+                   help="input speed whose excitations are listed (default 1600)")
+    p.add_argument("--count", type=int, default=12, help="modes to list (default 12)")
+    p.add_argument("--plot", help="write a Campbell diagram (0 to 1.25 x the speed)")
+    p.add_argument("--json", action="store_true", help="print the modes as JSON")
+    p.set_defaults(run=_modes)
 
     p = sub.add_parser("errors", help="write a complete error file to fill in")
     p.add_argument("--template", metavar="DESIGN", required=True,

@@ -169,3 +169,37 @@ def plot_simulation(sim, path: str | Path) -> Path:
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return path
+
+
+def plot_campbell(design, frequencies_hz, speeds_rpm, lines: dict, speed_rpm: float,
+                  path: str | Path) -> Path:
+    """Campbell diagram: the natural frequencies (horizontal) against the excitation lines over
+    input speed, the chosen speed marked; a crossing is a speed that excites a resonance."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(9, 6), constrained_layout=True)
+    # up to the third harmonic of the fastest excitation, and at least the lowest mode
+    fastest = max(float(v.max()) for v in lines.values())
+    top = 1.15 * max(3.0 * fastest, float(np.min(frequencies_hz)))
+    for k, hz in enumerate(frequencies_hz):
+        if hz <= top:
+            ax.axhline(hz, color="0.55", lw=0.7, ls="--")
+            ax.annotate(f"mode {k + 1}: {hz:.0f} Hz", (speeds_rpm[-1], hz), fontsize=7, ha="right",
+                        va="bottom", color="0.35")
+    for n, (name, hz) in enumerate(lines.items()):
+        ax.plot(speeds_rpm, hz, lw=1.2, color=f"C{n}", label=name)
+        if name in ("pin passing", "stage-1 mesh"):
+            for harmonic in (2, 3):
+                ax.plot(speeds_rpm, harmonic * hz, lw=0.7, ls="-.", color=f"C{n}",
+                        label=f"{harmonic} x {name}")
+    ax.axvline(speed_rpm, color="C3", lw=0.8, ls=":", label=f"{speed_rpm:g} rpm")
+    ax.set_xlim(speeds_rpm[0], speeds_rpm[-1])
+    ax.set_ylim(0.0, top)
+    ax.set_xlabel("input speed [rpm]")
+    ax.set_ylabel("frequency [Hz]")
+    ax.set_title(f"{design.name}: Campbell diagram (modes at the loaded equilibrium)")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.grid(alpha=0.3)
+    path = Path(path)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path

@@ -187,3 +187,32 @@ def test_newmark_agrees_with_scipys_adaptive_bdf_on_a_short_run(rv40, seed002):
     assert span > 3.0                                   # arcsec: the start moves the output
     assert np.max(np.abs(newmark.te_arcsec - reference.te_arcsec)) < 0.02 * span
     np.testing.assert_allclose(newmark.tau_in, reference.tau_in, atol=0.02 * np.ptp(reference.tau_in))
+
+
+def test_rvte_modes_lists_modes_beside_the_excitations(tmp_path, capsys):
+    import json
+
+    from rvfmu import cli
+    from rvfmu.core.modes import modes
+
+    plot = tmp_path / "campbell.png"
+    assert cli.main(["modes", "RV-40E-121", "--load", "412", "--count", "4", "--plot",
+                     str(plot)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    reference = modes(preset_rv40(), None, load=412.0)
+    first = out[2].split()
+    assert first[0] == "1" and float(first[1]) == pytest.approx(reference.frequencies_hz[0], abs=0.05)
+    assert "torsion" in out[2] and "%" in out[2]
+    assert out[6].startswith("excitations at 1600 rpm: input rotation 26.7 Hz, crank rotation 8.8 Hz")
+    assert plot.stat().st_size > 0
+    assert cli.main(["modes", "RV-40E-121", "--load", "412", "--count", "3", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert len(data["modes"]) == 3 and data["excitations_hz"]["stage-1 mesh"] == pytest.approx(317.355, abs=1e-3)
+    assert cli.main(["modes", "RV-40E-121", "--count", "0"]) == 2
+    assert "count = 0: must be >= 1" in capsys.readouterr().err
+
+
+def preset_rv40():
+    from rvfmu.core.design import preset
+
+    return preset("RV-40E-121")
