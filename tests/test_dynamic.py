@@ -216,3 +216,32 @@ def preset_rv40():
     from rvfmu.core.design import preset
 
     return preset("RV-40E-121")
+
+
+@pytest.mark.parametrize("contact", ["linear", "impact"])
+def test_tangent_stiffness_and_damping_are_the_derivatives_of_the_forces(rv40, seed002, contact):
+    from rvfmu.core.simulation import _quasi_static_start
+
+    model = DynamicModel(rv40, seed002, contact=contact, mesh="varying")
+    model.prepare(ramp_motion(np.array([0.0, 1e-4]), 100.0, 0.0))
+    q = _quasi_static_start(model, rv40, seed002, -300.0, 1)
+    rng = np.random.default_rng(3)
+    v = rng.normal(0.0, 1e-4, model.n)
+    f, K, C = model.forces(1, q, v)
+    for k in rng.choice(model.n, 6, replace=False):
+        dq = np.zeros(model.n)
+        dq[k] = 1e-11
+        df = (model.forces(1, q + dq, v)[0] - model.forces(1, q - dq, v)[0]) / 2e-11
+        np.testing.assert_allclose(df, K[:, k], rtol=1e-4, atol=1e-6 * np.abs(K).max())
+        dv = dq * 10.0
+        dfv = (model.forces(1, q, v + dv)[0] - model.forces(1, q, v - dv)[0]) / 2e-10
+        np.testing.assert_allclose(dfv, C[:, k], rtol=1e-4, atol=1e-6 * np.abs(C).max())
+
+
+def test_the_impact_law_meets_the_linear_law_at_the_rated_pin_deflection(rv40):
+    from rvfmu.core.dynamic import IMPACT_EXPONENT
+
+    model = DynamicModel(rv40, zero_errors(rv40), contact="impact")
+    reference = model._rated_pin_deflection()
+    assert model.impact_k * reference ** IMPACT_EXPONENT == pytest.approx(model.pin_k * reference)
+    assert 1e-6 < reference < 1e-5                      # m: a few micrometres under rated torque
