@@ -7,6 +7,8 @@ What it measures, on one core (BLAS threads set to 1 before numpy loads):
 - scipy's solve_ivp (BDF, the adaptive reference) on the first `--reference`
   seconds of the same run, and Newmark on that same interval, so the ratio
   column compares the two integrators on equal work;
+- the FMU's dynamic model at a 1 ms communication step (internal steps of at most
+  0.1 ms), stepped in Python and through a bare fmpy FMI loop (`--fmu-seconds`);
 - where the Newmark time goes (cProfile, the five largest own times).
 Real-time factor = simulated time / wall time.  Target: >= 1 (aim 10).
 
@@ -26,11 +28,45 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def fmu_loop(design, errors, speed, load, steps, comm) -> float:
+    """Seconds of a bare FMI loop (set inputs, doStep, get outputs) over the dynamic FMU."""
+    import tempfile
+
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    from rvfmu.fmu.build import build_fmu
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = build_fmu(design, errors, Path(tmp) / "R.fmu", points=624)
+        md = read_model_description(str(path))
+        vr = {v.name: v.valueReference for v in md.modelVariables}
+        fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
+                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
+        fmu.instantiate()
+        fmu.setString([vr["model"]], ["dynamic"])
+        fmu.setReal([vr["tau_load"]], [-load])
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        start = time.perf_counter()
+        for k in range(steps):
+            fmu.setReal([vr["theta_in"], vr["tau_load"]], [speed * (k + 1) * comm, -load])
+            fmu.doStep(currentCommunicationPoint=k * comm, communicationStepSize=comm)
+            fmu.getReal([vr["te"], vr["tau_in"]])
+        seconds = time.perf_counter() - start
+        fmu.terminate()
+        fmu.freeInstance()
+    return seconds
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--revolutions", type=float, default=1.0)
     parser.add_argument("--reference", type=float, default=0.004,
                         help="seconds at speed for the solve_ivp comparison")
+    parser.add_argument("--fmu-seconds", type=float, default=0.2,
+                        help="simulated seconds of the FMU rows")
     args = parser.parse_args()
 
     from rvfmu.core.design import preset
@@ -56,6 +92,21 @@ def main() -> None:
     profiler.enable()
     full = run(f"Newmark, {args.revolutions:g} output rev", revolutions=args.revolutions)
     profiler.disable()
+
+    # the FMU's model: 1 ms communication steps, internal steps of at most 0.1 ms
+    from rvfmu.core.dynamic_reducer import DynamicReducer
+
+    speed = 1600 * 2 * 3.141592653589793 / 60
+    reducer = DynamicReducer(design, errors)
+    reducer.initialize(0.0, 0.0, -load)
+    comm, steps = 1e-3, int(args.fmu_seconds / 1e-3)
+    start = time.perf_counter()
+    for k in range(steps):
+        reducer.step(k * comm, comm, speed * (k + 1) * comm, -load)
+    rows.append(("FMU model, 1 ms comm (Python)", steps * 10, steps * comm,
+                 time.perf_counter() - start))
+    rows.append(("FMU, bare fmpy loop, 1 ms comm", steps * 10, steps * comm,
+                 fmu_loop(design, errors, speed, load, steps, comm)))
 
     print(f"RV-40E-121, seed 002 errors, 1600 rpm, load {load:g} N*m, step "
           f"{full.step * 1e6:.1f} us, {full.failed_steps} unconverged steps")
