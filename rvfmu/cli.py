@@ -27,8 +27,18 @@ def _te(args):
     with ProgressBar("te") as bar:
         report = api.te(args.design, args.errors, load=args.load, points=args.points,
                         csv_path=args.csv, plot_path=args.plot, progress=bar)
+    _show(report, False, (("csv", args.csv), ("plot", args.plot)))
+
+
+def _show(report, as_json: bool, files) -> None:
+    """A job's summary (or its JSON, for scripts), then the files it wrote."""
+    if as_json:
+        import json
+
+        print(json.dumps(report.to_json(), indent=1))
+        return
     print(report.summary())
-    for label, path in (("csv", args.csv), ("plot", args.plot)):
+    for label, path in files:
         if path:
             print(f"wrote {label:<13} {path}")
 
@@ -52,28 +62,13 @@ def _simulate(args):
                               duration=args.duration, revolutions=args.revolutions,
                               contact=args.contact, mesh=args.mesh, step=args.step,
                               csv_path=args.csv, plot_path=args.plot, progress=bar)
-    if args.json:
-        import json
-
-        print(json.dumps(report.to_json(), indent=1))
-        return
-    print(report.summary())
-    for label, path in (("csv", args.csv), ("plot", args.plot)):
-        if path:
-            print(f"wrote {label:<13} {path}")
+    _show(report, args.json, (("csv", args.csv), ("plot", args.plot)))
 
 
 def _modes(args):
     report = api.modes(args.design, args.errors, load=args.load, speed_rpm=args.speed_rpm,
                        count=args.count, plot_path=args.plot)
-    if args.json:
-        import json
-
-        print(json.dumps(report.to_json(), indent=1))
-        return
-    print(report.summary())
-    if args.plot:
-        print(f"wrote plot          {args.plot}")
+    _show(report, args.json, (("plot", args.plot),))
 
 
 def _errors(args):
@@ -84,17 +79,22 @@ def _errors(args):
         sys.stdout.write(text)
 
 
+def _reducer_arguments(p, load_help: str) -> None:
+    """DESIGN, --errors and --load: the reducer and its operating point, as every model takes them."""
+    p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
+    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um "
+                   "and deg (`rvte errors --template DESIGN` writes one to fill)")
+    p.add_argument("--load", type=float, default=0.0, help=load_help)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rvte", description="Transmission error of RV reducers from design and manufacturing errors.")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("te", help="TE curve over one output revolution")
-    p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
-    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um and deg "
-                   "(`rvte errors --template DESIGN` writes one to fill)")
-    p.add_argument("--load", type=float, default=0.0,
-                   help="resisting output torque in N*m (0: no-load limit; negative: the load drives)")
+    _reducer_arguments(p, "resisting output torque in N*m (0: no-load limit; negative: the load "
+                          "drives)")
     p.add_argument("--points", type=int, help="points per output revolution "
                    "(default: 8 per pin-passing period, 8*z_p*z_c)")
     p.add_argument("--csv", help="write theta_in_rad,theta_out_rad,te_arcsec")
@@ -106,11 +106,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="dynamic TE in time at a constant input speed "
                        "(docs/model.md section 7)")
-    p.add_argument("design", help="preset name or design TOML file")
-    p.add_argument("--errors", help="error TOML file (docs/model.md section 4)")
+    _reducer_arguments(p, "resisting output torque [N*m]")
     p.add_argument("--speed-rpm", type=float, default=1600.0, help="input speed after the start "
                    "ramp [rpm] (default 1600, as seeds 000/001)")
-    p.add_argument("--load", type=float, default=0.0, help="resisting output torque [N*m]")
     length = p.add_mutually_exclusive_group()
     length.add_argument("--duration", type=float, help="seconds at constant speed after the ramp")
     length.add_argument("--revolutions", type=float,
@@ -128,10 +126,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("modes", help="natural frequencies at the loaded equilibrium beside the "
                        "excitations at a speed; Campbell diagram")
-    p.add_argument("design", help="preset name or design TOML file")
-    p.add_argument("--errors", help="error TOML file (docs/model.md section 4)")
-    p.add_argument("--load", type=float, default=0.0, help="resisting output torque [N*m] "
-                   "(0: a probe of 1e-3 x rated closes the contacts)")
+    _reducer_arguments(p, "resisting output torque [N*m] (0: a probe of 1e-3 x rated closes the "
+                          "contacts)")
     p.add_argument("--speed-rpm", type=float, default=1600.0,
                    help="input speed whose excitations are listed (default 1600)")
     p.add_argument("--count", type=int, default=12, help="modes to list (default 12)")

@@ -33,12 +33,17 @@ def _keys_in_order(text):
     return [m.group(1) for m in re.finditer(r"^([a-z_]+) = ", text, flags=re.MULTILINE)]
 
 
-@pytest.mark.parametrize("name", PRESET_NAMES)
-def test_template_loads_back_as_zero(tmp_path, name):
+def _template_errors(tmp_path, name):
+    """The design of preset `name` and its error template, written and loaded back."""
     design = preset(name)
     path = tmp_path / "errors.toml"
     path.write_text(error_template_text(design))
-    errors = load_errors(path, design)
+    return design, load_errors(path, design)
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_template_loads_back_as_zero(tmp_path, name):
+    design, errors = _template_errors(tmp_path, name)
     errors.check(design)
     assert errors.samples == 1
     shapes = error_shapes(design)
@@ -77,10 +82,7 @@ def test_template_shapes_are_written_out():
 
 @pytest.mark.parametrize("name", PRESET_NAMES)
 def test_template_errors_give_the_error_free_te_exactly(tmp_path, name):
-    design = preset(name)
-    path = tmp_path / "errors.toml"
-    path.write_text(error_template_text(design))
-    errors = load_errors(path, design)
+    design, errors = _template_errors(tmp_path, name)
     with_template = te_curve(design, errors, points=64)
     error_free = te_curve(design, None, points=64)
     np.testing.assert_allclose(with_template.te, error_free.te, rtol=0.0, atol=1e-12)
