@@ -82,3 +82,19 @@ def test_a_bad_dynamic_step_is_reported_at_initialisation(fmu, capfd):
     assert "dynamic_step = 0.0: must be a finite number > 0" in capfd.readouterr().out
     with pytest.raises(Exception, match="status 2"):
         inst.step(0.0, 1e-3)
+
+
+def test_reset_returns_the_dynamic_model_to_its_start(fmu):
+    path, md = fmu
+    inst = Instance(path, md, strings={"model": "dynamic"},
+                    reals={"dynamic_step": 2e-4, "tau_load": -206.0})
+    start = inst.get("theta_out", "te", "tau_in")
+    drive(inst, FAST, -206.0, 5, 1e-3)
+    assert inst.get("te") != start[1:2]
+    inst.fmu.reset()                    # every variable back to its start value (FMI 2.0):
+    inst.fmu.setString([inst.vr["model"]], ["dynamic"])          # the host sets them again
+    inst.set(theta_in=0.0, tau_load=-206.0, dynamic_step=2e-4)
+    inst.fmu.setupExperiment(startTime=0.0)
+    inst.fmu.enterInitializationMode()
+    inst.fmu.exitInitializationMode()
+    assert inst.get("theta_out", "te", "tau_in") == start
