@@ -125,7 +125,7 @@ class DynamicModel:
         r_b = design.sun_base_radius
         self.shaft_k = INPUT_SHAFT_FACTOR * design.n_c * design.mesh_stiffness * r_b ** 2  # N*m/rad
         zeta = design.damping_ratio
-        m = self._masses()
+        m = {body: mass for body, (mass, _) in self._bodies().items()}
         reduced = lambda a, b: a * b / (a + b) if math.isfinite(b) else a  # noqa: E731
         self.linear_c = 2 * zeta * np.sqrt(
             np.array([design.mesh_stiffness] * design.n_c + [design.sun_support_stiffness] * 2)
@@ -143,14 +143,15 @@ class DynamicModel:
         self._disc_blocks = [np.ix_(dofs, dofs) for dofs in self.pin_dofs]
 
     # -- constant parts --------------------------------------------------------------
-    def _masses(self) -> dict:
+    def _bodies(self) -> dict:
+        """{body: (mass [kg], inertia [kg m^2])} of the sun, a crank, a disc and the carrier."""
         d = self.design
-        return {"sun": d.sun_mass, "crank": d.crank_mass, "disc": d.disc_mass, "carrier": d.carrier_mass}
+        return {"sun": (d.sun_mass, d.sun_inertia), "crank": (d.crank_mass, d.crank_inertia),
+                "disc": (d.disc_mass, d.disc_inertia), "carrier": (d.carrier_mass, d.carrier_inertia)}
 
     def _mass_diagonal(self) -> np.ndarray:
-        d, s2 = self.design, self.design.R_p ** 2
-        values = {"sun": (d.sun_mass, d.sun_inertia), "crank": (d.crank_mass, d.crank_inertia),
-                  "disc": (d.disc_mass, d.disc_inertia), "carrier": (d.carrier_mass, d.carrier_inertia)}
+        s2 = self.design.R_p ** 2
+        values = self._bodies()
         out = np.empty(self.n)
         for k, name in enumerate(self.names):
             body = name.split("_")[0].rstrip("0123456789")

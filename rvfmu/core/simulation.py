@@ -186,10 +186,8 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
         tau_in[k] = model.input_torque(state.q, state.v)
         if progress is not None and (k % report == 0 or k == count - 1):
             progress(count - 1, k)
-    te = q[:, model.carrier_rot] / model.scale
-    return Simulation(design, speed_rpm, time, motion.theta_in, motion.theta_in / design.ratio + te,
-                      te, tau_in, np.full(count, tau_load), q, tuple(model.names),
-                      int(np.searchsorted(time, ramp)), step, stepper.failed_steps)
+    return _record(model, design, speed_rpm, motion, q, tau_in, tau_load, ramp, step,
+                   stepper.failed_steps)
 
 
 def _reference(model, motion, external, q0, method, speed_rpm, design, tau_load, ramp, step):
@@ -224,10 +222,16 @@ def _reference(model, motion, external, q0, method, speed_rpm, design, tau_load,
         raise RuntimeError(f"solve_ivp ({method}) failed: {solution.message}")
     q, v = solution.y[:n].T, solution.y[n:].T
     tau_in = np.array([model.input_torque(a, b) for a, b in zip(q, v)])
+    return _record(model, design, speed_rpm, motion, q, tau_in, tau_load, ramp, step, 0)
+
+
+def _record(model, design, speed_rpm, motion, q, tau_in, tau_load, ramp, step, failed) -> Simulation:
+    """The run's record from the unknowns q (T, n) at the motion's times."""
     te = q[:, model.carrier_rot] / model.scale
-    return Simulation(design, speed_rpm, time, motion.theta_in, motion.theta_in / design.ratio + te,
-                      te, tau_in, np.full(time.size, tau_load), q, tuple(model.names),
-                      int(np.searchsorted(time, ramp)), step, 0)
+    return Simulation(design, speed_rpm, motion.time, motion.theta_in,
+                      motion.theta_in / design.ratio + te, te, tau_in,
+                      np.full(motion.time.size, tau_load), q, tuple(model.names),
+                      int(np.searchsorted(motion.time, ramp)), step, failed)
 
 
 def _quasi_static_start(model, design, errors, tau_load, flank, theta_in: float = 0.0) -> np.ndarray:
