@@ -122,15 +122,23 @@ def te(design, errors=None, load: float = 0.0, points: int | None = None,
     return report
 
 
-def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:
-    """Columns theta_in_rad, theta_out_rad, te_arcsec (names of docs/model.md section 5)."""
+def write_columns(path: str | Path, columns: dict) -> Path:
+    """A CSV of equal-length columns: {name: (values, format spec)}, a header of the names."""
     path = Path(path)
     with path.open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(["theta_in_rad", "theta_out_rad", "te_arcsec"])
-        for row in zip(curve.theta_in, curve.theta_out[sample], curve.te_arcsec[sample]):
-            writer.writerow([f"{row[0]:.12g}", f"{row[1]:.12g}", f"{row[2]:.6f}"])
+        writer.writerow(list(columns))
+        formats = [spec for _, spec in columns.values()]
+        for row in zip(*(values for values, _ in columns.values())):
+            writer.writerow([format(value, spec) for value, spec in zip(row, formats)])
     return path
+
+
+def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:
+    """Columns theta_in_rad, theta_out_rad, te_arcsec (names of docs/model.md section 5)."""
+    return write_columns(path, {"theta_in_rad": (curve.theta_in, ".12g"),
+                                "theta_out_rad": (curve.theta_out[sample], ".12g"),
+                                "te_arcsec": (curve.te_arcsec[sample], ".6f")})
 
 
 @dataclass(frozen=True)
@@ -156,7 +164,7 @@ class SimulationReport:
             f"TE range          {te.min():.3f} to {te.max():.3f} arcsec",
             f"te_pp             {te.max() - te.min():.3f} arcsec",
             "largest peaks     " + (", ".join(f"{f:.1f} Hz: {a:.3f}\u2033" for f, a in self.peaks)
-                                    or "none above 0.001\u2033"),
+                                    or f"none above {metrics.NOISE_FLOOR_ARCSEC:g}\u2033"),
             "excitations       " + ", ".join(f"{name} {hz:.1f} Hz" for name, hz in ex.items()),
         ]
         if sim.failed_steps:
@@ -191,12 +199,9 @@ def simulate(design, errors=None, speed_rpm: float = 1600.0, load: float = 0.0,
               progress=progress)
     report = SimulationReport(sim, tuple(sim.peaks_hz()))
     if csv_path is not None:
-        with csv_path.open("w", newline="") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(["time_s", "theta_in_rad", "theta_out_rad", "te_arcsec", "tau_in_Nm"])
-            for row in zip(sim.time, sim.theta_in, sim.theta_out, sim.te_arcsec, sim.tau_in):
-                writer.writerow([f"{row[0]:.9g}", f"{row[1]:.12g}", f"{row[2]:.12g}",
-                                 f"{row[3]:.6f}", f"{row[4]:.6g}"])
+        write_columns(csv_path, {"time_s": (sim.time, ".9g"), "theta_in_rad": (sim.theta_in, ".12g"),
+                                 "theta_out_rad": (sim.theta_out, ".12g"),
+                                 "te_arcsec": (sim.te_arcsec, ".6f"), "tau_in_Nm": (sim.tau_in, ".6g")})
     if plot_path is not None:
         from .plots import plot_simulation
 

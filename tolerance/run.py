@@ -152,8 +152,7 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
     todo_rows = n_rows - sum(r.stop - r.start for r in done.values())
     start_time = time.perf_counter()
     if missing:
-        gaps = ((s, min(s + B, n_rows)) for s in range(0, n_rows, B) if (s, min(s + B, n_rows))
-                not in done)
+        gaps = (b for b in _batches(n_rows, B) if b not in done)
         bar = None
         with backend:
             first = next(gaps)
@@ -184,7 +183,7 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
                 if bar is not None:
                     bar.close()
     seconds = time.perf_counter() - start_time
-    batches = [(s, min(s + B, n_rows)) for s in range(0, n_rows, B)]
+    batches = list(_batches(n_rows, B))
     Y = np.concatenate([done[b].Y for b in batches]) if batches else \
         np.empty((0, len(study.metrics)))
     converged = np.concatenate([done[b].converged for b in batches]) if batches else \
@@ -194,6 +193,11 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
     if log is not None:
         log(result.summary(job))
     return result
+
+
+def _batches(n_rows: int, size: int):
+    """(start, stop) of the batches of rows [0, n_rows): `size` rows each, the last maybe fewer."""
+    return ((start, min(start + size, n_rows)) for start in range(0, n_rows, size))
 
 
 def _progress_bar(total, job, progress, reused):
@@ -423,16 +427,14 @@ def _warn_load(study: Study, log) -> None:
 
 
 def _load(study_path, output) -> Study:
-    if output is not None:
-        output_folder("output", output)
+    """The study (a file or a Study), with `output` as its folder if given; the folder checked."""
     if isinstance(study_path, Study):
-        if output is None:
-            return study_path
         from dataclasses import replace
 
-        return replace(study_path, output=Path(output))
-    if not isinstance(study_path, (str, Path)):
+        study = study_path if output is None else replace(study_path, output=Path(output))
+    elif isinstance(study_path, (str, Path)):
+        study = load_study(study_path, output)
+    else:
         raise InputError("study", study_path, "must be a study file path or a Study")
-    study = load_study(study_path, output)
     output_folder("output", study.output)
     return study

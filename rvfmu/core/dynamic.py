@@ -66,6 +66,11 @@ class Motion:
     alpha_in: np.ndarray
 
 
+def at_rest(theta_in: float, time: float = 0.0) -> Motion:
+    """One instant at input angle theta_in [rad], speed and acceleration zero."""
+    return Motion(np.array([float(time)]), np.array([float(theta_in)]), np.zeros(1), np.zeros(1))
+
+
 def ramp_motion(time, speed: float, ramp: float) -> Motion:
     """Input speed raised smoothly from 0 to `speed` [rad/s] over `ramp` [s] (half a cosine,
     as seed 004's start ramp), then constant; theta_in(0) = 0."""
@@ -239,11 +244,13 @@ class DynamicModel:
         # bearings: 2-D springs with a dead zone of half the radial clearance
         d = np.einsum("bxn,n->bx", B, q) + brg_off                 # (nb, 2)
         r = np.sqrt((d ** 2).sum(axis=1))
-        on = np.flatnonzero(r > self.half_clearance)
+        # a bearing without clearance always holds, also at exactly zero deflection
+        tight = self.half_clearance == 0.0
+        on = np.flatnonzero(tight | (r > self.half_clearance))
         if on.size:
             Bo, k, c = B[on], self.bearing_k[on], self.bearing_c[on]
-            ratio = self.half_clearance[on] / r[on]                  # 0 without clearance
-            u = d[on] / r[on][:, None]
+            ratio = np.where(tight[on], 0.0, self.half_clearance[on] / np.where(tight[on], 1.0, r[on]))
+            u = d[on] / np.where(r[on] > 0.0, r[on], 1.0)[:, None]   # enters only with ratio > 0
             force = (k * (1.0 - ratio))[:, None] * d[on]             # k (r - c) u
             Kb = (k * (1.0 - ratio))[:, None, None] * self._eye2 \
                 + (k * ratio)[:, None, None] * u[:, :, None] * u[:, None, :]

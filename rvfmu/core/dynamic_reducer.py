@@ -16,9 +16,9 @@ import math
 
 import numpy as np
 
-from .dynamic import DynamicModel, Motion
+from .dynamic import DynamicModel, Motion, at_rest
 from .errors import ErrorSet
-from .newmark import NewmarkStepper, State, static_equilibrium
+from .newmark import NewmarkStepper, State
 from .reducer_model import Outputs
 
 DEFAULT_INTERNAL_STEP = 1e-4   # [s]: 10 kHz, 25 steps per stage-1 mesh period of an RV-110E at 1600 rpm
@@ -55,14 +55,11 @@ class DynamicReducer:
 
     def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:
         """At rest in the elastic equilibrium under tau_load at theta_in."""
-        from .simulation import _quasi_static_start
+        from .simulation import static_start
 
         model = self._model(tau_load)
-        model.prepare(Motion(np.array([time]), np.array([theta_in]), np.zeros(1), np.zeros(1)))
-        force = tau_load * model.load_vector()
-        start = _quasi_static_start(model, self.design, self.errors, tau_load, model.flank,
-                                    theta_in)
-        q = static_equilibrium(model, force, 0, start)
+        model.prepare(at_rest(theta_in, time))
+        q = static_start(model, tau_load, theta_in)
         self.time, self.theta_in = float(time), float(theta_in)
         self.state = State(q, np.zeros(model.n), np.zeros(model.n))
         self.omega_in = 0.0

@@ -39,11 +39,10 @@ from scipy.linalg import eigh
 
 from .checks import InputError, finite_number
 from .design import RVDesign
-from .dynamic import DynamicModel, Motion
+from .dynamic import DynamicModel, at_rest
 from .errors import ErrorSet, zero_errors
 from .limits import check_load
-from .newmark import static_equilibrium
-from .simulation import Excitations, _quasi_static_start
+from .simulation import Excitations, static_start
 
 # Resisting probe torque at zero load, x rated torque (0.41 N*m on an RV-40E): enough to close
 # the pin contacts on the resisting side, far too small to change their stiffness.
@@ -146,12 +145,9 @@ def modes(design: RVDesign, errors: ErrorSet | None = None, load: float = 0.0,
     tau_load = -load if load != 0.0 else -MODES_NO_LOAD_PROBE * design.rated_torque
     flank = 1 if tau_load <= 0 else -1
     model = DynamicModel(design, errors, contact="linear", mesh="constant", flank=flank)
-    one = np.array([0.0])
-    model.prepare(Motion(one, np.array([theta_in]), np.zeros(1), np.zeros(1)))
-    start = _quasi_static_start(model, design, errors, tau_load, flank, theta_in)
-    q = static_equilibrium(model, tau_load * model.load_vector(), 0, start)
+    model.prepare(at_rest(theta_in))
+    q = static_start(model, tau_load, theta_in)
     _, K, _ = model.forces(0, q, np.zeros(model.n))
-    K = _with_tight_bearings(model, q, K)
     K = 0.5 * (K + K.T)
     mass = model.mass.copy()
     w2, shapes = eigh(K, np.diag(mass))
@@ -159,27 +155,6 @@ def modes(design: RVDesign, errors: ErrorSet | None = None, load: float = 0.0,
     keep = frequencies >= FLOATING_HZ
     return Modes(frequencies[keep], shapes[:, keep], tuple(model.names), mass, float(tau_load),
                  theta_in, int(np.count_nonzero(~keep)))
-
-
-def _with_tight_bearings(model: DynamicModel, q: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """K with every bearing without clearance whose deflection is exactly zero.
-
-    `DynamicModel.forces` counts a bearing only where its deflection exceeds half
-    its clearance (r > c); without clearance that leaves out a bearing that
-    carries no force at all (r = 0 exactly, e.g. the main bearing under a pure
-    torque on a symmetric reducer), whose tangent is still its full stiffness
-    k I.  The time integration never notices (the force is zero either way);
-    the modes would show a spuriously free part.
-    """
-    _, B, _, _, brg_off, _, _ = model.geometry(0)
-    d = np.einsum("bxn,n->bx", B, q) + brg_off
-    r = np.sqrt((d ** 2).sum(axis=1))
-    missed = np.flatnonzero((model.half_clearance == 0.0) & (r == 0.0))
-    if missed.size:
-        K = K.copy()
-        for b in missed:
-            K += model.bearing_k[b] * B[b].T @ B[b]
-    return K
 
 
 def campbell(design: RVDesign, errors: ErrorSet | None, load: float, speeds_rpm):

@@ -21,6 +21,7 @@ from .dynamic import CONTACT_LAWS, MESH_MODELS, DynamicModel, ramp_motion
 from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
 from .limits import check_load
+from .metrics import NOISE_FLOOR_ARCSEC
 from .newmark import NewmarkStepper, static_equilibrium
 from .quasistatic import NO_LOAD_PROBE
 from .solver import solve_pairs
@@ -98,7 +99,7 @@ class Simulation:
         amplitude = 2.0 * np.abs(np.fft.rfft(te * window)) / window.sum()
         return np.fft.rfftfreq(te.size, self.step), amplitude
 
-    def peaks_hz(self, count: int = 5, floor: float = 1e-3):
+    def peaks_hz(self, count: int = 5, floor: float = NOISE_FLOOR_ARCSEC):
         """Up to `count` largest local maxima of the spectrum above `floor` arcsec: [(Hz, arcsec)]."""
         f, a = self.spectrum_hz()
         inner = np.flatnonzero((a[1:-1] > a[:-2]) & (a[1:-1] >= a[2:])) + 1
@@ -169,8 +170,7 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     def external(k):
         return tau_load * g + model.nominal_force(k)
 
-    q0 = static_equilibrium(model, external(0), 0, _quasi_static_start(model, design, errors,
-                                                                      tau_load, flank))
+    q0 = static_start(model, tau_load, 0.0, external(0))
     if method != "newmark":
         return _reference(model, motion, external, q0, method, speed_rpm, design, tau_load, ramp,
                           step)
@@ -232,6 +232,15 @@ def _record(model, design, speed_rpm, motion, q, tau_in, tau_load, ramp, step, f
                       motion.theta_in / design.ratio + te, te, tau_in,
                       np.full(motion.time.size, tau_load), q, tuple(model.names),
                       int(np.searchsorted(motion.time, ramp)), step, failed)
+
+
+def static_start(model, tau_load: float, theta_in: float = 0.0, force=None) -> np.ndarray:
+    """(n,) the elastic equilibrium of a prepared model at its step 0 under tau_load [N*m]
+    (force: the whole generalised load instead, e.g. with the nominal motion's), found
+    from the quasi-static solution at theta_in refined with the input shaft's twist."""
+    force = tau_load * model.load_vector() if force is None else force
+    start = _quasi_static_start(model, model.design, model.errors, tau_load, model.flank, theta_in)
+    return static_equilibrium(model, force, 0, start)
 
 
 def _quasi_static_start(model, design, errors, tau_load, flank, theta_in: float = 0.0) -> np.ndarray:

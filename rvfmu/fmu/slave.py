@@ -6,7 +6,7 @@ Python exception as fmi2Fatal, after which the instance is unusable.  Every
 problem is instead logged with status fmi2Error.  A failed initialisation is
 logged (fmi2ExitInitializationMode itself returns fmi2OK) and every step
 after it returns fmi2Discard (do_step returns False) with the reason logged
-again; a step with a bad input (not finite, a negative step size, or tau_load
+again; a step with a bad input (not finite, a step size that is not > 0, or tau_load
 beyond the emergency-stop class, 5x the rated torque, `rvfmu.core.limits`)
 returns fmi2Discard the same way (after which pythonfmu also answers
 fmi2GetBooleanStatus(fmi2Terminated) with true).  Above the momentary maximum
