@@ -143,6 +143,8 @@ def test_ramp_motion_is_smooth_and_reaches_speed():
     ({"load": 5000.0}, "load"),
     ({"contact": "soft"}, "contact"),
     ({"duration": 1.0, "revolutions": 1.0}, "duration"),
+    ({"duration": 1e6}, "duration"),                   # 6.9e9 steps: more than the memory holds
+    ({"duration": None, "revolutions": 1e5}, "revolutions"),
 ])
 def test_bad_simulation_input_is_refused_naming_the_field(rv40, changes, field):
     options = {"speed_rpm": 1600.0, "duration": 0.01, **changes}

@@ -15,7 +15,6 @@ moves its answers (`aliasing`).
 from __future__ import annotations
 
 import math
-import os
 import shutil
 import sys
 import time
@@ -24,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rvfmu.core.checks import InputError, integer
+from rvfmu.core.checks import InputError, fits_in_memory, integer
 from rvfmu.core.errors import error_file_values, toml_text
 from rvfmu.core.quasistatic import TECurve, te_curve
 from rvfmu.outputs import output_folder
@@ -406,18 +405,11 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     return result
 
 
-SAMPLE_MEMORY_SHARE = 0.25   # the Saltelli matrix may take at most this share of the memory
-
-
 def _check_sample_memory(problem: dict, n: int, second_order: bool) -> None:
     """Refuse a Sobol n whose sample matrix alone would not fit in memory (no --yes helps)."""
     rows = n * sobol.rows_per_base_sample(problem, second_order)
-    size = rows * problem["num_vars"] * 8
-    memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    if size > SAMPLE_MEMORY_SHARE * memory:
-        raise InputError("n", n, f"gives {rows} Sobol rows whose sample matrix alone takes "
-                         f"{size_text(size)}, more than {SAMPLE_MEMORY_SHARE:.0%} of this machine's "
-                         f"{size_text(memory)} of memory: choose a smaller n")
+    fits_in_memory("n", n, rows * problem["num_vars"] * 8,
+                   f"gives {rows} Sobol rows whose sample matrix alone")
 
 
 def _warn_load(study: Study, log) -> None:

@@ -6,8 +6,11 @@ line and the FMU can log it instead of crashing its host.
 """
 
 import math
+import os
 
 import numpy as np
+
+MEMORY_SHARE = 0.25   # one array of results may take at most this share of the machine's memory
 
 
 class InputError(ValueError):
@@ -91,3 +94,14 @@ def finite_array(field, value, shape, where=""):
 
 def _shape_text(shape):
     return " x ".join(str(n) for n in shape) if shape else "a scalar"
+
+
+def fits_in_memory(field, value, size_bytes, what, where=""):
+    """Raise if `size_bytes` (what the input `field` = `value` asks to hold) is more than
+    MEMORY_SHARE of this machine's memory; `what` says what it is, e.g. "gives 1e9 steps whose
+    record alone"."""
+    memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if size_bytes > MEMORY_SHARE * memory:
+        raise InputError(field, value, f"{what} takes {size_bytes / 1e9:.3g} GB, more than "
+                         f"{MEMORY_SHARE:.0%} of this machine's {memory / 1e9:.3g} GB of memory: "
+                         f"choose a smaller {field}", where)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import InputError, finite_number, positive
+from .checks import InputError, finite_number, fits_in_memory, positive
 from .design import RVDesign
 from .dynamic import CONTACT_LAWS, MESH_MODELS, DynamicModel, ramp_motion
 from .equivalent import EquivalentModel
@@ -159,6 +159,10 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
                          f"stage-1 mesh ({ex.mesh:.0f} Hz) and pin passing ({ex.pin_passing:.0f} Hz) "
                          f"need at least {MIN_STEPS_PER_PERIOD} steps per period")
     count = int(math.ceil((ramp + length) / step)) + 1
+    unknowns = 3 * (2 + design.n_c + 2)
+    fits_in_memory("duration" if revolutions is None else "revolutions",
+                   length if revolutions is None else revolutions,
+                   count * (unknowns + 6) * 8, f"gives {count} time steps whose record alone")
     time = np.arange(count) * step
     motion = ramp_motion(time, speed, ramp)
     tau_load = -load
