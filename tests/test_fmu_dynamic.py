@@ -1,13 +1,18 @@
 """The reducer FMU with model = "dynamic": the dynamic model stepped inside each communication step."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
-from fmpy import read_model_description
+from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
+from conftest import ROOT
 from rvfmu.core.units import ARCSEC
 from rvfmu.fmu.build import build_fmu
-from test_fmu import Instance, free_instances  # noqa: F401 - frees every instance after a test
+from test_fmu import Instance, native_env, signal
+from test_fmu import free_instances  # noqa: F401 - frees every instance after a test
 
 SLOW = 5 * 2 * np.pi / 60          # rad/s: 5 rpm input, where dynamics adds nothing
 FAST = 1600 * 2 * np.pi / 60
@@ -26,6 +31,16 @@ def drive(inst, speed, load, steps, step, start=0):
         inst.set(theta_in=speed * (k + 1) * step, tau_load=load)
         inst.step(k * step, step)
         te.append(inst.get("te")[0])
+    return np.array(te)
+
+
+def drive_as_a_master(inst, theta_in, tau_load, step):
+    """te_arcsec after each step, inputs [k] set at k * step and held to (k + 1) * step."""
+    te = []
+    for k, (theta, load) in enumerate(zip(theta_in, tau_load)):
+        inst.set(theta_in=theta, tau_load=load)
+        inst.step(k * step, step)
+        te.append(inst.get("te_arcsec")[0])
     return np.array(te)
 
 
@@ -98,3 +113,41 @@ def test_reset_returns_the_dynamic_model_to_its_start(fmu):
     inst.fmu.enterInitializationMode()
     inst.fmu.exitInitializationMode()
     assert inst.get("theta_out", "te", "tau_in") == start
+
+
+def test_native_engine_libcosim_runs_the_dynamic_fmu_step_for_step_as_fmpy_does(fmu, tmp_path):
+    path, md = fmu
+    step, load = 1e-3, 206.0                       # the script's communication step [s]; N*m
+    out = tmp_path / "cosim.csv"
+    site = ":".join(p for p in sys.path if p.endswith("site-packages"))
+    proc = subprocess.run([sys.executable, str(ROOT / "studies" / "native_host" / "run_libcosim.py"),
+                           str(path), str(out), "--model", "dynamic", "--speed", repr(FAST),
+                           "--load", repr(load), "--duration", "0.03"],
+                          env=native_env(site), capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    cosim = np.genfromtxt(out, delimiter=",", names=True)
+    # libcosim sets theta_in(t) then steps to t + h: the same input samples, by hand through fmpy
+    k = np.arange(cosim.size)
+    np.testing.assert_allclose(cosim["time"], (k + 1) * step, rtol=1e-12)
+    inst = Instance(path, md, strings={"model": "dynamic"}, reals={"tau_load": -load})
+    fmpy_te = drive_as_a_master(inst, [FAST * (i * step) for i in k], [-load] * cosim.size, step)
+    assert np.ptp(fmpy_te) > 1.0                   # a TE curve, not a constant, is compared
+    np.testing.assert_allclose(cosim["te_arcsec"], fmpy_te, rtol=0, atol=1e-9)
+
+
+def test_fmpy_simulate_fmu_runs_the_dynamic_model_given_as_a_start_value(fmu):
+    path, _ = fmu
+    step, stop, load = 0.02, 10.0, -300.0         # 10 s at 5 rpm, as in the slow-speed test above
+    times = np.arange(0.0, stop + step / 2, step)
+    common = dict(start_time=0.0, stop_time=stop, output_interval=step, step_size=step,
+                  input=signal(times, SLOW * times, load + 0 * times), output=["te_arcsec"])
+    # the load is applied in initialisation too: the dynamic model starts in equilibrium under it
+    te_dyn = simulate_fmu(str(path), start_values={"model": "dynamic", "dynamic_step": step},
+                          **common)["te_arcsec"]
+    te_qs = simulate_fmu(str(path), **common)["te_arcsec"]
+    assert te_dyn.shape == te_qs.shape == times.shape and np.isfinite(te_dyn).all()
+    pp = np.ptp(te_qs[50:])
+    assert pp > 1.0
+    assert np.max(np.abs(te_dyn - te_qs)) > 1e-6 * pp  # another model ran, not the TE map
+    assert np.ptp(te_dyn[50:]) == pytest.approx(pp, rel=0.05)
+    assert np.max(np.abs(te_dyn[50:] - te_qs[50:])) < 0.05 * pp

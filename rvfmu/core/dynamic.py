@@ -45,6 +45,7 @@ import numpy as np
 from .design import RVDesign
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
+from .kernels import Elements, Geometry, compact, element_forces
 from .stiffness import transverse_contact_ratio
 
 INPUT_SHAFT_FACTOR = 10.0  # input shaft torsional stiffness / torsional mesh stiffness at the sun
@@ -58,32 +59,41 @@ MESH_MODELS = ("varying", "constant")
 
 @dataclass(frozen=True)
 class Motion:
-    """Prescribed input: angle [rad], speed [rad/s] and acceleration [rad/s^2] at times t, each (T,)."""
+    """Prescribed input angle [rad], speed [rad/s] and acceleration [rad/s^2], and the load
+    torque tau_load [N*m] (docs/model.md section 2 sign; default zero) at times t, each (T,)."""
 
     time: np.ndarray
     theta_in: np.ndarray
     omega_in: np.ndarray
     alpha_in: np.ndarray
+    tau_load: np.ndarray | None = None
+
+    def __post_init__(self):
+        load = np.zeros(self.time.size) if self.tau_load is None else \
+            np.broadcast_to(np.asarray(self.tau_load, dtype=float), self.time.shape).copy()
+        object.__setattr__(self, "tau_load", load)
 
 
-def at_rest(theta_in: float, time: float = 0.0) -> Motion:
-    """One instant at input angle theta_in [rad], speed and acceleration zero."""
-    return Motion(np.array([float(time)]), np.array([float(theta_in)]), np.zeros(1), np.zeros(1))
+def at_rest(theta_in: float, time: float = 0.0, tau_load: float = 0.0) -> Motion:
+    """One instant at input angle theta_in [rad], speed and acceleration zero, under tau_load."""
+    return Motion(np.array([float(time)]), np.array([float(theta_in)]), np.zeros(1), np.zeros(1),
+                  np.array([float(tau_load)]))
 
 
-def ramp_motion(time, speed: float, ramp: float) -> Motion:
+def ramp_motion(time, speed: float, ramp: float, tau_load=0.0) -> Motion:
     """Input speed raised smoothly from 0 to `speed` [rad/s] over `ramp` [s] (half a cosine,
-    as seed 004's start ramp), then constant; theta_in(0) = 0."""
+    as seed 004's start ramp), then constant; theta_in(0) = 0.  tau_load: [N*m], a constant
+    or one value per time."""
     t = np.asarray(time, dtype=float)
     if ramp <= 0.0:
-        return Motion(t, speed * t, np.full_like(t, speed), np.zeros_like(t))
+        return Motion(t, speed * t, np.full_like(t, speed), np.zeros_like(t), tau_load)
     inside = t < ramp
     x = np.minimum(t, ramp)
     theta = 0.5 * speed * (x - ramp / math.pi * np.sin(math.pi * x / ramp)) \
         + speed * np.maximum(t - ramp, 0.0)
     omega = np.where(inside, 0.5 * speed * (1.0 - np.cos(math.pi * x / ramp)), speed)
     alpha = np.where(inside, 0.5 * speed * math.pi / ramp * np.sin(math.pi * x / ramp), 0.0)
-    return Motion(t, theta, omega, alpha)
+    return Motion(t, theta, omega, alpha, tau_load)
 
 
 def mesh_stiffness_factor(design: RVDesign, theta_in, theta_out, model: str = "varying"):
@@ -143,9 +153,13 @@ class DynamicModel:
         self.shaft_c = 2 * zeta * math.sqrt(self.shaft_k * design.sun_inertia)
         # IMPACT: k delta^e equals the linear law at the pin deflection under rated torque
         self.impact_k = self.pin_k * self._rated_pin_deflection() ** (1.0 - IMPACT_EXPONENT)
+        s2 = self.scale ** 2
+        self.elements = Elements(
+            self.linear_c, np.ascontiguousarray(self.half_clearance, dtype=float), self.bearing_k,
+            self.bearing_c, np.asarray(self.pin_dofs, dtype=np.int64), float(self.pin_k),
+            float(self.pin_c), contact == "impact", float(self.impact_k), IMPACT_EXPONENT,
+            IMPACT_PENETRATION, int(self.sun_rot), self.shaft_k / s2, self.shaft_c / s2)
         self._geometry = None
-        self._eye2 = np.eye(2)
-        self._disc_blocks = [np.ix_(dofs, dofs) for dofs in self.pin_dofs]
 
     # -- constant parts --------------------------------------------------------------
     def _bodies(self) -> dict:
@@ -178,135 +192,91 @@ class DynamicModel:
         self._geometry = None
 
     def geometry(self, step: int):
-        """Rows and offsets of every element at time step `step` of the motion."""
+        """(Geometry of the chunk holding time step `step`, the step's index in it)."""
         g = self._geometry
-        if g is None or not g["start"] <= step < g["stop"]:
-            start, stop = step, min(step + CHUNK, self.motion.time.size)
-            theta = self.motion.theta_in[start:stop]
-            model = EquivalentModel(self.design, theta, self.flank, sun_rotation=True)
-            A = stop - start
-            lin, brg, pins = model.offsets(self.errors, np.zeros(A, dtype=int), np.arange(A))
-            factor = mesh_stiffness_factor(self.design, theta, theta / self.design.ratio, self.mesh)
-            k_lin = np.tile(model.linear_k, (A, 1))
-            k_lin[:, :self.design.n_c] *= factor
-            g = self._geometry = {"start": start, "stop": stop, "L": model.linear_rows,
-                                  "B": model.bearing_rows, "P": model.pin_rows, "lin": lin,
-                                  "brg": brg, "pins": pins, "k_lin": k_lin}
-        a = step - g["start"]
-        return (g["L"][a], g["B"][a], g["P"][a], g["lin"][a], g["brg"][a], g["pins"][a],
-                g["k_lin"][a])
+        if g is None or not self._start <= step < self._start + g.h.size:
+            g = self._geometry = self._chunk(step, min(step + CHUNK, self.motion.time.size))
+            self._start = step
+        return g, step - self._start
 
-    def nominal_force(self, step: int) -> np.ndarray:
-        """(n,) d'Alembert forces of the nominal motion at a step [N]: minus mass times the
-        nominal acceleration of every body (docs/model.md section 2 kinematics)."""
-        d, m = self.design, self.motion
-        th_in, w_in, a_in = m.theta_in[step], m.omega_in[step], m.alpha_in[step]
-        i = d.ratio
+    def _chunk(self, start: int, stop: int) -> Geometry:
+        """Rows, offsets, mesh stiffnesses and external forces of every element at steps
+        start..stop-1 of the motion."""
+        m = self.motion
+        theta = m.theta_in[start:stop]
+        model = EquivalentModel(self.design, theta, self.flank, sun_rotation=True)
+        A = stop - start
+        lin, brg, pins = model.offsets(self.errors, np.zeros(A, dtype=int), np.arange(A))
+        factor = mesh_stiffness_factor(self.design, theta, theta / self.design.ratio, self.mesh)
+        k_lin = np.tile(model.linear_k, (A, 1))
+        k_lin[:, :self.design.n_c] *= factor
+        external = m.tau_load[start:stop, None] * self.load_vector() \
+            + self.nominal_forces(theta, m.omega_in[start:stop], m.alpha_in[start:stop])
+        h = np.diff(m.time[start - 1:stop]) if start else np.diff(m.time[:stop], prepend=m.time[0])
+        linear_cols, L = compact(model.linear_rows)
+        bearing_cols, B = compact(model.bearing_rows)
+        return Geometry(h, linear_cols, L, k_lin, lin, bearing_cols, B, brg,
+                        np.ascontiguousarray(model.pin_rows), pins, external)
+
+    def external(self, step: int) -> np.ndarray:
+        """(n,) external generalised force at a step [N]: the load torque on the carrier and
+        the nominal motion's d'Alembert forces."""
+        g, a = self.geometry(step)
+        return g.external[a]
+
+    def nominal_forces(self, theta_in, omega_in, alpha_in) -> np.ndarray:
+        """(A, n) d'Alembert forces of the nominal motion [N]: minus mass times the nominal
+        acceleration of every body (docs/model.md section 2 kinematics) at each instant."""
+        d, i = self.design, self.design.ratio
+        th_in, w_in, a_in = (np.asarray(x, dtype=float) for x in (theta_in, omega_in, alpha_in))
         th_out, w_out, a_out = th_in / i, w_in / i, a_in / i
         k_beta = -d.z_s / d.z_pl
         w_psi = w_out + k_beta * (w_in - w_out)
         a_psi = a_out + k_beta * (a_in - a_out)
         psi = th_out + k_beta * (th_in - th_out)
-        f = np.zeros(self.n)
+        f = np.zeros((th_in.size, self.n))
         idx, s = self.index, self.scale
-        f[idx["sun_rot"]] = -d.sun_inertia * a_in / s
-        f[idx["carrier_rot"]] = -d.carrier_inertia * a_out / s
-        a = d.crank_circle_radius
+        f[:, idx["sun_rot"]] = -d.sun_inertia * a_in / s
+        f[:, idx["carrier_rot"]] = -d.carrier_inertia * a_out / s
+
+        def translate(body, mass, radius, angle, w, acc):
+            # centre at radius (cos, sin)(angle): acceleration radius (acc t - w^2 r)
+            c, sn = np.cos(angle), np.sin(angle)
+            f[:, idx[f"{body}_x"]] = -mass * radius * (-acc * sn - w ** 2 * c)
+            f[:, idx[f"{body}_y"]] = -mass * radius * (acc * c - w ** 2 * sn)
+
         for c in range(d.n_c):
-            ang = th_out + 2 * math.pi * c / d.n_c
-            er, et = np.array([math.cos(ang), math.sin(ang)]), np.array([-math.sin(ang), math.cos(ang)])
-            acc = a * (a_out * et - w_out ** 2 * er)
-            f[idx[f"crank{c}_x"]], f[idx[f"crank{c}_y"]] = -d.crank_mass * acc
-            f[idx[f"crank{c}_rot"]] = -d.crank_inertia * a_psi / s
+            translate(f"crank{c}", d.crank_mass, d.crank_circle_radius,
+                      th_out + 2 * math.pi * c / d.n_c, w_out, a_out)
+            f[:, idx[f"crank{c}_rot"]] = -d.crank_inertia * a_psi / s
         for j in range(2):
-            ang = psi + j * math.pi
-            er, et = np.array([math.cos(ang), math.sin(ang)]), np.array([-math.sin(ang), math.cos(ang)])
-            acc = d.e * (a_psi * et - w_psi ** 2 * er)
-            f[idx[f"disc{j}_x"]], f[idx[f"disc{j}_y"]] = -d.disc_mass * acc
-            f[idx[f"disc{j}_rot"]] = -d.disc_inertia * a_out / s
+            translate(f"disc{j}", d.disc_mass, d.e, psi + j * math.pi, w_psi, a_psi)
+            f[:, idx[f"disc{j}_rot"]] = -d.disc_inertia * a_out / s
         return f
 
     def forces(self, step: int, q: np.ndarray, v: np.ndarray):
-        """Internal forces at a step: (f (n,), K (n, n), C (n, n)), f = K-secant forces plus damping.
+        """Internal forces at a step: (f (n,), K (n, n), C (n, n)).
 
         f is what the elements push back with (the EOM is M a + f = F); K and C are
         its derivatives in q and v (tangent stiffness and damping).  The input shaft
         ties the sun's rotation to the prescribed angle.
         """
-        L, B, P, lin_off, brg_off, pin_off, k_lin = self.geometry(step)
-        n = self.n
-        # linear elements: meshes and sun support
-        delta = L @ q + lin_off
-        rate = L @ v
-        f = L.T @ (k_lin * delta + self.linear_c * rate)
-        K = (L.T * k_lin) @ L
-        C = (L.T * self.linear_c) @ L
-        # bearings: 2-D springs with a dead zone of half the radial clearance
-        d = np.einsum("bxn,n->bx", B, q) + brg_off                 # (nb, 2)
-        r = np.sqrt((d ** 2).sum(axis=1))
-        # a bearing without clearance always holds, also at exactly zero deflection
-        tight = self.half_clearance == 0.0
-        on = np.flatnonzero(tight | (r > self.half_clearance))
-        if on.size:
-            Bo, k, c = B[on], self.bearing_k[on], self.bearing_c[on]
-            ratio = np.where(tight[on], 0.0, self.half_clearance[on] / np.where(tight[on], 1.0, r[on]))
-            u = d[on] / np.where(r[on] > 0.0, r[on], 1.0)[:, None]   # enters only with ratio > 0
-            force = (k * (1.0 - ratio))[:, None] * d[on]             # k (r - c) u
-            Kb = (k * (1.0 - ratio))[:, None, None] * self._eye2 \
-                + (k * ratio)[:, None, None] * u[:, :, None] * u[:, None, :]
-            flat = Bo.reshape(-1, n)                                  # (2 nb_on, n)
-            f += flat.T @ (force + c[:, None] * (Bo @ v)).ravel()
-            K += flat.T @ np.matmul(Kb, Bo).reshape(-1, n)
-            C += (flat * np.repeat(c, 2)[:, None]).T @ flat
-        # pins: unilateral along their normals, over each disc's own three unknowns
-        for j in range(2):
-            dofs = self.pin_dofs[j]
-            rows = P[j]                                              # (z_p, 3)
-            delta = rows @ q[dofs] + pin_off[j]
-            on = delta > 0.0
-            if not on.any():
-                continue
-            R = rows[on]
-            dn, rate = delta[on], R @ v[dofs]
-            if self.contact == "impact":
-                k_eff = IMPACT_EXPONENT * self.impact_k * dn ** (IMPACT_EXPONENT - 1.0)
-                ramp = np.clip(dn / IMPACT_PENETRATION, 0.0, 1.0)
-                ramp = ramp * ramp * (3.0 - 2.0 * ramp)              # IMPACT's cubic step
-                c_eff = self.pin_c * ramp
-                normal = self.impact_k * dn ** IMPACT_EXPONENT + c_eff * rate
-                dc = self.pin_c * 6.0 * (dn / IMPACT_PENETRATION) * (1 - dn / IMPACT_PENETRATION) \
-                    / IMPACT_PENETRATION * (dn < IMPACT_PENETRATION)
-                k_eff = k_eff + dc * rate
-            else:
-                k_eff = np.full(dn.shape, self.pin_k)
-                c_eff = np.full(dn.shape, self.pin_c)
-                normal = self.pin_k * dn + self.pin_c * rate
-            # a contact pulls nothing: a separating dashpot cannot drag the surfaces together
-            pulling = normal < 0.0
-            normal = np.where(pulling, 0.0, normal)
-            k_eff, c_eff = np.where(pulling, 0.0, k_eff), np.where(pulling, 0.0, c_eff)
-            idx = self._disc_blocks[j]
-            f[dofs] += R.T @ normal
-            K[idx] += (R.T * k_eff) @ R
-            C[idx] += (R.T * c_eff) @ R
-        # input shaft: the sun's rotation deviation against a torsional spring to the housing
-        s2 = self.scale ** 2
-        k = self.sun_rot
-        f[k] += (self.shaft_k * q[k] + self.shaft_c * v[k]) / s2
-        K[k, k] += self.shaft_k / s2
-        C[k, k] += self.shaft_c / s2
+        g, a = self.geometry(step)
+        f, K, C = np.empty(self.n), np.empty((self.n, self.n)), np.empty((self.n, self.n))
+        element_forces(self.elements, g, a, np.ascontiguousarray(q, dtype=float),
+                       np.ascontiguousarray(v, dtype=float), f, K, C)
         return f, K, C
 
     def energy(self, step: int, q: np.ndarray, v: np.ndarray) -> float:
         """Kinetic plus elastic energy [J] at a step (linear contact law; for energy checks)."""
-        L, B, P, lin_off, brg_off, pin_off, k_lin = self.geometry(step)
-        delta = L @ q + lin_off
-        elastic = 0.5 * np.sum(k_lin * delta ** 2)
-        d = np.einsum("bxn,n->bx", B, q) + brg_off
+        g, a = self.geometry(step)
+        delta = np.sum(g.L[a] * q[g.linear_cols], axis=-1) + g.linear_offset[a]
+        elastic = 0.5 * np.sum(g.linear_k[a] * delta ** 2)
+        d = np.sum(g.B[a] * q[g.bearing_cols][:, None, :], axis=-1) + g.bearing_offset[a]
         stretch = np.maximum(np.sqrt((d ** 2).sum(axis=1)) - self.half_clearance, 0.0)
         elastic += 0.5 * np.sum(self.bearing_k * stretch ** 2)
         for j in range(2):
-            pin = np.maximum(P[j] @ q[self.pin_dofs[j]] + pin_off[j], 0.0)
+            pin = np.maximum(g.P[a, j] @ q[self.pin_dofs[j]] + g.pin_offset[a, j], 0.0)
             elastic += 0.5 * self.pin_k * np.sum(pin ** 2)
         elastic += 0.5 * self.shaft_k * (q[self.sun_rot] / self.scale) ** 2
         return float(0.5 * np.sum(self.mass * v * v) + elastic)

@@ -58,7 +58,7 @@ class DynamicReducer:
         from .simulation import static_start
 
         model = self._model(tau_load)
-        model.prepare(at_rest(theta_in, time))
+        model.prepare(at_rest(theta_in, time, tau_load))
         q = static_start(model, tau_load, theta_in)
         self.time, self.theta_in = float(time), float(theta_in)
         self.state = State(q, np.zeros(model.n), np.zeros(model.n))
@@ -72,12 +72,10 @@ class DynamicReducer:
         omega = (theta_in - self.theta_in) / step_size
         angles = self.theta_in + omega * (t - time)
         model = self._model(tau_load)
-        model.prepare(Motion(t, angles, np.full(t.size, omega), np.zeros(t.size)))
-        g = tau_load * model.load_vector()
-        # the nominal motion's d'Alembert forces at this constant speed (centripetal terms)
-        stepper = NewmarkStepper(model, lambda k: g + model.nominal_force(k), self.state)
-        for _ in range(count):
-            stepper.step()
+        # the nominal motion's d'Alembert forces come at this constant speed (centripetal terms)
+        model.prepare(Motion(t, angles, np.full(t.size, omega), np.zeros(t.size), tau_load))
+        stepper = NewmarkStepper(model, self.state)
+        stepper.advance(count)
         self.state = stepper.state
         self.time, self.theta_in, self.omega_in = time + step_size, float(theta_in), omega
         return self._outputs(omega, tau_load)

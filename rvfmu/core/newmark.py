@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .kernels import newmark_steps
+
 BETA, GAMMA = 0.25, 0.5     # average acceleration (trapezoidal rule)
 TOLERANCE = 1e-13           # [m] Newton update: 1e-7 um, far below any error or deflection
 MAX_ITERATIONS = 30
@@ -34,54 +36,52 @@ class State:
 
 
 class NewmarkStepper:
-    """Fixed-step Newmark-beta over a `DynamicModel`: one `step()` advances one time step.
-
-    load(step) -> (n,) external generalised force at a step (load and nominal inertia).
+    """Fixed-step Newmark-beta over a prepared `DynamicModel`: `advance` runs to a later time
+    step of the model's motion (the external forces are the model's: load and nominal
+    motion), `step` one step.  The loop itself is `kernels.newmark_steps`.
     """
 
-    def __init__(self, model, load, state: State, step: int = 0, beta: float = BETA,
+    def __init__(self, model, state: State, step: int = 0, beta: float = BETA,
                  gamma: float = GAMMA):
-        self.model, self.load = model, load
+        self.model = model
         self.state, self.k = state, step
         self.beta, self.gamma = beta, gamma
-        self.M = np.diag(model.mass)
         self.iterations = 0
         self.failed_steps = 0
 
     @classmethod
-    def starting_at(cls, model, load, q0, v0=None, step: int = 0, **kwargs):
+    def starting_at(cls, model, q0, v0=None, step: int = 0, **kwargs):
         """A stepper whose initial acceleration balances the forces at q0, v0."""
         v0 = np.zeros_like(q0) if v0 is None else v0
         f, _, _ = model.forces(step, q0, v0)
-        a0 = (load(step) - f) / model.mass
-        return cls(model, load, State(q0.copy(), v0.copy(), a0), step, **kwargs)
+        a0 = (model.external(step) - f) / model.mass
+        return cls(model, State(q0.copy(), v0.copy(), a0), step, **kwargs)
+
+    def advance(self, stop: int, q_out=None, v_out=None) -> State:
+        """Run to time step `stop`; the states of steps k + 1 .. stop go into q_out[k + 1 ..],
+        v_out[k + 1 ..] ((T, n) arrays indexed by step) when given."""
+        model = self.model
+        q, v, a = (np.array(x, dtype=float) for x in (self.state.q, self.state.v, self.state.a))
+        k = self.k
+        while k < stop:
+            g, first = model.geometry(k + 1)
+            last = min(first + stop - k, g.h.size)
+            qs, vs = np.empty((last, q.size)), np.empty((last, q.size))
+            most, failed = newmark_steps(model.elements, g, first, last, model.mass, q, v, a,
+                                         self.beta, self.gamma, TOLERANCE, MAX_ITERATIONS, qs, vs)
+            self.iterations = max(self.iterations, most)
+            self.failed_steps += failed
+            done = last - first
+            if q_out is not None:
+                q_out[k + 1:k + 1 + done] = qs[first:last]
+                v_out[k + 1:k + 1 + done] = vs[first:last]
+            k += done
+        self.state, self.k = State(q, v, a), k
+        return self.state
 
     def step(self) -> State:
         """Advance to the next time step of the model's motion."""
-        model, s, k = self.model, self.state, self.k
-        time = model.motion.time
-        h = time[k + 1] - time[k]
-        b, g = self.beta, self.gamma
-        F = self.load(k + 1)
-        q = s.q + h * s.v + 0.5 * h * h * s.a          # average-acceleration predictor
-        converged = False
-        for it in range(MAX_ITERATIONS):
-            a = (q - s.q - h * s.v) / (b * h * h) - (0.5 / b - 1.0) * s.a
-            v = s.v + h * ((1.0 - g) * s.a + g * a)
-            f, K, C = model.forces(k + 1, q, v)
-            residual = self.M @ a + f - F
-            J = self.M / (b * h * h) + C * (g / (b * h)) + K
-            dq = np.linalg.solve(J, -residual)
-            q = q + dq
-            if np.max(np.abs(dq)) < TOLERANCE:
-                converged = True
-                break
-        self.iterations = max(self.iterations, it + 1)
-        self.failed_steps += not converged
-        a = (q - s.q - h * s.v) / (b * h * h) - (0.5 / b - 1.0) * s.a
-        v = s.v + h * ((1.0 - g) * s.a + g * a)
-        self.state, self.k = State(q, v, a), k + 1
-        return self.state
+        return self.advance(self.k + 1)
 
 
 def static_equilibrium(model, load_force, step: int = 0, q0=None) -> np.ndarray:

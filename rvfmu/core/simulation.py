@@ -17,7 +17,7 @@ import numpy as np
 
 from .checks import InputError, finite_number, fits_in_memory, positive
 from .design import RVDesign
-from .dynamic import CONTACT_LAWS, MESH_MODELS, DynamicModel, ramp_motion
+from .dynamic import CONTACT_LAWS, MESH_MODELS, DynamicModel, Motion, ramp_motion
 from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
 from .limits import check_load
@@ -114,42 +114,110 @@ def default_step(design: RVDesign, speed_rpm: float) -> float:
     return 1.0 / (STEPS_PER_PERIOD * max(ex.pin_passing, ex.mesh))
 
 
-def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float = 1600.0,
-             load: float = 0.0, duration: float | None = None, revolutions: float | None = None,
-             contact: str = "linear", mesh: str = "varying", step: float | None = None,
-             ramp: float | None = None, method: str = "newmark", progress=None) -> Simulation:
-    """Dynamic TE of one reducer at a constant input speed after a start ramp.
+@dataclass(frozen=True)
+class Sampled:
+    """A signal given at sample times [s]: linear between samples, held beyond them.
 
-    load: resisting output torque [N*m] (tau_load = -load); duration [s] or
-    revolutions (output revolutions at speed, after the ramp); step [s]
-    (default `default_step`); ramp [s] (default 2 % of an output revolution, at
-    least 0.05 s).  method: "newmark" (fixed step, the default) or "Radau" / "BDF"
-    (scipy's adaptive solve_ivp, the slow reference).  progress(total, done): optional.
+    `checked` gives one with finite values at strictly increasing times, or an
+    InputError naming the field and the first bad sample.
+    """
+
+    time: np.ndarray
+    values: np.ndarray
+
+    @classmethod
+    def checked(cls, name: str, time, values, at_least: int = 2) -> "Sampled":
+        t, x = np.asarray(time, dtype=float).ravel(), np.asarray(values, dtype=float).ravel()
+        if t.size != x.size or t.size < at_least:
+            raise InputError(name, f"{t.size} times, {x.size} values",
+                             f"needs at least {at_least} samples, one value per time")
+        for label, data in (("time", t), ("value", x)):
+            bad = np.flatnonzero(~np.isfinite(data))
+            if bad.size:
+                raise InputError(name, f"{label} {data[bad[0]]} at sample {bad[0] + 1}",
+                                 "every sample must be a finite number")
+        back = np.flatnonzero(np.diff(t) <= 0.0)
+        if back.size:
+            raise InputError(name, f"time {t[back[0] + 1]:g} s at sample {back[0] + 2}",
+                             "times must increase strictly")
+        return cls(t, x)
+
+    @classmethod
+    def step(cls, before: float, at: float, after: float) -> "Sampled":
+        """`before` until time `at` [s], `after` from then on (a step with a 1 ns rise)."""
+        at = finite_number("load step time", at)
+        return cls(np.array([at - 1e-9, at]), np.array([before, after]))
+
+    def at(self, time) -> np.ndarray:
+        return np.interp(time, self.time, self.values)
+
+
+def sampled_motion(time, angle: Sampled, tau_load) -> Motion:
+    """The input motion through sampled input angles: a cubic spline (not-a-knot), its
+    first and second derivatives the speed and acceleration, evaluated at `time`."""
+    from scipy.interpolate import CubicSpline
+
+    spline = CubicSpline(angle.time, angle.values)
+    return Motion(time, spline(time), spline(time, 1), spline(time, 2), tau_load)
+
+
+def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float | None = 1600.0,
+             load: float | Sampled = 0.0, duration: float | None = None,
+             revolutions: float | None = None, contact: str = "linear", mesh: str = "varying",
+             step: float | None = None, ramp: float | None = None, method: str = "newmark",
+             progress=None, input_angle: Sampled | None = None) -> Simulation:
+    """Dynamic TE of one reducer at a constant input speed after a start ramp, or along
+    sampled input angles.
+
+    load: resisting output torque [N*m] (tau_load = -load), constant or `Sampled`
+    over the run's time (t = 0 at the start of the ramp); duration [s] or
+    revolutions (output revolutions at speed, after the ramp); step [s] (default
+    `default_step`); ramp [s] (default 2 % of an output revolution, at least
+    0.05 s).  input_angle: `Sampled` input angles [rad] instead of the ramp and
+    constant speed (speed_rpm, duration, revolutions and ramp then come from the
+    samples and must not be given).  method: "newmark" (fixed step, the default)
+    or "Radau" / "BDF" (scipy's adaptive solve_ivp, the slow reference).
+    progress(total, done): optional.
     """
     errors = zero_errors(design) if errors is None else errors.check(design)
     if errors.samples != 1:
         raise InputError("errors", errors.samples, "the dynamic model simulates one reducer")
-    speed_rpm = positive("speed_rpm", speed_rpm)
-    load = finite_number("load", load)
-    check_load("load", load, design.rated_torque)
     if contact not in CONTACT_LAWS:
         raise InputError("contact", contact, f"must be one of {', '.join(CONTACT_LAWS)}")
     if method not in METHODS:
         raise InputError("method", method, f"must be one of {', '.join(METHODS)}")
     if mesh not in MESH_MODELS:
         raise InputError("mesh", mesh, f"must be one of {', '.join(MESH_MODELS)}")
-    speed = speed_rpm * 2.0 * math.pi / 60.0
-    out_period = 2.0 * math.pi * design.ratio / speed
-    ramp = max(0.05, DEFAULT_RAMP_OUTPUT_TURNS * out_period) if ramp is None else \
-        finite_number("ramp", ramp)
-    if ramp < 0:
-        raise InputError("ramp", ramp, "must be >= 0")
     if duration is not None and revolutions is not None:
         raise InputError("duration", duration, "give a duration or a number of revolutions, not both")
-    if revolutions is not None:
-        length = positive("revolutions", revolutions) * out_period
+    if not isinstance(load, Sampled):
+        load = finite_number("load", load)
+    for value in np.atleast_1d(load.values if isinstance(load, Sampled) else load):
+        check_load("load", value, design.rated_torque)
+    if input_angle is None:
+        speed_rpm = positive("speed_rpm", speed_rpm)
+        speed = speed_rpm * 2.0 * math.pi / 60.0
+        out_period = 2.0 * math.pi * design.ratio / speed
+        ramp = max(0.05, DEFAULT_RAMP_OUTPUT_TURNS * out_period) if ramp is None else \
+            finite_number("ramp", ramp)
+        if ramp < 0:
+            raise InputError("ramp", ramp, "must be >= 0")
+        if revolutions is not None:
+            length = positive("revolutions", revolutions) * out_period
+        else:
+            length = out_period if duration is None else positive("duration", duration)
+        start, end = 0.0, ramp + length
     else:
-        length = out_period if duration is None else positive("duration", duration)
+        for name, value in (("duration", duration), ("revolutions", revolutions), ("ramp", ramp)):
+            if value is not None:
+                raise InputError(name, value, "the sampled input angles give the run's length; "
+                                 "leave it out")
+        start, end = float(input_angle.time[0]), float(input_angle.time[-1])
+        mean = (input_angle.values[-1] - input_angle.values[0]) / (end - start)
+        if not mean > 0.0:
+            raise InputError("input", f"mean speed {mean:.4g} rad/s",
+                             "the input must turn forward (positive mean speed)")
+        speed_rpm, ramp = mean * 60.0 / (2.0 * math.pi), 0.0
     finest = default_step(design, speed_rpm)
     step = finest if step is None else positive("step", step)
     coarsest = finest * STEPS_PER_PERIOD / MIN_STEPS_PER_PERIOD
@@ -158,43 +226,37 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
         raise InputError("step", step, f"must be <= {coarsest:.3g} s: at {speed_rpm:g} rpm the "
                          f"stage-1 mesh ({ex.mesh:.0f} Hz) and pin passing ({ex.pin_passing:.0f} Hz) "
                          f"need at least {MIN_STEPS_PER_PERIOD} steps per period")
-    count = int(math.ceil((ramp + length) / step)) + 1
+    count = int(math.ceil((end - start) / step)) + 1
     unknowns = 3 * (2 + design.n_c + 2)
-    fits_in_memory("duration" if revolutions is None else "revolutions",
-                   length if revolutions is None else revolutions,
-                   count * (unknowns + 6) * 8, f"gives {count} time steps whose record alone")
-    time = np.arange(count) * step
-    motion = ramp_motion(time, speed, ramp)
-    tau_load = -load
-    flank = 1 if tau_load <= 0 else -1
-    model = DynamicModel(design, errors, contact, mesh, flank)
+    name = "input" if input_angle is not None else "revolutions" if revolutions is not None \
+        else "duration"
+    fits_in_memory(name, {"input": end - start, "revolutions": revolutions}.get(name, duration),
+                   count * (2 * unknowns + 6) * 8, f"gives {count} time steps whose record alone")
+    time = start + np.arange(count) * step
+    tau_load = -(load.at(time) if isinstance(load, Sampled) else np.full(count, load))
+    if input_angle is None:
+        motion = ramp_motion(time, speed, ramp, tau_load)
+    else:
+        motion = sampled_motion(time, input_angle, tau_load)
+    mean_load = float(np.mean(tau_load))
+    model = DynamicModel(design, errors, contact, mesh, 1 if mean_load <= 0 else -1)
     model.prepare(motion)
-    g = model.load_vector()
-
-    def external(k):
-        return tau_load * g + model.nominal_force(k)
-
-    q0 = static_start(model, tau_load, 0.0, external(0))
+    q0 = static_start(model, tau_load[0], float(motion.theta_in[0]), model.external(0))
     if method != "newmark":
-        return _reference(model, motion, external, q0, method, speed_rpm, design, tau_load, ramp,
-                          step)
-    stepper = NewmarkStepper.starting_at(model, external, q0)
-    q = np.empty((count, model.n))
-    q[0] = q0
-    tau_in = np.empty(count)
-    tau_in[0] = model.input_torque(q0, stepper.state.v)
+        return _reference(model, motion, q0, method, speed_rpm, design, ramp, step)
+    stepper = NewmarkStepper.starting_at(model, q0)
+    q, v = np.empty((count, model.n)), np.empty((count, model.n))
+    q[0], v[0] = q0, stepper.state.v
     report = max(1, count // 200)
-    for k in range(1, count):
-        state = stepper.step()
-        q[k] = state.q
-        tau_in[k] = model.input_torque(state.q, state.v)
-        if progress is not None and (k % report == 0 or k == count - 1):
-            progress(count - 1, k)
-    return _record(model, design, speed_rpm, motion, q, tau_in, tau_load, ramp, step,
-                   stepper.failed_steps)
+    while stepper.k < count - 1:
+        stepper.advance(min(stepper.k + report, count - 1), q, v)
+        if progress is not None:
+            progress(count - 1, stepper.k)
+    tau_in = model.input_torque(q.T, v.T)
+    return _record(model, design, speed_rpm, motion, q, tau_in, ramp, step, stepper.failed_steps)
 
 
-def _reference(model, motion, external, q0, method, speed_rpm, design, tau_load, ramp, step):
+def _reference(model, motion, q0, method, speed_rpm, design, ramp, step):
     """The same run by scipy's adaptive implicit `solve_ivp` (Radau or BDF), reported at the
     Newmark steps' times: the reference the fixed-step integrator is checked against.
 
@@ -203,11 +265,13 @@ def _reference(model, motion, external, q0, method, speed_rpm, design, tau_load,
     """
     from scipy.integrate import solve_ivp
 
-    n, speed, M = model.n, motion.omega_in[-1], model.mass
+    n, M = model.n, model.mass
+    columns = (motion.theta_in, motion.omega_in, motion.alpha_in, motion.tau_load)
 
     def instant(t):
-        model.prepare(ramp_motion(np.array([t]), speed, ramp))
-        return external(0)
+        # the run's motion and load at t, linear between its steps
+        model.prepare(Motion(np.array([t]), *(np.interp([t], motion.time, x) for x in columns)))
+        return model.external(0)
 
     def rhs(t, y):
         F = instant(t)
@@ -225,17 +289,16 @@ def _reference(model, motion, external, q0, method, speed_rpm, design, tau_load,
     if not solution.success:
         raise RuntimeError(f"solve_ivp ({method}) failed: {solution.message}")
     q, v = solution.y[:n].T, solution.y[n:].T
-    tau_in = np.array([model.input_torque(a, b) for a, b in zip(q, v)])
-    return _record(model, design, speed_rpm, motion, q, tau_in, tau_load, ramp, step, 0)
+    return _record(model, design, speed_rpm, motion, q, model.input_torque(q.T, v.T), ramp, step, 0)
 
 
-def _record(model, design, speed_rpm, motion, q, tau_in, tau_load, ramp, step, failed) -> Simulation:
+def _record(model, design, speed_rpm, motion, q, tau_in, ramp, step, failed) -> Simulation:
     """The run's record from the unknowns q (T, n) at the motion's times."""
     te = q[:, model.carrier_rot] / model.scale
     return Simulation(design, speed_rpm, motion.time, motion.theta_in,
                       motion.theta_in / design.ratio + te, te, tau_in,
-                      np.full(motion.time.size, tau_load), q, tuple(model.names),
-                      int(np.searchsorted(motion.time, ramp)), step, failed)
+                      motion.tau_load, q, tuple(model.names),
+                      int(np.searchsorted(motion.time, motion.time[0] + ramp)), step, failed)
 
 
 def static_start(model, tau_load: float, theta_in: float = 0.0, force=None) -> np.ndarray:

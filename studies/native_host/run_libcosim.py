@@ -6,11 +6,15 @@ embeds Python.  The host must therefore make libpython loadable and tell the
 embedded interpreter where its standard library and numpy/scipy are; run it as
 
     LD_PRELOAD=<libdir>/libpython3.11.so PYTHONHOME=<prefix> PYTHONPATH=<site-packages> \\
-        python studies/native_host/run_libcosim.py RVReducer.fmu out.csv [--speed RAD_S] [--load NM]
+        python studies/native_host/run_libcosim.py RVReducer.fmu out.csv [--speed RAD_S] [--load NM] \\
+            [--duration S] [--model {quasistatic,dynamic}]
 
 (`python studies/native_host/env.py` prints those three values for this Python.)
 The input shaft turns at a constant speed under a constant resisting load;
 the output angle, TE and input torque are written to a CSV file, one row per step.
+`--model` sets the FMU's string parameter `model` before initialisation:
+`quasistatic` (the TE map, the FMU's default) or `dynamic` (the dynamic model,
+stepped inside each 1 ms communication step at the FMU's `dynamic_step`).
 """
 
 import argparse
@@ -23,7 +27,11 @@ from libcosimpy.CosimObserver import CosimObserver
 from libcosimpy.CosimSlave import CosimLocalSlave
 
 
-def run(fmu, out, speed=1600 * 2 * 3.141592653589793 / 60, load=0.0, step=1e-3, duration=0.2):
+MODELS = ("quasistatic", "dynamic")   # the values of the FMU's `model` parameter
+
+
+def run(fmu, out, speed=1600 * 2 * 3.141592653589793 / 60, load=0.0, step=1e-3, duration=0.2,
+        model="quasistatic"):
     execution = CosimExecution.from_step_size(step_size=int(step * 1e9))
     index = execution.add_local_slave(CosimLocalSlave(fmu_path=str(fmu), instance_name="reducer"))
     variables = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
@@ -33,6 +41,8 @@ def run(fmu, out, speed=1600 * 2 * 3.141592653589793 / 60, load=0.0, step=1e-3, 
     execution.add_observer(observer)
     names = ["theta_out", "te_arcsec", "omega_out", "tau_in"]
     refs = [variables[n] for n in names]
+    if not execution.string_initial_value(index, variables["model"], model):
+        raise RuntimeError(f"libcosim refused the initial value model = {model!r}")
     execution.real_initial_value(index, variables["tau_load"], -load)
     rows = []
     steps = int(round(duration / step))
@@ -57,8 +67,10 @@ def main(argv=None):
     parser.add_argument("--speed", type=float, default=1600 * 2 * 3.141592653589793 / 60)
     parser.add_argument("--load", type=float, default=0.0, help="resisting output torque [N*m]")
     parser.add_argument("--duration", type=float, default=0.2)
+    parser.add_argument("--model", choices=MODELS, default="quasistatic",
+                        help="the FMU's reducer model (default: quasistatic)")
     args = parser.parse_args(argv)
-    rows = run(args.fmu, args.out, args.speed, args.load, duration=args.duration)
+    rows = run(args.fmu, args.out, args.speed, args.load, duration=args.duration, model=args.model)
     print(f"{len(rows)} steps, last te_arcsec {rows[-1][2]:.4f}")
     return 0
 

@@ -1,0 +1,223 @@
+"""The dynamic model's inner loop: element forces and Newmark steps, compiled when numba is there.
+
+A time step of the dynamic model is a few Newton iterations, each summing
+some thirty springs into an 18 x 18 (two cranks) or 21 x 21 (three cranks)
+system and solving it.  In numpy every one of those small operations costs a
+microsecond of Python, so the run is slow however little arithmetic it does.
+These two functions hold that loop; numba compiles them (`COMPILED`) when it
+is installed, and without it (a host Python that lacks it, or RVTE_NUMBA=0)
+they run as they are, as plain numpy: the same results, several times slower.
+
+The element data come in two named tuples built by `DynamicModel`:
+`Elements` (what does not change over the run) and `Geometry` (rows, offsets,
+stiffnesses and external forces at a run of time steps, axis 0 the step).
+"""
+
+from __future__ import annotations
+
+import os
+from collections import namedtuple
+
+import numpy as np
+
+
+def _numba():
+    if os.environ.get("RVTE_NUMBA", "1") == "0":
+        return None
+    try:
+        import numba
+    except ImportError:
+        return None
+    return numba
+
+
+_NUMBA = _numba()
+COMPILED = _NUMBA is not None
+
+
+def kernel(function):
+    """`function` compiled by numba (cached on disk where its folder allows), or as it is."""
+    if _NUMBA is None:
+        return function
+    try:
+        return _NUMBA.njit(cache=True, nogil=True)(function)
+    except RuntimeError:    # no writable cache location (e.g. a read-only install)
+        return _NUMBA.njit(nogil=True)(function)
+
+
+Elements = namedtuple("Elements", [
+    "linear_c",        # (m,) dashpots of the meshes and sun support [N s/m]
+    "half_clearance",  # (nb,) free radial play of each bearing [m]
+    "bearing_k",       # (nb,) [N/m]
+    "bearing_c",       # (nb,) [N s/m]
+    "pin_dofs",        # (2, 3) unknowns of each disc: x, y, rotation
+    "pin_k",           # linear pin law stiffness [N/m]
+    "pin_c",           # pin dashpot (IMPACT: its c_max) [N s/m]
+    "impact",          # True: IMPACT law, False: linear
+    "impact_k",        # IMPACT stiffness [N/m^e]
+    "impact_exponent",
+    "impact_depth",    # IMPACT d_max [m]
+    "shaft",           # index of the sun's rotation
+    "shaft_k",         # input shaft stiffness over scale^2 [N/m]
+    "shaft_c",         # its dashpot over scale^2 [N s/m]
+])
+
+Geometry = namedtuple("Geometry", [
+    "h",               # (A,) time step into each step [s] (the run's first: 0)
+    "linear_cols",     # (m, w) unknowns each mesh or support row touches
+    "L",               # (A, m, w) their coefficients
+    "linear_k", "linear_offset",           # (A, m), (A, m)
+    "bearing_cols",    # (nb, w)
+    "B",               # (A, nb, 2, w)
+    "bearing_offset",  # (A, nb, 2)
+    "P", "pin_offset",                     # (A, 2, z_p, 3), (A, 2, z_p)
+    "external",                            # (A, n) load and nominal-motion forces [N]
+])
+
+
+def compact(rows: np.ndarray):
+    """Dense element rows (A, E, ..., n) as (cols (E, w), coefficients (A, E, ..., w)): each
+    element touches a handful of the n unknowns (its two bodies), so the kernel loops over
+    those alone.  Short rows are padded with a zero coefficient on their first unknown."""
+    touched = np.any(rows != 0.0, axis=tuple(k for k in range(rows.ndim - 1) if k != 1))  # (E, n)
+    width = max(1, int(touched.sum(axis=1).max()))
+    cols = np.zeros((touched.shape[0], width), dtype=np.int64)
+    for e, row in enumerate(touched):
+        found = np.flatnonzero(row)
+        cols[e, :found.size] = found
+        cols[e, found.size:] = found[0] if found.size else 0
+    shape = rows.shape[:-1] + (width,)
+    index = cols.reshape((1, cols.shape[0]) + (1,) * (rows.ndim - 3) + (width,))
+    coefficients = np.take_along_axis(rows, np.broadcast_to(index, shape), axis=-1).copy()
+    for e, row in enumerate(touched):   # padding carries nothing
+        coefficients[:, e, ..., int(row.sum()):] = 0.0
+    return cols, coefficients
+
+
+@kernel
+def element_forces(el, g, a, q, v, f, K, C):
+    """Forces of every element at step a of geometry g into f (n,), with their derivatives in
+    q and v into K and C (n, n): the EOM is M q'' + f = F.  f, K, C are overwritten."""
+    f[:] = 0.0
+    K[:, :] = 0.0
+    C[:, :] = 0.0
+    # meshes and sun support: bilateral springs
+    cols, L = g.linear_cols, g.L[a]
+    for e in range(cols.shape[0]):
+        delta, rate = g.linear_offset[a, e], 0.0
+        for x in range(cols.shape[1]):
+            delta += L[e, x] * q[cols[e, x]]
+            rate += L[e, x] * v[cols[e, x]]
+        k, c = g.linear_k[a, e], el.linear_c[e]
+        force = k * delta + c * rate
+        for x in range(cols.shape[1]):
+            i = cols[e, x]
+            f[i] += L[e, x] * force
+            for y in range(cols.shape[1]):
+                K[i, cols[e, y]] += k * L[e, x] * L[e, y]
+                C[i, cols[e, y]] += c * L[e, x] * L[e, y]
+    # bearings: 2-D springs with a dead zone of half the radial clearance
+    cols, B = g.bearing_cols, g.B[a]
+    for b in range(cols.shape[0]):
+        dx, dy = g.bearing_offset[a, b, 0], g.bearing_offset[a, b, 1]
+        vx, vy = 0.0, 0.0
+        for x in range(cols.shape[1]):
+            dx += B[b, 0, x] * q[cols[b, x]]
+            dy += B[b, 1, x] * q[cols[b, x]]
+            vx += B[b, 0, x] * v[cols[b, x]]
+            vy += B[b, 1, x] * v[cols[b, x]]
+        r = np.sqrt(dx * dx + dy * dy)
+        half = el.half_clearance[b]
+        if half > 0.0 and r <= half:
+            continue                                   # inside its play; a tight one always holds
+        k, c = el.bearing_k[b], el.bearing_c[b]
+        ratio = half / r if half > 0.0 else 0.0
+        ux, uy = (dx / r, dy / r) if r > 0.0 else (0.0, 0.0)
+        # force k (r - half) u and its derivative k (1 - ratio) I + k ratio u u^T
+        fx, fy = k * (1.0 - ratio) * dx + c * vx, k * (1.0 - ratio) * dy + c * vy
+        sxx = k * (1.0 - ratio) + k * ratio * ux * ux
+        syy = k * (1.0 - ratio) + k * ratio * uy * uy
+        sxy = k * ratio * ux * uy
+        for x in range(cols.shape[1]):
+            i, bx, by = cols[b, x], B[b, 0, x], B[b, 1, x]
+            f[i] += bx * fx + by * fy
+            tx, ty = sxx * bx + sxy * by, sxy * bx + syy * by
+            for y in range(cols.shape[1]):
+                j, cx, cy = cols[b, y], B[b, 0, y], B[b, 1, y]
+                K[i, j] += tx * cx + ty * cy
+                C[i, j] += c * (bx * cx + by * cy)
+    # pins: unilateral along their normals, over each disc's own three unknowns
+    for j in range(2):
+        dofs = el.pin_dofs[j]
+        R = g.P[a, j]                                      # (z_p, 3)
+        for p in range(R.shape[0]):
+            delta = g.pin_offset[a, j, p]
+            rate = 0.0
+            for x in range(3):
+                delta += R[p, x] * q[dofs[x]]
+                rate += R[p, x] * v[dofs[x]]
+            if delta <= 0.0:
+                continue                                   # open
+            if el.impact:
+                s = min(delta / el.impact_depth, 1.0)
+                ramp = s * s * (3.0 - 2.0 * s)             # IMPACT's cubic step of the damping
+                dramp = 6.0 * s * (1.0 - s) / el.impact_depth if delta < el.impact_depth else 0.0
+                e = el.impact_exponent
+                normal = el.impact_k * delta ** e + el.pin_c * ramp * rate
+                k = e * el.impact_k * delta ** (e - 1.0) + el.pin_c * dramp * rate
+                c = el.pin_c * ramp
+            else:
+                normal = el.pin_k * delta + el.pin_c * rate
+                k, c = el.pin_k, el.pin_c
+            if normal <= 0.0:
+                continue                                   # a separating dashpot pulls nothing
+            for x in range(3):
+                f[dofs[x]] += R[p, x] * normal
+                for y in range(3):
+                    K[dofs[x], dofs[y]] += k * R[p, x] * R[p, y]
+                    C[dofs[x], dofs[y]] += c * R[p, x] * R[p, y]
+    # input shaft: the sun's rotation deviation against a torsional spring to the housing
+    s = el.shaft
+    f[s] += el.shaft_k * q[s] + el.shaft_c * v[s]
+    K[s, s] += el.shaft_k
+    C[s, s] += el.shaft_c
+
+
+@kernel
+def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, max_iterations,
+                  out_q, out_v):
+    """Advance the state (q, v, a), given at the step before `first`, through steps first..stop-1
+    of g by the Newmark rule with Newton iterations; q, v, a are updated in place and the
+    state after each step is written to out_q[k], out_v[k].  Returns (most Newton iterations
+    in one step, steps that did not converge)."""
+    n = q.size
+    f = np.empty(n)
+    K = np.empty((n, n))
+    C = np.empty((n, n))
+    M = np.diag(mass)
+    most, failed = 0, 0
+    for k in range(first, stop):
+        h = g.h[k]
+        q_old, v_old, a_old = q.copy(), v.copy(), a.copy()
+        q[:] = q_old + h * v_old + 0.5 * h * h * a_old     # average-acceleration predictor
+        converged = False
+        it = 0
+        while it < max_iterations:
+            it += 1
+            a[:] = (q - q_old - h * v_old) / (beta * h * h) - (0.5 / beta - 1.0) * a_old
+            v[:] = v_old + h * ((1.0 - gamma) * a_old + gamma * a)
+            element_forces(el, g, k, q, v, f, K, C)
+            residual = mass * a + f - g.external[k]
+            J = M / (beta * h * h) + C * (gamma / (beta * h)) + K
+            dq = np.linalg.solve(J, -residual)
+            q += dq
+            if np.max(np.abs(dq)) < tolerance:
+                converged = True
+                break
+        most = max(most, it)
+        failed += 0 if converged else 1
+        a[:] = (q - q_old - h * v_old) / (beta * h * h) - (0.5 / beta - 1.0) * a_old
+        v[:] = v_old + h * ((1.0 - gamma) * a_old + gamma * a)
+        out_q[k] = q
+        out_v[k] = v
+    return most, failed
