@@ -134,6 +134,34 @@ def write_columns(path: str | Path, columns: dict) -> Path:
     return path
 
 
+def read_columns(field: str, path: str | Path, names: tuple[str, ...]) -> list[np.ndarray]:
+    """The columns `names` of a CSV file with a header row, as float arrays; an InputError
+    naming the field, the file and the row for a missing file, column or non-number."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(field, str(path), "must be an existing CSV file")
+    with path.open(newline="") as handle:
+        rows = list(csv.reader(line for line in handle if line.strip()))
+    header = [name.strip() for name in rows[0]] if rows else []
+    missing = [name for name in names if name not in header]
+    if missing:
+        raise InputError(field, str(path), f"needs a header row with the columns "
+                         f"{', '.join(names)} (missing: {', '.join(missing)})")
+    out = []
+    for name in names:
+        k = header.index(name)
+        values = []
+        for line, row in enumerate(rows[1:], start=2):
+            try:
+                values.append(float(row[k]))
+            except (IndexError, ValueError):
+                text = row[k] if k < len(row) else "nothing"
+                raise InputError(field, f"{text!r} in column {name} on line {line} of {path}",
+                                 "every entry must be a number") from None
+        out.append(np.array(values))
+    return out
+
+
 def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:
     """Columns theta_in_rad, theta_out_rad, te_arcsec (names of docs/model.md section 5)."""
     return write_columns(path, {"theta_in_rad": (curve.theta_in, ".12g"),
@@ -156,11 +184,19 @@ class SimulationReport:
         from .core.simulation import Excitations
 
         ex = Excitations.at(d, sim.speed_rpm)
+        load = -sim.tau_load
+        if np.ptp(load) == 0.0:
+            load_text = f"load {load[0]:g} N*m resisting"
+        else:
+            load_text = f"load {load.min():g} to {load.max():g} N*m resisting (in time)"
+        sampled = sim.drive == "sampled"
         lines = [
             f"design            {d.name} (ratio {d.ratio:g}), dynamic model",
-            f"input speed       {sim.speed_rpm:g} rpm; load {-sim.tau_load[0]:g} N*m resisting",
-            f"interval          {start:.4g} s to {stop:.4g} s at constant speed (after the start "
-            f"ramp), step {sim.step * 1e6:.4g} us, {sim.time.size} steps",
+            f"input             {'sampled angles, mean speed' if sampled else 'speed'} "
+            f"{sim.speed_rpm:g} rpm; {load_text}",
+            f"interval          {start:.4g} s to {stop:.4g} s "
+            + ("(the whole sampled input)" if sampled else "at constant speed (after the start ramp)")
+            + f", step {sim.step * 1e6:.4g} us, {sim.time.size} steps",
             f"TE range          {te.min():.3f} to {te.max():.3f} arcsec",
             f"te_pp             {te.max() - te.min():.3f} arcsec",
             "largest peaks     " + (", ".join(f"{f:.1f} Hz: {a:.3f}\u2033" for f, a in self.peaks)
@@ -174,29 +210,55 @@ class SimulationReport:
     def to_json(self) -> dict:
         sim = self.simulation
         te = sim.steady_te_arcsec()
-        return {"design": sim.design.name, "speed_rpm": sim.speed_rpm,
-                "load_Nm": float(-sim.tau_load[0]), "interval_s": [float(sim.time[sim.steady]),
+        return {"design": sim.design.name, "speed_rpm": sim.speed_rpm, "drive": sim.drive,
+                "load_Nm": [float(-sim.tau_load.max()), float(-sim.tau_load.min())]
+                if np.ptp(sim.tau_load) else float(-sim.tau_load[0]),
+                "interval_s": [float(sim.time[sim.steady]),
                                                                    float(sim.time[-1])],
                 "step_s": sim.step, "te_range_arcsec": [float(te.min()), float(te.max())],
                 "te_pp_arcsec": float(te.max() - te.min()),
                 "peaks": [[f, a] for f, a in self.peaks], "failed_steps": sim.failed_steps}
 
 
-def simulate(design, errors=None, speed_rpm: float = 1600.0, load: float = 0.0,
+def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
              duration: float | None = None, revolutions: float | None = None,
              contact: str = "linear", mesh: str = "varying", step: float | None = None,
              csv_path: str | Path | None = None, plot_path: str | Path | None = None,
-             progress=None) -> SimulationReport:
-    """Dynamic TE of one reducer at a constant input speed (docs/model.md section 7); writes
-    the CSV (time_s, theta_in_rad, theta_out_rad, te_arcsec, tau_in_Nm) and the plot if asked."""
-    from .core.simulation import simulate as run
+             progress=None, load_step: tuple[float, float] | None = None,
+             load_csv: str | Path | None = None,
+             input_csv: str | Path | None = None) -> SimulationReport:
+    """Dynamic TE of one reducer (docs/model.md section 7) at a constant input speed after a
+    start ramp, or along sampled input angles; writes the CSV (time_s, theta_in_rad,
+    theta_out_rad, te_arcsec, tau_in_Nm) and the plot if asked.
+
+    load [N*m resisting]: constant; load_step (time [s], load [N*m]): the load
+    changes to that value at that time of the run; load_csv: a file of columns
+    time_s, load_Nm (linear between rows, held beyond).  input_csv: a file of
+    columns time_s, theta_in_rad, used instead of speed_rpm and the ramp.
+    """
+    from .core.simulation import Sampled, simulate as run
 
     csv_path = None if csv_path is None else output_file("csv", csv_path)
     plot_path = None if plot_path is None else figure_file("plot", plot_path)
+    given = [name for name, value in (("load_step", load_step), ("load_csv", load_csv))
+             if value is not None]
+    if len(given) > 1:
+        raise InputError(given[1], locals()[given[1]], f"give one of --load-step and --load-csv")
+    if load_step is not None:
+        at, after = load_step
+        load = Sampled.step(load, at, after)
+    if load_csv is not None:
+        time, values = read_columns("load_csv", load_csv, ("time_s", "load_Nm"))
+        load = Sampled.checked("load_csv", time, values)
+    input_angle = None
+    if input_csv is not None:
+        time, values = read_columns("input_csv", input_csv, ("time_s", "theta_in_rad"))
+        input_angle = Sampled.checked("input_csv", time, values, at_least=4)
+        speed_rpm = None
     design = resolve_design(design)
     sim = run(design, resolve_errors(design, errors), speed_rpm=speed_rpm, load=load,
               duration=duration, revolutions=revolutions, contact=contact, mesh=mesh, step=step,
-              progress=progress)
+              progress=progress, input_angle=input_angle)
     report = SimulationReport(sim, tuple(sim.peaks_hz()))
     if csv_path is not None:
         write_columns(csv_path, {"time_s": (sim.time, ".9g"), "theta_in_rad": (sim.theta_in, ".12g"),

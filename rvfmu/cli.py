@@ -61,7 +61,9 @@ def _simulate(args):
         report = api.simulate(args.design, args.errors, speed_rpm=args.speed_rpm, load=args.load,
                               duration=args.duration, revolutions=args.revolutions,
                               contact=args.contact, mesh=args.mesh, step=args.step,
-                              csv_path=args.csv, plot_path=args.plot, progress=bar)
+                              csv_path=args.csv, plot_path=args.plot, progress=bar,
+                              load_step=args.load_step, load_csv=args.load_csv,
+                              input_csv=args.input_csv)
     _show(report, args.json, (("csv", args.csv), ("plot", args.plot)))
 
 
@@ -77,6 +79,15 @@ def _errors(args):
         print(f"wrote error template {args.output} (every error of docs/model.md section 4, zero)")
     else:
         sys.stdout.write(text)
+
+
+def _time_and_load(text: str) -> tuple[float, float]:
+    """TIME_S:NM of --load-step."""
+    try:
+        at, value = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected TIME_S:NM, e.g. 0.3:400") from None
+    return at, value
 
 
 def _reducer_arguments(p, load_help: str) -> None:
@@ -119,6 +130,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="sun-planet mesh stiffness over the mesh cycle")
     p.add_argument("--step", type=float, help="time step [s] (default: 20 per period of the "
                    "fastest excitation)")
+    load = p.add_mutually_exclusive_group()
+    load.add_argument("--load-step", type=_time_and_load, metavar="TIME_S:NM",
+                      help="the load changes from --load to NM at TIME_S seconds of the run "
+                      "(t = 0 at the start of the ramp)")
+    load.add_argument("--load-csv", metavar="FILE", help="load in time: columns time_s,load_Nm "
+                      "(linear between rows, held beyond)")
+    p.add_argument("--input-csv", metavar="FILE", help="input angles in time instead of the ramp "
+                   "and --speed-rpm: columns time_s,theta_in_rad (a cubic spline through them)")
     p.add_argument("--csv", help="write time_s,theta_in_rad,theta_out_rad,te_arcsec,tau_in_Nm")
     p.add_argument("--plot", help="write a figure of TE(t) and its spectrum in Hz")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")

@@ -45,7 +45,7 @@ import numpy as np
 from .design import RVDesign
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
-from .kernels import Elements, Geometry, compact, element_forces
+from .kernels import Elements, Geometry, element_forces, gather, touched_columns
 from .stiffness import transverse_contact_ratio
 
 INPUT_SHAFT_FACTOR = 10.0  # input shaft torsional stiffness / torsional mesh stiffness at the sun
@@ -128,7 +128,11 @@ class DynamicModel:
             raise ValueError("the dynamic model simulates one reducer at a time")
         self.design, self.errors = design, errors
         self.contact, self.mesh, self.flank = contact, mesh, flank
-        probe = EquivalentModel(design, [0.0], flank, sun_rotation=True)
+        # a few generic input angles, to find which unknowns each element touches
+        probe = EquivalentModel(design, 2.0 * math.pi * np.sqrt([2.0, 3.0, 5.0, 7.0, 11.0]), flank,
+                                sun_rotation=True)
+        self._linear_cols = touched_columns(probe.linear_rows)
+        self._bearing_cols = touched_columns(probe.bearing_rows)
         self.names, self.n = probe.names, probe.n_dof
         self.index = probe.index
         self.scale = probe.scale
@@ -213,9 +217,10 @@ class DynamicModel:
         external = m.tau_load[start:stop, None] * self.load_vector() \
             + self.nominal_forces(theta, m.omega_in[start:stop], m.alpha_in[start:stop])
         h = np.diff(m.time[start - 1:stop]) if start else np.diff(m.time[:stop], prepend=m.time[0])
-        linear_cols, L = compact(model.linear_rows)
-        bearing_cols, B = compact(model.bearing_rows)
-        return Geometry(h, linear_cols, L, k_lin, lin, bearing_cols, B, brg,
+        L = gather(model.linear_rows, self._linear_cols)
+        B = gather(model.bearing_rows, self._bearing_cols)
+        return Geometry(h, np.maximum(self._linear_cols, 0), L, k_lin, lin,
+                        np.maximum(self._bearing_cols, 0), B, brg,
                         np.ascontiguousarray(model.pin_rows), pins, external)
 
     def external(self, step: int) -> np.ndarray:

@@ -22,6 +22,7 @@ any (reducer, angle) pairs, the offsets that the errors put on each element.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,17 +42,34 @@ def dof_names(n_c: int, sun_rotation: bool = False) -> list[str]:
     return names + ["carrier_x", "carrier_y", "carrier_rot"]
 
 
+def _pair(x, y):
+    """Vectors (..., 2) from their components (np.stack's work, without its overhead)."""
+    x, y = np.asarray(x), np.asarray(y)
+    out = np.empty(np.broadcast_shapes(x.shape, y.shape) + (2,))
+    out[..., 0], out[..., 1] = x, y
+    return out
+
+
 def _perp(v):
     """k x v for vectors stored as (..., 2)."""
-    return np.stack([-v[..., 1], v[..., 0]], axis=-1)
+    return _pair(-v[..., 1], v[..., 0])
 
 
 def _unit(angle):
-    return np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    return _pair(np.cos(angle), np.sin(angle))
 
 
 def _c2v(z):
-    return np.stack([z.real, z.imag], axis=-1)
+    return _pair(z.real, z.imag)
+
+
+@functools.lru_cache(maxsize=8)
+def _body_dofs(names: tuple) -> dict:
+    """{body: [indices of its unknowns]} for a list of unknowns named body_x, body_y, ..."""
+    out = {}
+    for k, name in enumerate(names):
+        out.setdefault(name.rsplit("_", 1)[0], []).append(k)
+    return out
 
 
 @dataclass(frozen=True)
@@ -102,7 +120,7 @@ class EquivalentModel:
 
     # -- indices -------------------------------------------------------------------
     def _dofs(self, body: str) -> list[int]:
-        return [k for k, name in enumerate(self.names) if name.startswith(body + "_")]
+        return _body_dofs(tuple(self.names))[body]
 
     @property
     def carrier_rot(self) -> int:

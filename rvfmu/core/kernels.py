@@ -64,7 +64,7 @@ Elements = namedtuple("Elements", [
 
 Geometry = namedtuple("Geometry", [
     "h",               # (A,) time step into each step [s] (the run's first: 0)
-    "linear_cols",     # (m, w) unknowns each mesh or support row touches
+    "linear_cols",     # (m, w) unknowns each mesh or support row touches (-1: none)
     "L",               # (A, m, w) their coefficients
     "linear_k", "linear_offset",           # (A, m), (A, m)
     "bearing_cols",    # (nb, w)
@@ -75,23 +75,25 @@ Geometry = namedtuple("Geometry", [
 ])
 
 
-def compact(rows: np.ndarray):
-    """Dense element rows (A, E, ..., n) as (cols (E, w), coefficients (A, E, ..., w)): each
-    element touches a handful of the n unknowns (its two bodies), so the kernel loops over
-    those alone.  Short rows are padded with a zero coefficient on their first unknown."""
+def touched_columns(rows: np.ndarray) -> np.ndarray:
+    """(E, w) the unknowns that element rows (A, E, ..., n) touch, at any of the A instants:
+    each element joins two bodies, so a handful of the n.  Shorter lists are padded with
+    -1 (`gather` gives those a zero coefficient)."""
     touched = np.any(rows != 0.0, axis=tuple(k for k in range(rows.ndim - 1) if k != 1))  # (E, n)
-    width = max(1, int(touched.sum(axis=1).max()))
-    cols = np.zeros((touched.shape[0], width), dtype=np.int64)
+    cols = np.full((touched.shape[0], max(1, int(touched.sum(axis=1).max()))), -1, dtype=np.int64)
     for e, row in enumerate(touched):
         found = np.flatnonzero(row)
         cols[e, :found.size] = found
-        cols[e, found.size:] = found[0] if found.size else 0
-    shape = rows.shape[:-1] + (width,)
-    index = cols.reshape((1, cols.shape[0]) + (1,) * (rows.ndim - 3) + (width,))
-    coefficients = np.take_along_axis(rows, np.broadcast_to(index, shape), axis=-1).copy()
-    for e, row in enumerate(touched):   # padding carries nothing
-        coefficients[:, e, ..., int(row.sum()):] = 0.0
-    return cols, coefficients
+    return cols
+
+
+def gather(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """(A, E, ..., w) the coefficients of rows (A, E, ..., n) on the unknowns `cols` (E, w);
+    zero where cols is -1."""
+    index = np.where(cols < 0, 0, cols).reshape((1, cols.shape[0]) + (1,) * (rows.ndim - 3)
+                                                 + (cols.shape[1],))
+    out = np.take_along_axis(rows, np.broadcast_to(index, rows.shape[:-1] + cols.shape[1:]), -1)
+    return np.where((cols < 0).reshape(index.shape), 0.0, out)
 
 
 @kernel

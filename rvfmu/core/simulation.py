@@ -61,7 +61,8 @@ class Simulation:
 
     time, theta_in, theta_out, te [rad], tau_in [N*m], tau_load [N*m]: (T,);
     q: (T, n) every unknown [m, rotations as arc length at R_p], names in `dofs`;
-    steady: index of the first step after the start ramp; step [s].
+    steady: index of the first step after the start ramp; step [s]; drive: "ramp"
+    (constant speed after a start ramp) or "sampled" (sampled input angles).
     """
 
     design: RVDesign
@@ -77,6 +78,7 @@ class Simulation:
     steady: int
     step: float
     failed_steps: int
+    drive: str = "ramp"
 
     @property
     def te_arcsec(self) -> np.ndarray:
@@ -226,7 +228,9 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
         raise InputError("step", step, f"must be <= {coarsest:.3g} s: at {speed_rpm:g} rpm the "
                          f"stage-1 mesh ({ex.mesh:.0f} Hz) and pin passing ({ex.pin_passing:.0f} Hz) "
                          f"need at least {MIN_STEPS_PER_PERIOD} steps per period")
-    count = int(math.ceil((end - start) / step)) + 1
+    count = int(math.ceil((end - start) / step - 1e-9)) + 1
+    if input_angle is not None:
+        step = (end - start) / (count - 1)     # the grid ends with the samples
     unknowns = 3 * (2 + design.n_c + 2)
     name = "input" if input_angle is not None else "revolutions" if revolutions is not None \
         else "duration"
@@ -238,12 +242,13 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
         motion = ramp_motion(time, speed, ramp, tau_load)
     else:
         motion = sampled_motion(time, input_angle, tau_load)
+    drive = "ramp" if input_angle is None else "sampled"
     mean_load = float(np.mean(tau_load))
     model = DynamicModel(design, errors, contact, mesh, 1 if mean_load <= 0 else -1)
     model.prepare(motion)
     q0 = static_start(model, tau_load[0], float(motion.theta_in[0]), model.external(0))
     if method != "newmark":
-        return _reference(model, motion, q0, method, speed_rpm, design, ramp, step)
+        return _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive)
     stepper = NewmarkStepper.starting_at(model, q0)
     q, v = np.empty((count, model.n)), np.empty((count, model.n))
     q[0], v[0] = q0, stepper.state.v
@@ -253,10 +258,11 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
         if progress is not None:
             progress(count - 1, stepper.k)
     tau_in = model.input_torque(q.T, v.T)
-    return _record(model, design, speed_rpm, motion, q, tau_in, ramp, step, stepper.failed_steps)
+    return _record(model, design, speed_rpm, motion, q, tau_in, ramp, step, stepper.failed_steps,
+                   drive)
 
 
-def _reference(model, motion, q0, method, speed_rpm, design, ramp, step):
+def _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive):
     """The same run by scipy's adaptive implicit `solve_ivp` (Radau or BDF), reported at the
     Newmark steps' times: the reference the fixed-step integrator is checked against.
 
@@ -289,16 +295,18 @@ def _reference(model, motion, q0, method, speed_rpm, design, ramp, step):
     if not solution.success:
         raise RuntimeError(f"solve_ivp ({method}) failed: {solution.message}")
     q, v = solution.y[:n].T, solution.y[n:].T
-    return _record(model, design, speed_rpm, motion, q, model.input_torque(q.T, v.T), ramp, step, 0)
+    return _record(model, design, speed_rpm, motion, q, model.input_torque(q.T, v.T), ramp, step, 0,
+                   drive)
 
 
-def _record(model, design, speed_rpm, motion, q, tau_in, ramp, step, failed) -> Simulation:
+def _record(model, design, speed_rpm, motion, q, tau_in, ramp, step, failed,
+            drive: str) -> Simulation:
     """The run's record from the unknowns q (T, n) at the motion's times."""
     te = q[:, model.carrier_rot] / model.scale
     return Simulation(design, speed_rpm, motion.time, motion.theta_in,
                       motion.theta_in / design.ratio + te, te, tau_in,
                       motion.tau_load, q, tuple(model.names),
-                      int(np.searchsorted(motion.time, motion.time[0] + ramp)), step, failed)
+                      int(np.searchsorted(motion.time, motion.time[0] + ramp)), step, failed, drive)
 
 
 def static_start(model, tau_load: float, theta_in: float = 0.0, force=None) -> np.ndarray:

@@ -1,0 +1,142 @@
+"""The dynamic model's drive and load in time, its compiled kernel against plain numpy, bad input."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rvfmu.core import kernels
+from rvfmu.core.checks import InputError
+from rvfmu.core.dynamic import DynamicModel, ramp_motion
+from rvfmu.core.equivalent import EquivalentModel
+from rvfmu.core.quasistatic import equilibrium_te
+from rvfmu.core.simulation import Sampled, simulate
+from rvfmu.core.units import rad_to_arcsec
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_every_element_row_lies_on_the_unknowns_the_kernel_loops_over(rv40, seed002):
+    model = DynamicModel(rv40, seed002)
+    angles = np.random.default_rng(3).uniform(0.0, 2 * np.pi * rv40.ratio, 2000)
+    dense = EquivalentModel(rv40, angles, 1, sun_rotation=True)
+    for rows, cols in ((dense.linear_rows, model._linear_cols), (dense.bearing_rows, model._bearing_cols)):
+        coefficients = kernels.gather(rows, cols)
+        rebuilt = np.zeros_like(rows)
+        for e in range(cols.shape[0]):
+            for x, col in enumerate(cols[e]):
+                if col >= 0:
+                    rebuilt[:, e, ..., col] = coefficients[:, e, ..., x]
+        np.testing.assert_array_equal(rebuilt, rows)
+
+
+def test_sampled_input_angles_reproduce_the_ramp_run(rv40, seed002):
+    ramped = simulate(rv40, seed002, speed_rpm=300.0, load=200.0, duration=0.05, ramp=0.05,
+                      mesh="constant")
+    samples = np.linspace(0.0, ramped.time[-1], 400)
+    angles = ramp_motion(samples, 300.0 * 2 * np.pi / 60, 0.05).theta_in
+    sampled = simulate(rv40, seed002, load=200.0, input_angle=Sampled.checked("input", samples, angles),
+                       mesh="constant", step=ramped.step)
+    assert sampled.drive == "sampled" and sampled.steady == 0
+    assert sampled.time.size == ramped.time.size
+    np.testing.assert_allclose(sampled.theta_in, ramped.theta_in, atol=1e-6)
+    te_range = np.ptp(ramped.steady_te_arcsec())
+    steady = slice(ramped.steady, None)
+    assert np.max(np.abs(sampled.te_arcsec[steady] - ramped.te_arcsec[steady])) < 0.02 * te_range
+
+
+def test_a_constant_sampled_load_is_the_constant_load(rv40, seed002):
+    constant = simulate(rv40, seed002, speed_rpm=600.0, load=150.0, duration=0.01, ramp=0.01)
+    sampled = simulate(rv40, seed002, speed_rpm=600.0, duration=0.01, ramp=0.01,
+                       load=Sampled.checked("load", [0.0, 1.0], [150.0, 150.0]))
+    np.testing.assert_array_equal(sampled.te, constant.te)
+
+
+def test_after_a_load_step_the_te_settles_on_the_quasi_static_te_at_the_new_load(rv40, seed002):
+    # slow and well damped: the step rings out, then the static windup at the new load remains
+    design = rv40.with_fields(damping_ratio=0.2)
+    sim = simulate(design, seed002, speed_rpm=10.0, load=Sampled.step(100.0, 0.3, 400.0),
+                   duration=0.5, ramp=0.2, mesh="constant")
+    assert sim.failed_steps == 0
+    for low, high, load in ((0.25, 0.3, 100.0), (0.6, 0.7, 400.0)):
+        inside = (sim.time >= low) & (sim.time < high)
+        te, _, _ = equilibrium_te(design, seed002, sim.theta_in[inside][::20], [-load])
+        static = rad_to_arcsec(te[0, 0])
+        np.testing.assert_allclose(sim.te_arcsec[inside][::20], static, atol=0.02 * abs(static).max())
+    assert np.allclose(-sim.tau_load[sim.time >= 0.3], 400.0)
+
+
+@pytest.mark.parametrize("time, values, message", [
+    ([0.0, 0.1, 0.2, 0.3], [0.0, np.nan, 2.0, 3.0], "value nan at sample 2"),
+    ([0.0, 0.1, np.inf, 0.3], [0.0, 1.0, 2.0, 3.0], "time inf at sample 3"),
+    ([0.0, 0.1, 0.1, 0.3], [0.0, 1.0, 2.0, 3.0], "times must increase strictly"),
+    ([0.0, 0.1], [0.0, 1.0], "at least 4 samples"),
+])
+def test_bad_sampled_input_is_refused_naming_the_sample(time, values, message):
+    with pytest.raises(InputError, match=message):
+        Sampled.checked("input_csv", time, values, at_least=4)
+
+
+def test_a_sampled_input_that_does_not_turn_forward_is_refused(rv40):
+    backwards = Sampled.checked("input", [0.0, 0.1, 0.2, 0.3], [0.0, -1.0, -2.0, -3.0])
+    with pytest.raises(InputError, match="positive mean speed"):
+        simulate(rv40, input_angle=backwards)
+    forward = Sampled.checked("input", [0.0, 0.1, 0.2, 0.3], [0.0, 1.0, 2.0, 3.0])
+    with pytest.raises(InputError, match="duration"):
+        simulate(rv40, input_angle=forward, duration=1.0)
+
+
+def rvte(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "rvfmu.cli", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=600)
+
+
+def test_cli_runs_sampled_input_and_a_load_step_and_refuses_bad_files(tmp_path):
+    angles = tmp_path / "input.csv"
+    t = np.linspace(0.0, 0.05, 51)
+    angles.write_text("time_s,theta_in_rad\n" + "".join(f"{a:.6g},{60.0 * a:.9g}\n" for a in t))
+    proc = rvte("simulate", "RV-40E-121", "--input-csv", str(angles), "--load", "100",
+                "--load-step", "0.02:300", "--json")
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout)
+    assert summary["drive"] == "sampled" and summary["load_Nm"] == [100.0, 300.0]
+    assert summary["speed_rpm"] == pytest.approx(60.0 * 60 / (2 * np.pi))
+    bad = tmp_path / "bad.csv"
+    for text, message in (("time_s,theta_in_rad\n0,0\n0.01,nan\n0.02,1\n0.03,2\n", "nan at sample 2"),
+                          ("time_s,angle\n0,0\n", "missing: theta_in_rad"),
+                          ("time_s,theta_in_rad\n0,0\n0.01,x\n", "'x' in column theta_in_rad on line 3")):
+        bad.write_text(text)
+        proc = rvte("simulate", "RV-40E-121", "--input-csv", str(bad))
+        assert proc.returncode == 2 and message in proc.stderr
+        assert len(proc.stderr.strip().splitlines()) == 1
+    proc = rvte("simulate", "RV-40E-121", "--load-csv", str(tmp_path / "absent.csv"))
+    assert proc.returncode == 2 and "load_csv" in proc.stderr and "existing CSV" in proc.stderr
+
+
+def test_the_compiled_kernel_and_plain_numpy_give_the_same_run(rv40, seed002):
+    assert kernels.COMPILED, "numba is a dependency: the compiled kernel must be the one in use"
+    compiled = simulate(rv40, seed002, speed_rpm=1600.0, load=206.0, duration=0.005, ramp=0.005,
+                        contact="impact")
+    script = ("import sys, numpy as np\n"
+              "from rvfmu.core import kernels\n"
+              "from rvfmu.core.design import preset\n"
+              "from rvfmu.core.errors import load_errors\n"
+              "from rvfmu.core.simulation import simulate\n"
+              "assert not kernels.COMPILED\n"
+              "d = preset('RV-40E-121')\n"
+              "e = load_errors(sys.argv[1], d)\n"
+              "s = simulate(d, e, speed_rpm=1600.0, load=206.0, duration=0.005, ramp=0.005,"
+              " contact='impact')\n"
+              "np.save(sys.argv[2], s.te)\n")
+    out = Path(os.environ.get("TMPDIR", "/tmp")) / f"plain_te_{os.getpid()}.npy"
+    env = dict(os.environ, RVTE_NUMBA="0")
+    proc = subprocess.run([sys.executable, "-c", script, str(ROOT / "studies" / "seed002_errors.toml"),
+                           str(out)], env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    plain = np.load(out)
+    out.unlink()
+    np.testing.assert_allclose(plain, compiled.te, rtol=0, atol=1e-9 * np.ptp(compiled.te))
