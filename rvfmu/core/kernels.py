@@ -186,12 +186,18 @@ def element_forces(el, g, a, q, v, f, K, C):
 
 
 @kernel
-def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, max_iterations,
-                  out_q, out_v):
+def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cycle_tolerance,
+                  max_iterations, out_q, out_v):
     """Advance the state (q, v, a), given at the step before `first`, through steps first..stop-1
     of g by the Newmark rule with Newton iterations; q, v, a are updated in place and the
-    state after each step is written to out_q[k], out_v[k].  Returns (most Newton iterations
-    in one step, steps that did not converge)."""
+    state after each step is written to out_q[k], out_v[k].
+
+    A step has converged when the Newton update is below `tolerance`, or when the
+    iterations have settled into a two-state cycle whose update is below
+    `cycle_tolerance`: a contact sits exactly at its switch (a pin at zero force,
+    or its dashpot at the point of pulling), where the tangent jumps and Newton
+    alternates between the two sides.  Returns (most Newton iterations in one
+    step, steps that did not converge)."""
     n = q.size
     f = np.empty(n)
     K = np.empty((n, n))
@@ -204,6 +210,7 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, max
         q[:] = q_old + h * v_old + 0.5 * h * h * a_old     # average-acceleration predictor
         converged = False
         it = 0
+        last, before = np.inf, np.inf
         while it < max_iterations:
             it += 1
             a[:] = (q - q_old - h * v_old) / (beta * h * h) - (0.5 / beta - 1.0) * a_old
@@ -213,9 +220,11 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, max
             J = M / (beta * h * h) + C * (gamma / (beta * h)) + K
             dq = np.linalg.solve(J, -residual)
             q += dq
-            if np.max(np.abs(dq)) < tolerance:
+            size = np.max(np.abs(dq))
+            if size < tolerance or (size < cycle_tolerance and abs(size - before) <= 1e-3 * size):
                 converged = True
                 break
+            last, before = size, last
         most = max(most, it)
         failed += 0 if converged else 1
         a[:] = (q - q_old - h * v_old) / (beta * h * h) - (0.5 / beta - 1.0) * a_old
