@@ -1,5 +1,6 @@
 """The reducer FMU with model = "dynamic": the dynamic model stepped inside each communication step."""
 
+import os
 import subprocess
 import sys
 
@@ -151,3 +152,34 @@ def test_fmpy_simulate_fmu_runs_the_dynamic_model_given_as_a_start_value(fmu):
     assert np.max(np.abs(te_dyn - te_qs)) > 1e-6 * pp  # another model ran, not the TE map
     assert np.ptp(te_dyn[50:]) == pytest.approx(pp, rel=0.05)
     assert np.max(np.abs(te_dyn[50:] - te_qs[50:])) < 0.05 * pp
+
+
+def test_the_fmu_bundles_the_compiled_kernels_and_a_host_loads_them_without_compiling(fmu, tmp_path):
+    import zipfile
+
+    from rvfmu.core.dynamic import compile_kernels
+
+    expected = {path.name for path in compile_kernels()}
+    assert expected, "numba is a dependency: the kernels must compile"
+    with zipfile.ZipFile(fmu[0]) as archive:
+        archive.extractall(tmp_path)
+        bundled = {name.rsplit("/", 1)[1] for name in archive.namelist() if "__pycache__/kernels." in name}
+    assert bundled == expected
+    # the FMU's own copy of the core (not the installed rvfmu) finds the kernels in its cache
+    script = ("import sys; sys.path.insert(0, sys.argv[1])\n"
+              "import numpy as np, rvfmu\n"
+              "assert rvfmu.__file__.startswith(sys.argv[1]), rvfmu.__file__\n"
+              "from rvfmu.core.design import preset\n"
+              "from rvfmu.core.dynamic import DynamicModel, ramp_motion\n"
+              "from rvfmu.core.errors import zero_errors\n"
+              "from rvfmu.core.newmark import NewmarkStepper\n"
+              "d = preset('RV-40E-121'); m = DynamicModel(d, zero_errors(d))\n"
+              "m.prepare(ramp_motion(np.arange(3) * 1e-4, 10.0, 0.0))\n"
+              "NewmarkStepper.starting_at(m, np.zeros(m.n)).advance(2)\n")
+    proc = subprocess.run([sys.executable, "-c", script, str(tmp_path / "resources")],
+                          env={**os.environ, "NUMBA_DEBUG_CACHE": "1"},
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    loaded = [line for line in proc.stdout.splitlines() if line.startswith("[cache] data loaded")]
+    assert len(loaded) == 2 and all(str(tmp_path) in line for line in loaded)
+    assert "data saved" not in proc.stdout

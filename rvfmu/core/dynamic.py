@@ -210,7 +210,7 @@ class DynamicModel:
         theta = m.theta_in[start:stop]
         model = EquivalentModel(self.design, theta, self.flank, sun_rotation=True)
         A = stop - start
-        lin, brg, pins = model.offsets(self.errors, np.zeros(A, dtype=int), np.arange(A))
+        lin, brg, pins = model.offsets(self.errors, np.zeros(A, dtype=int), slice(None))
         factor = mesh_stiffness_factor(self.design, theta, theta / self.design.ratio, self.mesh)
         k_lin = np.tile(model.linear_k, (A, 1))
         k_lin[:, :self.design.n_c] *= factor
@@ -296,3 +296,30 @@ class DynamicModel:
         g = np.zeros(self.n)
         g[self.carrier_rot] = 1.0 / self.scale
         return g
+
+
+def compile_kernels() -> list:
+    """Compile the dynamic model's kernels (numba, `kernels.COMPILED`) for the types a run
+    gives them, unless numba's disk cache already holds them, and return the cache files
+    ([] without numba).  The FMU bundles these files: the same kernels.py in its resources
+    then loads them instead of compiling on a host's first dynamic step."""
+    from pathlib import Path
+
+    from . import kernels
+    from .design import preset
+    from .errors import zero_errors
+    from .newmark import NewmarkStepper
+
+    if not kernels.COMPILED:
+        return []
+    design = preset("RV-20E")
+    for contact in CONTACT_LAWS:
+        model = DynamicModel(design, zero_errors(design), contact)
+        model.prepare(ramp_motion(np.array([0.0, 1e-4]), 10.0, 0.0))
+        NewmarkStepper.starting_at(model, np.zeros(model.n)).advance(1)
+    folder = Path(kernels.__file__).parent / "__pycache__"
+    files = []
+    for function in (kernels.element_forces, kernels.newmark_steps):
+        line = function.py_func.__code__.co_firstlineno        # numba names its files by it
+        files += folder.glob(f"kernels.{function.__name__}-{line}.*.nb[ic]")
+    return sorted(files)

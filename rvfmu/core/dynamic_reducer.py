@@ -20,6 +20,7 @@ from .dynamic import DynamicModel, Motion, at_rest
 from .errors import ErrorSet
 from .newmark import NewmarkStepper, State
 from .reducer_model import Outputs
+from .simulation import static_start
 
 DEFAULT_INTERNAL_STEP = 1e-4   # [s]: 10 kHz, 25 steps per stage-1 mesh period of an RV-110E at 1600 rpm
 
@@ -55,8 +56,6 @@ class DynamicReducer:
 
     def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:
         """At rest in the elastic equilibrium under tau_load at theta_in."""
-        from .simulation import static_start
-
         model = self._model(tau_load)
         model.prepare(at_rest(theta_in, time, tau_load))
         q = static_start(model, tau_load, theta_in)

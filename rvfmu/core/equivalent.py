@@ -45,7 +45,8 @@ def dof_names(n_c: int, sun_rotation: bool = False) -> list[str]:
 def _pair(x, y):
     """Vectors (..., 2) from their components (np.stack's work, without its overhead)."""
     x, y = np.asarray(x), np.asarray(y)
-    out = np.empty(np.broadcast_shapes(x.shape, y.shape) + (2,))
+    shape = x.shape if x.shape == y.shape else np.broadcast_shapes(x.shape, y.shape)
+    out = np.empty(shape + (2,))
     out[..., 0], out[..., 1] = x, y
     return out
 
@@ -145,13 +146,13 @@ class EquivalentModel:
         w = self.flank * np.cos(alpha) * t_i + np.sin(alpha) * e_i                 # (A, n_c, 2)
         mesh = np.zeros((A, n_c, n))
         sun = self._dofs("sun")
+        # planet point C - O_p = -r_pl e_i turns with the crank: u = rot * k x (C - O_p)
+        planet_rot = -(w * _perp(-r_pl * e_i)).sum(axis=-1) / self.scale                # (A, n_c)
         for i in range(n_c):
             cx, cy, cr = self._dofs(f"crank{i}")
             mesh[:, i, sun[0]], mesh[:, i, sun[1]] = w[:, i, 0], w[:, i, 1]
             mesh[:, i, cx], mesh[:, i, cy] = -w[:, i, 0], -w[:, i, 1]
-            # planet point C - O_p = -r_pl e_i turns with the crank: u = rot * k x (C - O_p)
-            lever = _perp(-r_pl * e_i[:, i])
-            mesh[:, i, cr] = -np.einsum("ax,ax->a", w[:, i], lever) / self.scale
+            mesh[:, i, cr] = planet_rot[:, i]
             if self.sun_rotation:
                 # sun point C - O_s = r_s e_i turns with the sun: u = rot * r_s t_i, w . t_i = flank cos
                 mesh[:, i, sun[2]] = self.flank * np.cos(alpha) * r_s / self.scale
@@ -165,24 +166,28 @@ class EquivalentModel:
         # Bearings: deflection d = (inner part) - (outer part), 2-D.
         rows, stiff, kinds = [], [], []
         car = self._dofs("carrier")
+        # a point at a e_i of a part turning about the reducer axis / a cam at e psi_j turning
+        # with its crank move by rotation * k x (point): the rows of those rotations
+        crank_seat = _perp(a * e_i) / self.scale                                     # (A, n_c, 2)
+        psi_dir = _unit(p.psi)                                                      # (A, 2, 2)
+        cam_lever = _perp(d.e * psi_dir) / self.scale                               # (A, 2, 2)
         for i in range(n_c):  # crank axis in its carrier seat
             cx, cy, _ = self._dofs(f"crank{i}")
             r = np.zeros((A, 2, n))
             r[:, 0, cx], r[:, 1, cy] = 1.0, 1.0
             r[:, 0, car[0]], r[:, 1, car[1]] = -1.0, -1.0
-            r[:, :, car[2]] = -_perp(a * e_i[:, i]) / self.scale
+            r[:, :, car[2]] = -crank_seat[:, i]
             rows.append(r), stiff.append(d.crank_carrier_bearing_stiffness), kinds.append(
                 "crank_carrier_clearance")
-        psi_dir = _unit(p.psi)                                                      # (A, 2, 2)
         for i in range(n_c):  # cam j of crank i in hole i of disc j
             cx, cy, cr = self._dofs(f"crank{i}")
             for j in range(2):
                 dx, dy, dr = self._dofs(f"disc{j}")
                 r = np.zeros((A, 2, n))
                 r[:, 0, cx], r[:, 1, cy] = 1.0, 1.0
-                r[:, :, cr] = _perp(d.e * psi_dir[:, j]) / self.scale
+                r[:, :, cr] = cam_lever[:, j]
                 r[:, 0, dx], r[:, 1, dy] = -1.0, -1.0
-                r[:, :, dr] = -_perp(a * e_i[:, i]) / self.scale
+                r[:, :, dr] = -crank_seat[:, i]
                 rows.append(r), stiff.append(d.crank_disc_bearing_stiffness), kinds.append(
                     "crank_disc_clearance")
         r = np.zeros((A, 2, n))
@@ -198,15 +203,15 @@ class EquivalentModel:
         pitch = d.z_p * d.e * psi_dir                                               # (A, 2, 2)
         centre = d.e * psi_dir
         normal = pin_pos[None, None] - pitch[:, :, None]                            # (A, 2, z_p, 2)
-        normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+        normal /= np.hypot(normal[..., 0], normal[..., 1])[..., None]
         contact = pin_pos[None, None] - d.r_rp * normal
         arm = contact - centre[:, :, None]
         lever = arm[..., 0] * normal[..., 1] - arm[..., 1] * normal[..., 0]         # (A, 2, z_p)
         self.pin_rows = np.concatenate([normal, (lever / self.scale)[..., None]], axis=-1)
         self.pin_k = d.pin_disc_stiffness
         radial = _unit(pin_angle)
-        radial_dot = np.einsum("ajkx,kx->ajk", normal, radial)                      # n . e_k
-        tangent_dot = np.einsum("ajkx,kx->ajk", normal, _perp(radial))              # n . t_k
+        radial_dot = normal[..., 0] * radial[:, 0] + normal[..., 1] * radial[:, 1]   # n . e_k
+        tangent_dot = normal[..., 1] * radial[:, 0] - normal[..., 0] * radial[:, 1]  # n . t_k
         # Lobe of each contact point, in the disc frame (disc 1 is disc 0 turned by pi).
         disc_angle = np.arctan2(arm[..., 1], arm[..., 0]) - p.theta_out[:, None, None]
         disc_angle -= np.array([0.0, np.pi])[None, :, None]
@@ -237,7 +242,8 @@ class EquivalentModel:
 
     # -- error offsets ---------------------------------------------------------------
     def offsets(self, errors: ErrorSet, sample, angle):
-        """Offsets of every element for the pairs (errors[sample[b]], angle[b]), b < B.
+        """Offsets of every element for the pairs (errors[sample[b]], angle[b]), b < B
+        (angle may be a slice of the model's angles, e.g. all of them: slice(None)).
 
         Returns (linear (B, m), bearings (B, nb, 2), pins (B, 2, z_p)) [m]:
         the deflection of each element with all unknowns zero.

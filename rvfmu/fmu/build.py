@@ -2,10 +2,12 @@
 
 `build_fmu` does the work behind `rvte fmu build` (`rvfmu.fmu.api.fmu_build`
 checks the output path and resolves the inputs first).  The FMU carries the
-physics core (`rvfmu.core`, pure numpy; only the reference solver, which the
-FMU never imports, needs scipy) in its resources, so it runs in any Python
-3.11+ with numpy, rvte installed or not; pythonfmu provides the FMI binary and
-embeds its own Python package.  pythonfmu writes neither unit definitions nor
+physics core (`rvfmu.core`, numpy; only the reference solver, which the FMU
+never imports, needs scipy) in its resources, so it runs in any Python 3.11+
+with numpy, rvte installed or not.  Where the host's Python also has numba,
+the dynamic model runs its compiled kernels: their numba cache files are
+bundled too, so a host on the same kind of CPU does not compile them again.
+pythonfmu provides the FMI binary and embeds its own Python package.  pythonfmu writes neither unit definitions nor
 units on the variables, so the model description is completed here.
 """
 
@@ -20,6 +22,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from ..core.design import RVDesign
+from ..core.dynamic import compile_kernels
 from ..core.errors import ErrorSet, error_file_values, toml_text, zero_errors
 from ..core.te_map import build_te_map
 from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS, BUNDLED_MAP
@@ -83,6 +86,12 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
             canGetAndSetFMUstate=True, canSerializeFMUstate=True,
             canHandleVariableCommunicationStepSize=True, needsExecutionTool=True)
     complete_model_description(Path(built))
+    # the compiled dynamic-model kernels (numba's cache files, keyed by the source's content;
+    # pythonfmu leaves __pycache__ folders out): a host with numba loads them instead of
+    # compiling on its first dynamic step
+    with zipfile.ZipFile(built, "a", zipfile.ZIP_DEFLATED) as archive:
+        for path in compile_kernels():
+            archive.write(path, f"resources/rvfmu/core/__pycache__/{path.name}")
     return Path(built)
 
 

@@ -45,7 +45,9 @@ is integrated with semi-implicit Euler and the damper with implicit Euler over
 `ArmModel` is the physics, plain Python that knows nothing of FMI; the pythonfmu
 adapter class below it is thin (pythonfmu finds it by its class line, which
 must stay exactly as it is).  Slave methods never raise; a bad input is logged
-and the step returns fmi2Discard.
+and the step returns fmi2Discard.  The adapter saves and restores the model's
+state with the FMU state (fmi2GetFMUstate / fmi2SetFMUstate), so that a master
+can step again from a saved point, as run_joint.py's iterated coupling does.
 """
 
 import math
@@ -196,6 +198,21 @@ class Arm(Fmi2Slave):
             self._fail(str(exc))
             return False
         return True
+
+    # FMU state (fmi2GetFMUstate / fmi2SetFMUstate): the variables, as pythonfmu keeps them, and
+    # the model's state, so that a master can step again from a saved point (run_joint.py's
+    # iterated coupling does).
+    def _get_fmu_state(self):
+        state = super()._get_fmu_state()
+        state["_arm"] = None if self._model is None else dict(self._model.state)
+        return state
+
+    def _set_fmu_state(self, state):
+        state = dict(state)
+        arm_state = state.pop("_arm", None)
+        super()._set_fmu_state(state)
+        if arm_state is not None and self._model is not None:
+            self._model.state = dict(arm_state)
 
     def _check_input(self):
         if not math.isfinite(self.theta):
