@@ -140,3 +140,28 @@ def test_the_compiled_kernel_and_plain_numpy_give_the_same_run(rv40, seed002):
     plain = np.load(out)
     out.unlink()
     np.testing.assert_allclose(plain, compiled.te, rtol=0, atol=1e-9 * np.ptp(compiled.te))
+
+
+def test_the_default_step_resolves_the_excitations_and_the_modes_they_reach(rv40):
+    from rvfmu.core.simulation import (NATURAL_STEPS_PER_PERIOD, STEPS_PER_PERIOD, Excitations,
+                                       default_step)
+
+    ex = Excitations.at(rv40, 1600.0)
+    fastest = max(ex.pin_passing, ex.mesh)
+    assert default_step(rv40, 1600.0) == pytest.approx(1.0 / (STEPS_PER_PERIOD * fastest))
+    # a mode just below twice the fastest excitation sets the step; one above it does not
+    reached = 1.9 * fastest
+    assert default_step(rv40, 1600.0, [100.0, reached]) == pytest.approx(
+        1.0 / (NATURAL_STEPS_PER_PERIOD * reached))
+    assert default_step(rv40, 1600.0, [100.0, 2.1 * fastest]) == default_step(rv40, 1600.0)
+
+
+def test_the_output_speed_integrates_to_the_output_angle(rv40, seed002):
+    # average acceleration: q_{n+1} - q_n = h (v_n + v_{n+1}) / 2 exactly, and the nominal
+    # angle is linear at constant speed, so the trapezoid of omega_out is theta_out's change
+    sim = simulate(rv40, seed002, speed_rpm=1600.0, load=206.0, duration=0.05, ramp=0.02)
+    w, th = sim.omega_out[sim.steady:], sim.theta_out[sim.steady:]
+    travelled = np.cumsum(0.5 * sim.step * (w[1:] + w[:-1]))
+    np.testing.assert_allclose(travelled, th[1:] - th[0], rtol=0, atol=1e-9 * (th[-1] - th[0]))
+    ripple = w - 1600.0 * 2 * np.pi / 60 / rv40.ratio
+    assert 0.0 < np.abs(ripple).max() < 0.05 * 1600.0 * 2 * np.pi / 60 / rv40.ratio

@@ -29,6 +29,8 @@ from .units import rad_to_arcsec
 
 STEPS_PER_PERIOD = 20      # default step: 20 per period of the fastest excitation (mesh or pin passing)
 MIN_STEPS_PER_PERIOD = 8   # coarser than this misses the excitation: refused
+NATURAL_STEPS_PER_PERIOD = 15  # and 15 per period of a natural frequency the excitations reach: the
+                               # average-acceleration rule's period error (pi^2/12)(h/T)^2 < 0.4 %
 METHODS = ("newmark", "Radau", "BDF")
 DEFAULT_RAMP_OUTPUT_TURNS = 0.02   # start ramp: 2 % of an output revolution's time at speed, >= 0.05 s
 
@@ -59,7 +61,7 @@ class Excitations:
 class Simulation:
     """A dynamic run of one reducer.
 
-    time, theta_in, theta_out, te [rad], tau_in [N*m], tau_load [N*m]: (T,);
+    time, theta_in, theta_out, te [rad], omega_out [rad/s], tau_in [N*m], tau_load [N*m]: (T,);
     q: (T, n) every unknown [m, rotations as arc length at R_p], names in `dofs`;
     steady: index of the first step after the start ramp; step [s]; drive: "ramp"
     (constant speed after a start ramp) or "sampled" (sampled input angles).
@@ -71,6 +73,7 @@ class Simulation:
     theta_in: np.ndarray
     theta_out: np.ndarray
     te: np.ndarray
+    omega_out: np.ndarray
     tau_in: np.ndarray
     tau_load: np.ndarray
     q: np.ndarray
@@ -110,10 +113,18 @@ class Simulation:
         return [(float(f[k]), float(a[k])) for k in top]
 
 
-def default_step(design: RVDesign, speed_rpm: float) -> float:
-    """[s]: STEPS_PER_PERIOD steps per period of the faster of pin passing and stage-1 mesh."""
+def default_step(design: RVDesign, speed_rpm: float, natural_hz=()) -> float:
+    """[s]: STEPS_PER_PERIOD steps per period of the faster of pin passing and stage-1 mesh,
+    and at least NATURAL_STEPS_PER_PERIOD per period of every natural frequency [Hz] that
+    their second harmonics reach (up to twice the faster): a resonance they excite is
+    resolved.  natural_hz: the linearised model's (`modes`), as `simulate` passes them."""
     ex = Excitations.at(design, speed_rpm)
-    return 1.0 / (STEPS_PER_PERIOD * max(ex.pin_passing, ex.mesh))
+    fastest = max(ex.pin_passing, ex.mesh)
+    step = 1.0 / (STEPS_PER_PERIOD * fastest)
+    reached = [f for f in np.asarray(natural_hz, dtype=float) if f <= 2.0 * fastest]
+    if reached:
+        step = min(step, 1.0 / (NATURAL_STEPS_PER_PERIOD * max(reached)))
+    return step
 
 
 @dataclass(frozen=True)
@@ -221,7 +232,13 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
                              "the input must turn forward (positive mean speed)")
         speed_rpm, ramp = mean * 60.0 / (2.0 * math.pi), 0.0
     finest = default_step(design, speed_rpm)
-    step = finest if step is None else positive("step", step)
+    if step is None:
+        mean_load = float(np.mean(load.values)) if isinstance(load, Sampled) else load
+        from .modes import modes
+
+        step = default_step(design, speed_rpm, modes(design, errors, mean_load).frequencies_hz)
+    else:
+        step = positive("step", step)
     coarsest = finest * STEPS_PER_PERIOD / MIN_STEPS_PER_PERIOD
     if step > coarsest:
         ex = Excitations.at(design, speed_rpm)
@@ -243,8 +260,7 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     else:
         motion = sampled_motion(time, input_angle, tau_load)
     drive = "ramp" if input_angle is None else "sampled"
-    mean_load = float(np.mean(tau_load))
-    model = DynamicModel(design, errors, contact, mesh, 1 if mean_load <= 0 else -1)
+    model = DynamicModel(design, errors, contact, mesh, 1 if np.mean(tau_load) <= 0 else -1)
     model.prepare(motion)
     q0 = static_start(model, tau_load[0], float(motion.theta_in[0]), model.external(0))
     if method != "newmark":
@@ -257,9 +273,7 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
         stepper.advance(min(stepper.k + report, count - 1), q, v)
         if progress is not None:
             progress(count - 1, stepper.k)
-    tau_in = model.input_torque(q.T, v.T)
-    return _record(model, design, speed_rpm, motion, q, tau_in, ramp, step, stepper.failed_steps,
-                   drive)
+    return _record(model, design, speed_rpm, motion, q, v, ramp, step, stepper.failed_steps, drive)
 
 
 def _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive):
@@ -295,17 +309,16 @@ def _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive):
     if not solution.success:
         raise RuntimeError(f"solve_ivp ({method}) failed: {solution.message}")
     q, v = solution.y[:n].T, solution.y[n:].T
-    return _record(model, design, speed_rpm, motion, q, model.input_torque(q.T, v.T), ramp, step, 0,
-                   drive)
+    return _record(model, design, speed_rpm, motion, q, v, ramp, step, 0, drive)
 
 
-def _record(model, design, speed_rpm, motion, q, tau_in, ramp, step, failed,
-            drive: str) -> Simulation:
-    """The run's record from the unknowns q (T, n) at the motion's times."""
+def _record(model, design, speed_rpm, motion, q, v, ramp, step, failed, drive: str) -> Simulation:
+    """The run's record from the unknowns q and their rates v, (T, n), at the motion's times."""
     te = q[:, model.carrier_rot] / model.scale
+    omega_out = motion.omega_in / design.ratio + v[:, model.carrier_rot] / model.scale
     return Simulation(design, speed_rpm, motion.time, motion.theta_in,
-                      motion.theta_in / design.ratio + te, te, tau_in,
-                      motion.tau_load, q, tuple(model.names),
+                      motion.theta_in / design.ratio + te, te, omega_out,
+                      model.input_torque(q.T, v.T), motion.tau_load, q, tuple(model.names),
                       int(np.searchsorted(motion.time, motion.time[0] + ramp)), step, failed, drive)
 
 

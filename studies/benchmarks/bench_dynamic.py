@@ -9,8 +9,11 @@ What it measures, on one core (BLAS threads set to 1 before numpy loads):
   column compares the two integrators on equal work;
 - the FMU's dynamic model at a 1 ms communication step (internal steps of at most
   0.1 ms), stepped in Python and through a bare fmpy FMI loop (`--fmu-seconds`);
+- the same short run with the kernels as plain numpy (RVTE_NUMBA=0, in a child
+  process), what a host without numba gets;
 - where the Newmark time goes (cProfile, the five largest own times).
-Real-time factor = simulated time / wall time.  Target: >= 1 (aim 10).
+Real-time factor = simulated time / wall time.  Target: >= 1 (aim 10).  The
+kernels are compiled (or loaded from numba's cache) by a warm-up run first.
 
 Run:  python studies/benchmarks/bench_dynamic.py [--revolutions 1] [--reference 0.004]
 """
@@ -60,6 +63,32 @@ def fmu_loop(design, errors, speed, load, steps, comm) -> float:
     return seconds
 
 
+def plain_numpy(load, seconds):
+    """(label, steps, simulated, wall) of a Newmark run with the kernels as plain numpy."""
+    import json
+    import subprocess
+    import sys
+
+    script = (
+        "import json, sys, time\n"
+        "from rvfmu.core import kernels\n"
+        "from rvfmu.core.design import preset\n"
+        "from rvfmu.core.errors import load_errors\n"
+        "from rvfmu.core.simulation import simulate\n"
+        "assert not kernels.COMPILED\n"
+        "d = preset('RV-40E-121'); e = load_errors(sys.argv[1], d)\n"
+        "t = time.perf_counter()\n"
+        "s = simulate(d, e, speed_rpm=1600.0, load=float(sys.argv[2]), duration=float(sys.argv[3]),"
+        " ramp=float(sys.argv[3]))\n"
+        "print(json.dumps([s.time.size - 1, float(s.time[-1]), time.perf_counter() - t]))\n")
+    env = dict(os.environ, RVTE_NUMBA="0")
+    out = subprocess.run([sys.executable, "-c", script, str(ROOT / "studies" / "seed002_errors.toml"),
+                          str(load), str(seconds)], env=env, capture_output=True, text=True,
+                         check=True).stdout
+    steps, simulated, wall = json.loads(out.strip().splitlines()[-1])
+    return ("Newmark, plain numpy (no numba)", steps, simulated, wall)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--revolutions", type=float, default=1.0)
@@ -67,6 +96,8 @@ def main() -> None:
                         help="seconds at speed for the solve_ivp comparison")
     parser.add_argument("--fmu-seconds", type=float, default=0.2,
                         help="simulated seconds of the FMU rows")
+    parser.add_argument("--plain", type=float, default=0.02,
+                        help="seconds at speed (and of ramp) of the plain-numpy row")
     args = parser.parse_args()
 
     from rvfmu.core.design import preset
@@ -86,6 +117,7 @@ def main() -> None:
         return sim
 
     short = dict(duration=args.reference, ramp=args.reference)
+    simulate(design, errors, speed_rpm=1600.0, load=load, **short)      # warm-up: compile
     run("Newmark, short run", **short)
     run("solve_ivp BDF, short run", method="BDF", **short)
     profiler = cProfile.Profile()
@@ -107,6 +139,7 @@ def main() -> None:
                  time.perf_counter() - start))
     rows.append(("FMU, bare fmpy loop, 1 ms comm", steps * 10, steps * comm,
                  fmu_loop(design, errors, speed, load, steps, comm)))
+    rows.append(plain_numpy(load, args.plain))
 
     print(f"RV-40E-121, seed 002 errors, 1600 rpm, load {load:g} N*m, step "
           f"{full.step * 1e6:.1f} us, {full.failed_steps} unconverged steps")

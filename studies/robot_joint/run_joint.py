@@ -2,15 +2,18 @@
 
 The engineering question: how far from its reference does a robot arm end up
 because of the reducer's transmission error, when the drive closes its loops on
-the motor encoder (as robot joints do) and so cannot see it?
+the motor encoder (as robot joints do) and so cannot see it?  And how much of
+that comes from the reducer's own dynamics rather than its quasi-static TE?
 
 Three FMUs, driven by a fixed-step Gauss-Seidel master written with fmpy's FMI
 2.0 API (`fmpy.fmi2.FMU2Slave`):
 
 - `ServoDrive` (servo_drive.py): motor inertia, friction, torque limit, P
   position / PI velocity loops on the motor angle, reference = ratio * arm reference;
-- `RVReducer`, the rvte reducer FMU of the RV-40E-121 with the seed 002 errors
-  (quasi-static: theta_out = theta_in / i + TE(theta_in, tau_load));
+- `RVReducer`, the rvte reducer FMU of the RV-40E-121 with the seed 002 errors,
+  its parameter `model` either "quasistatic" (theta_out = theta_in / i +
+  TE(theta_in, tau_load), the TE map) or "dynamic" (the lumped-parameter model
+  of docs/model.md section 7, stepped inside each communication step);
 - `Arm` (arm.py): arm inertia and gravity on its link root spring.
 
 Each 1 ms communication step, in this order:
@@ -22,13 +25,29 @@ Each 1 ms communication step, in this order:
     arm.theta        <- reducer.theta_out
     arm.doStep
 
+This explicit coupling serves the quasi-static reducer.  The dynamic reducer's
+carrier torsion mode (550-870 Hz, modal damping ratio below 0.01) sits on the
+arm's link spring, and a load held over the step feeds it negative damping
+(link stiffness x the hold's delay) far larger than its own: the explicit
+coupling diverges at any step above some 20 us (README.md gives the numbers).
+So for the dynamic reducer the reducer-arm pair is solved implicitly each
+step ("iterated" coupling): both FMUs are saved (fmi2GetFMUstate) and stepped
+again from there (fmi2SetFMUstate) until the load torque given to the reducer
+is the one the arm returns at the end of the step, by secant iterations on
+that one scalar (2 to 3 reducer steps per communication step).  The drive
+stays explicit.
+
 The move: 0 -> 60 deg in 1.5 s (quintic, zero speed and acceleration at both
-ends), then a 0.5 s hold.  It is run twice, once with the reducer's errors and
-once with `error_scale` = 0 (the error-free reducer; set before initialisation,
-so the FMU solves its TE map again); everything else is equal, so the difference of
-the arm angles is the arm position error that the errors cause through TE.
+ends), then a 0.5 s hold.  It is run three times (`--runs` chooses):
+"errors", the quasi-static reducer with its errors; "no-errors", the same with
+`error_scale` = 0 (the error-free reducer; set before initialisation, so the
+FMU solves its TE map again); "dynamic", the reducer with its errors and
+`model` = "dynamic" (also set before initialisation).  Everything else is
+equal, so errors - no-errors is the arm position error that the errors cause
+through TE, and dynamic - errors is what the reducer's own dynamics add.
 
     python studies/robot_joint/run_joint.py [--points 3120] [--stop-time 2.0] [--output DIR]
+                                            [--runs errors no-errors dynamic]
 
 The FMUs are built once into the output folder (studies/robot_joint/output/ by
 default) and reused while they are newer than their sources.  The figure
@@ -65,6 +84,15 @@ MOVE_DEG = 60.0          # arm move [deg]
 MOVE_TIME = 1.5          # s
 STOP_TIME = 2.0          # s: the move and a 0.5 s hold
 NO_ERRORS = 0.0          # error_scale of the reference run: the error-free reducer
+# The runs: name -> (the reducer's error_scale, its model).
+RUNS = {"errors": (1.0, "quasistatic"), "no-errors": (NO_ERRORS, "quasistatic"),
+        "dynamic": (1.0, "dynamic")}
+RUNS_MODELS = ("quasistatic", "dynamic")   # the reducer FMU's `model` values
+COUPLINGS = ("explicit", "iterated")
+# Iterated coupling: the tau_load residual [N m] at which a step is accepted.  1e-4 N m winds
+# the reducer up by 3e-10 rad (6e-5 arcsec) at its softest, K ~ 3e5 N m/rad.
+COUPLING_TOLERANCE = 1e-4
+COUPLING_EVALUATIONS = 12  # reducer steps allowed per communication step; the secant needs 2-4
 
 # Every parameter is set explicitly on its FMU; the values are the FMU sources' defaults,
 # chosen for an RV-40E-121 joint (README.md says why).
@@ -92,11 +120,13 @@ def build_fmus(output=OUTPUT, points=POINTS, log=print) -> dict:
     output = Path(output)
     output.mkdir(parents=True, exist_ok=True)
     fmus = {}
-    for name, script in (("ServoDrive", HERE / "servo_drive.py"), ("Arm", HERE / "arm.py")):
+    # the arm saves and restores its state: the iterated coupling steps it again from a saved point
+    for name, script, options in (("ServoDrive", HERE / "servo_drive.py", {}),
+                                  ("Arm", HERE / "arm.py", {"canGetAndSetFMUstate": True})):
         fmu = output / f"{name}.fmu"
         if not fmu.is_file() or fmu.stat().st_mtime < script.stat().st_mtime:
             log(f"building {fmu.name}")
-            FmuBuilder.build_FMU(script, dest=output)
+            FmuBuilder.build_FMU(script, dest=output, **options)
             complete_model_description(fmu)   # initial unknowns, units, default experiment
         fmus[name] = fmu
     reducer = output / f"RVReducer_{points}.fmu"
@@ -132,6 +162,8 @@ class Slave:
         for key, value in (parameters or {}).items():
             if self.types[key] == "Integer":
                 self.fmu.setInteger([self.vr[key]], [int(value)])
+            elif self.types[key] == "String":
+                self.fmu.setString([self.vr[key]], [str(value)])
             else:
                 self.fmu.setReal([self.vr[key]], [float(value)])
         self.fmu.setupExperiment(startTime=0.0)
@@ -149,6 +181,16 @@ class Slave:
     def step(self, time, size):
         self.fmu.doStep(currentCommunicationPoint=time, communicationStepSize=size)
 
+    def save(self):
+        """The FMU's state now (fmi2GetFMUstate); give it back to `restore`, then `free` it."""
+        return self.fmu.getFMUstate()
+
+    def restore(self, state):
+        self.fmu.setFMUstate(state)
+
+    def free(self, state):
+        self.fmu.freeFMUstate(state)
+
     def close(self):
         self.fmu.terminate()
         self.fmu.freeInstance()
@@ -158,14 +200,19 @@ class Slave:
 # -- the co-simulation ------------------------------------------------------------------------
 @dataclass(frozen=True)
 class JointRun:
-    """One run, every array shaped (steps + 1,) at the communication points.
+    """One run, every array shaped (steps + 1,) at the communication points but `evaluations`.
 
-    time [s], theta_ref [rad] (arm reference), theta_motor [rad], tau_motor [N m],
-    theta_out [rad] (flange), te_arcsec [arcsec] (reducer TE), tau_load [N m],
-    theta_arm [rad].
+    name: a key of RUNS; error_scale and model: the reducer's parameters; coupling: of the
+    reducer and the arm, "explicit" or "iterated"; time [s], theta_ref [rad] (arm reference),
+    theta_motor [rad], tau_motor [N m], theta_out [rad] (flange), te_arcsec [arcsec]
+    (reducer TE), tau_load [N m], theta_arm [rad]; evaluations: (steps,) reducer steps
+    taken per communication step (1 when explicit); wall_time_s: the run's wall time [s].
     """
 
+    name: str
     error_scale: float
+    model: str
+    coupling: str
     time: np.ndarray
     theta_ref: np.ndarray
     theta_motor: np.ndarray
@@ -174,6 +221,8 @@ class JointRun:
     te_arcsec: np.ndarray
     tau_load: np.ndarray
     theta_arm: np.ndarray
+    evaluations: np.ndarray
+    wall_time_s: float
 
     @property
     def arm_error_arcsec(self):
@@ -186,10 +235,72 @@ class JointRun:
         return (self.theta_motor / SERVO["ratio"] - self.theta_ref) / ARCSEC
 
 
-def simulate(fmus, error_scale=1.0, points=POINTS, stop_time=STOP_TIME, step=STEP) -> JointRun:
-    """Co-simulate servo -> reducer -> arm (Gauss-Seidel, fixed step) over [0, stop_time]."""
+def step_iterated(reducer, arm, time, step, theta_in, guess, slope=None):
+    """Step the reducer and the arm over [time, time + step] together, implicitly.
+
+    The reducer holds its input tau_load over the step and the arm answers the
+    flange angle at its end with its own tau_load there; the step is accepted
+    when they agree, |residual| <= COUPLING_TOLERANCE with residual(tau_load) =
+    arm.tau_load - tau_load.  Both FMUs are saved first and restored before each
+    further try.  Secant iterations on that scalar, from `guess` [N m] and the
+    residual's slope of the last step (`slope`, None: a plain fixed-point try
+    first).  Returns (tau_load [N m], slope, reducer steps taken); both FMUs are
+    left at time + step.
+    """
+    saved = reducer.save(), arm.save()
+
+    def residual(tau_load, restore=True):
+        if restore:
+            reducer.restore(saved[0])
+            arm.restore(saved[1])
+        reducer.set(theta_in=theta_in, tau_load=tau_load)
+        reducer.step(time, step)
+        arm.set(theta=reducer.get("theta_out"))
+        arm.step(time, step)
+        return arm.get("tau_load") - tau_load
+
+    try:
+        x0, r0 = guess, residual(guess, restore=False)
+        evaluations = 1
+        while abs(r0) > COUPLING_TOLERANCE:
+            if evaluations >= COUPLING_EVALUATIONS:
+                raise RuntimeError(f"the reducer-arm coupling did not converge at t = {time:.4f} s: "
+                                   f"tau_load residual {r0:.3g} N m after {evaluations} reducer steps")
+            # secant step; the fixed point x + r while no usable slope is known
+            x1 = x0 - r0 / slope if slope is not None and slope < -1e-3 else x0 + r0
+            r1 = residual(x1)
+            evaluations += 1
+            if x1 != x0 and r1 != r0:
+                slope = (r1 - r0) / (x1 - x0)
+            x0, r0 = x1, r1
+        return x0 + r0, slope, evaluations
+    finally:
+        for slave, state in zip((reducer, arm), saved):
+            slave.free(state)
+
+
+def simulate(fmus, error_scale=1.0, points=POINTS, stop_time=STOP_TIME, step=STEP,
+             model="quasistatic", coupling=None, name=None) -> JointRun:
+    """Co-simulate servo -> reducer -> arm (Gauss-Seidel, fixed step) over [0, stop_time].
+
+    model: the reducer FMU's `model`, "quasistatic" or "dynamic"; coupling of the
+    reducer and the arm: "explicit" (one step each) or "iterated" (`step_iterated`);
+    default explicit for the quasi-static reducer, iterated for the dynamic one.
+    """
+    if model not in RUNS_MODELS:
+        raise ValueError(f"model = {model!r}: must be one of {', '.join(RUNS_MODELS)}")
+    coupling = coupling or ("iterated" if model == "dynamic" else "explicit")
+    if coupling not in COUPLINGS:
+        raise ValueError(f"coupling = {coupling!r}: must be one of {', '.join(COUPLINGS)}")
+    started = clock.perf_counter()
     ratio = SERVO["ratio"]
-    reducer_parameters = {} if error_scale == 1.0 else {"error_scale": error_scale, "map_points": points}
+    reducer_parameters = {}
+    if model != "quasistatic":
+        reducer_parameters["model"] = model
+    if error_scale != 1.0:
+        reducer_parameters["error_scale"] = error_scale
+        if model == "quasistatic":
+            reducer_parameters["map_points"] = points
     servo = Slave(fmus["ServoDrive"], "servo", SERVO)
     reducer = Slave(fmus["RVReducer"], "reducer", reducer_parameters)
     arm = Slave(fmus["Arm"], "arm", ARM)
@@ -211,23 +322,32 @@ def simulate(fmus, error_scale=1.0, points=POINTS, stop_time=STOP_TIME, step=STE
         record = np.empty((steps + 1, len(names)))
         record[0] = (servo.get("theta_motor"), servo.get("tau_motor"), reducer.get("theta_out"),
                      reducer.get("te_arcsec"), arm.get("tau_load"), arm.get("theta_arm"))
+        evaluations = np.ones(steps, dtype=int)
         times = step * np.arange(steps + 1)
         refs = reference(times)
+        slope = None
         for k in range(steps):
             t = times[k]
             servo.set(theta_ref=float(refs[k]), tau_in=reducer.get("tau_in"))
             servo.step(t, step)
-            reducer.set(theta_in=servo.get("theta_motor"), tau_load=arm.get("tau_load"))
-            reducer.step(t, step)
-            arm.set(theta=reducer.get("theta_out"))
-            arm.step(t, step)
+            if coupling == "explicit":
+                reducer.set(theta_in=servo.get("theta_motor"), tau_load=arm.get("tau_load"))
+                reducer.step(t, step)
+                arm.set(theta=reducer.get("theta_out"))
+                arm.step(t, step)
+            else:
+                # first guess: tau_load extrapolated linearly from the last two points
+                guess = 2.0 * record[k, 4] - record[max(k - 1, 0), 4]
+                _, slope, evaluations[k] = step_iterated(reducer, arm, t, step,
+                                                         servo.get("theta_motor"), guess, slope)
             record[k + 1] = (servo.get("theta_motor"), servo.get("tau_motor"),
                              reducer.get("theta_out"), reducer.get("te_arcsec"),
                              arm.get("tau_load"), arm.get("theta_arm"))
     finally:
         for slave in (servo, reducer, arm):
             slave.close()
-    return JointRun(error_scale, times, refs, *record.T)
+    return JointRun(name or model, error_scale, model, coupling, times, refs, *record.T, evaluations,
+                    clock.perf_counter() - started)
 
 
 # -- report ------------------------------------------------------------------------------------
