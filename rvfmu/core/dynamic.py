@@ -163,6 +163,9 @@ class DynamicModel:
             self.bearing_c, np.asarray(self.pin_dofs, dtype=np.int64), float(self.pin_k),
             float(self.pin_c), contact == "impact", float(self.impact_k), IMPACT_EXPONENT,
             IMPACT_PENETRATION, int(self.sun_rot), self.shaft_k / s2, self.shaft_c / s2)
+        counts = {"crank": design.n_c, "disc": 2}
+        self._nominal_index = tuple({body: [self.index[f"{body}{k}_{axis}"] for k in range(count)]
+                                     for body, count in counts.items()} for axis in ("x", "y", "rot"))
         self._geometry = None
 
     # -- constant parts --------------------------------------------------------------
@@ -243,20 +246,19 @@ class DynamicModel:
         idx, s = self.index, self.scale
         f[:, idx["sun_rot"]] = -d.sun_inertia * a_in / s
         f[:, idx["carrier_rot"]] = -d.carrier_inertia * a_out / s
-
-        def translate(body, mass, radius, angle, w, acc):
-            # centre at radius (cos, sin)(angle): acceleration radius (acc t - w^2 r)
+        # crank c's centre at a (cos, sin)(theta_out + 2 pi c / n_c), disc j's at e (cos, sin)(psi
+        # + j pi): acceleration radius (acc t - w^2 r), r and t the radial and tangential units
+        x, y, rot = self._nominal_index
+        for body, mass, radius, angle, w, acc in (
+                ("crank", d.crank_mass, d.crank_circle_radius,
+                 th_out[:, None] + 2 * math.pi * np.arange(d.n_c) / d.n_c, w_out, a_out),
+                ("disc", d.disc_mass, d.e, psi[:, None] + math.pi * np.arange(2), w_psi, a_psi)):
             c, sn = np.cos(angle), np.sin(angle)
-            f[:, idx[f"{body}_x"]] = -mass * radius * (-acc * sn - w ** 2 * c)
-            f[:, idx[f"{body}_y"]] = -mass * radius * (acc * c - w ** 2 * sn)
-
-        for c in range(d.n_c):
-            translate(f"crank{c}", d.crank_mass, d.crank_circle_radius,
-                      th_out + 2 * math.pi * c / d.n_c, w_out, a_out)
-            f[:, idx[f"crank{c}_rot"]] = -d.crank_inertia * a_psi / s
-        for j in range(2):
-            translate(f"disc{j}", d.disc_mass, d.e, psi + j * math.pi, w_psi, a_psi)
-            f[:, idx[f"disc{j}_rot"]] = -d.disc_inertia * a_out / s
+            w2, acc = (mass * radius * w ** 2)[:, None], (mass * radius * acc)[:, None]
+            f[:, x[body]] = acc * sn + w2 * c
+            f[:, y[body]] = w2 * sn - acc * c
+        f[:, rot["crank"]] = (-d.crank_inertia * a_psi / s)[:, None]
+        f[:, rot["disc"]] = (-d.disc_inertia * a_out / s)[:, None]
         return f
 
     def forces(self, step: int, q: np.ndarray, v: np.ndarray):

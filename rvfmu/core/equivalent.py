@@ -74,6 +74,68 @@ def _body_dofs(names: tuple) -> dict:
 
 
 @dataclass(frozen=True)
+class _Layout:
+    """The constant entries of the element rows and where the angle-dependent ones go.
+
+    linear (m, n), bearing (nb, 2, n): the +-1 translation entries of the sun support
+    and the bearings; the *_entries are flat indices into one instant's rows, raveled
+    from: mesh_entries (n_c, 5) sun x, sun y, crank x, crank y, crank rotation of mesh
+    i; seat_entries (n_c, 2) the carrier rotation of crank seat i (x and y rows);
+    cam_crank_entries and cam_disc_entries (n_c, 2, 2) the crank and disc rotations of
+    cam bearing (i, j).
+    """
+
+    linear: np.ndarray
+    bearing: np.ndarray
+    sun_rot: int
+    mesh_entries: np.ndarray
+    seat_entries: np.ndarray
+    cam_crank_entries: np.ndarray
+    cam_disc_entries: np.ndarray
+
+
+@functools.lru_cache(maxsize=8)
+def _layout(n_c: int, sun_rotation: bool) -> _Layout:
+    names = dof_names(n_c, sun_rotation)
+    n, body = len(names), _body_dofs(tuple(names))
+    sun, car = body["sun"], body["carrier"]
+    crank = [body[f"crank{i}"] for i in range(n_c)]
+    disc = [body[f"disc{j}"] for j in range(2)]
+    linear = np.zeros((n_c + 2, n))
+    linear[n_c, sun[0]] = linear[n_c + 1, sun[1]] = 1.0            # the sun support
+    mesh = [[i * n + k for k in (sun[0], sun[1], crank[i][0], crank[i][1], crank[i][2])]
+            for i in range(n_c)]
+    nb = 3 * n_c + 1
+    bearing = np.zeros((nb, 2, n))
+
+    def joins(b, inner, outer):
+        """Bearing b: deflection = inner part's translation - outer part's."""
+        for xy in range(2):
+            if inner is not None:
+                bearing[b, xy, inner[xy]] = 1.0
+            if outer is not None:
+                bearing[b, xy, outer[xy]] = -1.0
+
+    def entry(b, xy, column):
+        return (b * 2 + xy) * n + column
+
+    seat, cam_crank, cam_disc = [], [], []
+    for i in range(n_c):
+        joins(i, crank[i], car)
+        seat.append([entry(i, xy, car[2]) for xy in range(2)])
+    for i in range(n_c):
+        cam_crank.append([]), cam_disc.append([])
+        for j in range(2):
+            b = n_c + 2 * i + j
+            joins(b, crank[i], disc[j])
+            cam_crank[i].append([entry(b, xy, crank[i][2]) for xy in range(2)])
+            cam_disc[i].append([entry(b, xy, disc[j][2]) for xy in range(2)])
+    joins(nb - 1, car, None)
+    return _Layout(linear, bearing, sun[2] if sun_rotation else -1, np.ravel(mesh), np.ravel(seat),
+                   np.ravel(cam_crank), np.ravel(cam_disc))
+
+
+@dataclass(frozen=True)
 class Pose:
     """Nominal kinematics (docs/model.md section 2) at input angles theta_in, shape (A,)."""
 
@@ -116,12 +178,13 @@ class EquivalentModel:
         self.names = dof_names(design.n_c, sun_rotation)
         self.n_dof = len(self.names)
         self.index = {name: k for k, name in enumerate(self.names)}
+        self._bodies = _body_dofs(tuple(self.names))
         self.scale = design.R_p  # rotation unknowns are arc lengths at R_p
         self._build_geometry()
 
     # -- indices -------------------------------------------------------------------
     def _dofs(self, body: str) -> list[int]:
-        return _body_dofs(tuple(self.names))[body]
+        return self._bodies[body]
 
     @property
     def carrier_rot(self) -> int:
@@ -141,61 +204,42 @@ class EquivalentModel:
         crank_dir = p.theta_out[:, None] + 2.0 * np.pi * np.arange(n_c) / n_c     # (A, n_c)
         e_i, t_i = _unit(crank_dir), _perp(_unit(crank_dir))                      # (A, n_c, 2)
 
+        lay = _layout(n_c, self.sun_rotation)
         # Sun-planet meshes: compression = w . (u_sun(C) - u_planet(C)) at the pitch point C.
         alpha = d.pressure_angle
         w = self.flank * np.cos(alpha) * t_i + np.sin(alpha) * e_i                 # (A, n_c, 2)
-        mesh = np.zeros((A, n_c, n))
-        sun = self._dofs("sun")
         # planet point C - O_p = -r_pl e_i turns with the crank: u = rot * k x (C - O_p)
         planet_rot = -(w * _perp(-r_pl * e_i)).sum(axis=-1) / self.scale                # (A, n_c)
-        for i in range(n_c):
-            cx, cy, cr = self._dofs(f"crank{i}")
-            mesh[:, i, sun[0]], mesh[:, i, sun[1]] = w[:, i, 0], w[:, i, 1]
-            mesh[:, i, cx], mesh[:, i, cy] = -w[:, i, 0], -w[:, i, 1]
-            mesh[:, i, cr] = planet_rot[:, i]
-            if self.sun_rotation:
-                # sun point C - O_s = r_s e_i turns with the sun: u = rot * r_s t_i, w . t_i = flank cos
-                mesh[:, i, sun[2]] = self.flank * np.cos(alpha) * r_s / self.scale
-        support = np.zeros((A, 2, n))
-        support[:, 0, sun[0]] = 1.0
-        support[:, 1, sun[1]] = 1.0
-        self.linear_rows = np.concatenate([mesh, support], axis=1)
+        linear = np.broadcast_to(lay.linear, (A,) + lay.linear.shape).copy()          # (A, m, n)
+        mesh_values = np.concatenate([w, -w, planet_rot[..., None]], axis=-1)      # (A, n_c, 5)
+        linear.reshape(A, -1)[:, lay.mesh_entries] = mesh_values.reshape(A, -1)
+        if self.sun_rotation:
+            # sun point C - O_s = r_s e_i turns with the sun: u = rot * r_s t_i, w . t_i = flank cos
+            linear[:, :n_c, lay.sun_rot] = self.flank * np.cos(alpha) * r_s / self.scale
+        self.linear_rows = linear
         self.linear_k = np.array([d.mesh_stiffness] * n_c + [d.sun_support_stiffness] * 2)
         self._mesh_w = w
 
-        # Bearings: deflection d = (inner part) - (outer part), 2-D.
-        rows, stiff, kinds = [], [], []
-        car = self._dofs("carrier")
-        # a point at a e_i of a part turning about the reducer axis / a cam at e psi_j turning
-        # with its crank move by rotation * k x (point): the rows of those rotations
+        # Bearings: deflection d = (inner part) - (outer part), 2-D; in order, crank i in its
+        # carrier seat, cam j of crank i in hole i of disc j, the carrier main bearing.
+        # A point at a e_i of a part turning about the reducer axis / a cam at e psi_j turning
+        # with its crank moves by rotation * k x (point): the rows of those rotations.
         crank_seat = _perp(a * e_i) / self.scale                                     # (A, n_c, 2)
         psi_dir = _unit(p.psi)                                                      # (A, 2, 2)
         cam_lever = _perp(d.e * psi_dir) / self.scale                               # (A, 2, 2)
-        for i in range(n_c):  # crank axis in its carrier seat
-            cx, cy, _ = self._dofs(f"crank{i}")
-            r = np.zeros((A, 2, n))
-            r[:, 0, cx], r[:, 1, cy] = 1.0, 1.0
-            r[:, 0, car[0]], r[:, 1, car[1]] = -1.0, -1.0
-            r[:, :, car[2]] = -crank_seat[:, i]
-            rows.append(r), stiff.append(d.crank_carrier_bearing_stiffness), kinds.append(
-                "crank_carrier_clearance")
-        for i in range(n_c):  # cam j of crank i in hole i of disc j
-            cx, cy, cr = self._dofs(f"crank{i}")
-            for j in range(2):
-                dx, dy, dr = self._dofs(f"disc{j}")
-                r = np.zeros((A, 2, n))
-                r[:, 0, cx], r[:, 1, cy] = 1.0, 1.0
-                r[:, :, cr] = cam_lever[:, j]
-                r[:, 0, dx], r[:, 1, dy] = -1.0, -1.0
-                r[:, :, dr] = -crank_seat[:, i]
-                rows.append(r), stiff.append(d.crank_disc_bearing_stiffness), kinds.append(
-                    "crank_disc_clearance")
-        r = np.zeros((A, 2, n))
-        r[:, 0, car[0]], r[:, 1, car[1]] = 1.0, 1.0
-        rows.append(r), stiff.append(d.main_bearing_stiffness), kinds.append("main_bearing_clearance")
-        self.bearing_rows = np.stack(rows, axis=1)                                 # (A, nb, 2, n)
-        self.bearing_k = np.array(stiff)
-        self.bearing_kind = kinds
+        rows = np.broadcast_to(lay.bearing, (A,) + lay.bearing.shape).copy()         # (A, nb, 2, n)
+        flat = rows.reshape(A, -1)
+        flat[:, lay.seat_entries] = -crank_seat.reshape(A, -1)
+        flat[:, lay.cam_crank_entries] = np.broadcast_to(
+            cam_lever[:, None], (A, n_c, 2, 2)).reshape(A, -1)
+        flat[:, lay.cam_disc_entries] = np.broadcast_to(
+            -crank_seat[:, :, None], (A, n_c, 2, 2)).reshape(A, -1)
+        self.bearing_rows = rows
+        self.bearing_k = np.array([d.crank_carrier_bearing_stiffness] * n_c
+                                  + [d.crank_disc_bearing_stiffness] * (2 * n_c)
+                                  + [d.main_bearing_stiffness])
+        self.bearing_kind = (["crank_carrier_clearance"] * n_c + ["crank_disc_clearance"] * (2 * n_c)
+                             + ["main_bearing_clearance"])
 
         # Pins: normal through the pitch point z_p e (cos psi, sin psi) (instant centre).
         pin_angle = 2.0 * np.pi * np.arange(d.z_p) / d.z_p
@@ -221,7 +265,9 @@ class EquivalentModel:
         # moves the generating pin circle out, closing the gap by d_rp (n . e_k).
         gap = d.d_rrp - d.d_rp * radial_dot                                         # (A, 2, z_p)
         # Everything the error offsets need per angle, gathered in one take.
-        self._pin_geometry = np.stack([gap, radial_dot, tangent_dot, lever], axis=1)
+        self._pin_geometry = np.empty((A, 4, 2, d.z_p))
+        for k, part in enumerate((gap, radial_dot, tangent_dot, lever)):
+            self._pin_geometry[:, k] = part
         self._lobe_flat = self._lobe + d.z_c * np.arange(2)[None, :, None]
 
     # -- loads -----------------------------------------------------------------------

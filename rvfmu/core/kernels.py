@@ -90,10 +90,15 @@ def touched_columns(rows: np.ndarray) -> np.ndarray:
 def gather(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """(A, E, ..., w) the coefficients of rows (A, E, ..., n) on the unknowns `cols` (E, w);
     zero where cols is -1."""
-    index = np.where(cols < 0, 0, cols).reshape((1, cols.shape[0]) + (1,) * (rows.ndim - 3)
-                                                 + (cols.shape[1],))
-    out = np.take_along_axis(rows, np.broadcast_to(index, rows.shape[:-1] + cols.shape[1:]), -1)
-    return np.where((cols < 0).reshape(index.shape), 0.0, out)
+    A, n = rows.shape[0], rows.shape[-1]
+    inner = rows.shape[2:-1]                       # () for 1-D elements, (2,) for bearings
+    k = int(np.prod(inner, dtype=int))
+    base = np.arange(cols.shape[0] * k).reshape((cols.shape[0],) + inner + (1,)) * n
+    flat = base + np.where(cols < 0, 0, cols).reshape((cols.shape[0],) + (1,) * len(inner) + (-1,))
+    out = rows.reshape(A, -1)[:, flat]
+    out[:, np.broadcast_to((cols < 0).reshape(flat.shape[:1] + (1,) * len(inner) + flat.shape[-1:]),
+                           flat.shape)] = 0.0
+    return out
 
 
 @kernel
