@@ -11,17 +11,24 @@ from ..outputs import output_file
 from ..progress import counter as progress_counter
 
 
-def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress=None) -> Path:
+def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress=None,
+              native: bool = False) -> Path:
     """Build the reducer FMU; returns its path.  progress(total, done): optional.
 
     design: a preset name, a design file or an RVDesign; errors: an error file, an
     ErrorSet or None (no errors).  The output path (given the suffix .fmu) is
     checked before the TE map is solved; file and preset names are recorded in
-    the FMU for `fmu_info`.
+    the FMU for `fmu_info`.  native: the FMU of compiled C that needs no Python
+    (`rvfmu.fmu.native`: the quasi-static model, no parameters) instead of the
+    pythonfmu one.
     """
     from ..core.quasistatic import default_points
     from ..core.te_map import TORQUE_FRACTIONS
-    from .build import build_fmu
+
+    if native:
+        from .native import build_native_fmu as build_fmu
+    else:
+        from .build import build_fmu
 
     output = Path(output)
     output = output_file("output", output if output.suffix == ".fmu" else output.with_suffix(".fmu"))

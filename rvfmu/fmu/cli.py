@@ -14,6 +14,8 @@ def add_fmu_commands(subparsers) -> None:
     p.add_argument("-o", "--output", default="RVReducer.fmu", help="FMU file to write")
     p.add_argument("--points", type=int,
                    help="TE map points per output revolution (default 8*z_p*z_c)")
+    p.add_argument("--native", action="store_true",
+                   help="compiled C that needs no Python: the quasi-static model, no parameters")
     p.set_defaults(run=_build)
 
     p = sub.add_parser("info", help="print an FMU's variables")
@@ -26,8 +28,13 @@ def _build(args):
     from .api import fmu_build
 
     with ProgressBar("TE map") as bar:
-        path = fmu_build(args.design, args.errors, args.output, points=args.points, progress=bar)
+        path = fmu_build(args.design, args.errors, args.output, points=args.points, progress=bar,
+                         native=args.native)
     print(f"wrote {path}")
+    if args.native:
+        from .native import binaries_note
+
+        print(binaries_note(path))
 
 
 def _info(args):

@@ -1,0 +1,276 @@
+"""The native reducer FMU: the quasi-static TE map stepped by compiled C, no Python at run time.
+
+A system simulation on a controller test bench, or in a tool without Python,
+wants the reducer's output angle without an interpreter in its process.  The
+quasi-static model needs none at run time: a step is one interpolation in the
+TE map (`rvfmu.core.te_map`), which is plain data.  So the map is solved here,
+written as a binary table into the FMU's resources, and a small C library
+(rvfmu/fmu/native/: model.c, the physics, knows nothing of FMI;
+fmi2Functions.c, the FMI 2.0 co-simulation plumbing) reads it once per
+instance and interpolates it operation for operation as `TEMap.evaluate_one`,
+so that its outputs are the pythonfmu FMU's quasi-static ones (tested to 1e-12
+rad; equal to the bit where the compiler does not fuse multiply-adds).
+
+The native FMU has the pythonfmu FMU's inputs and outputs (same names, value
+references, units and descriptions: taken from `rvfmu.fmu.slave`), and no
+parameter: `design_file`, `errors_file`, `map_points` and the stiffness and
+error scales change the physics, and honouring them means solving the TE map
+again, which needs the Python model; `model` could only be "quasistatic";
+`dynamic_step` belongs to the dynamic model.  A different reducer is a
+different FMU: build another.  The C sources travel in sources/ and are
+declared in modelDescription.xml, so a tool that compiles source FMUs can
+build the binary for its own platform.
+
+The table, resources/te_map.bin (every number little-endian; model.c reads it
+and carries the same layout in a comment):
+
+    offset           type              field
+    0                char[8]           magic b"RVTEMAP\\0"
+    8                uint32            format version, 1
+    12               uint32            A, angle points over one output revolution (>= 2)
+    16               uint32            T, torque levels (>= 2)
+    20               uint32            0 (keeps the float64 fields 8-byte aligned)
+    24               float64           ratio i (> 0)
+    32               float64           rated torque [N*m] (> 0)
+    40               float64           momentary maximum class, x rated (limits.MOMENTARY_FACTOR)
+    48               float64           emergency-stop class, x rated (limits.EMERGENCY_FACTOR)
+    56               float64[T]        torque magnitudes [N*m], ascending, the first 0
+    56 + 8T          float64[2][T][A]  te [rad]: branch 0 resisting loads, 1 driving loads
+    56 + 8T + 16TA   float64[2][T][A]  tau_in [N*m]
+    56 + 8T + 32TA                     end of file: the length is checked against A and T
+
+The load classes travel in the table rather than in the C code so that
+`rvfmu.core.limits` stays their only source.  A table that fails a check
+(magic, version, sizes against the file length, finite values, ascending
+levels from 0) makes fmi2Instantiate log the reason and return NULL.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+import uuid
+import zipfile
+from datetime import datetime, timezone
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import numpy as np
+
+from ..core.design import RVDesign
+from ..core.errors import ErrorSet, error_file_values, toml_text, zero_errors
+from ..core.limits import EMERGENCY_FACTOR, MOMENTARY_FACTOR
+from ..core.te_map import TEMap, build_te_map
+from .build import _source_line, complete_model_description
+from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS
+
+NATIVE_SOURCES = Path(__file__).resolve().parent / "native"
+SOURCE_FILES = ("model.c", "fmi2Functions.c")      # compiled; model.h beside them
+MODEL_IDENTIFIER = "RVReducer"
+TABLE_NAME = "te_map.bin"
+TABLE_MAGIC = b"RVTEMAP\0"
+TABLE_VERSION = 1
+TABLE_HEADER = struct.Struct("<8s4I4d")            # magic, version, A, T, 0, ratio, rated, classes
+# The inputs and outputs in the order of their value references in fmi2Functions.c.
+VARIABLES = ("theta_in", "tau_load", "theta_out", "omega_out", "te", "te_arcsec", "tau_in")
+LOG_CATEGORIES = {"logEvents": "the table read, resets (with debug logging on)",
+                  "logStatusWarning": "loads above the momentary maximum class",
+                  "logStatusError": "inputs refused, tables that cannot be read"}
+# Bit-for-bit agreement with the Python interpolation wants no fused multiply-adds.
+C_FLAGS = "-O2 -ffp-contract=off"
+WIN64_COMPILER = "x86_64-w64-mingw32-gcc"          # Debian's mingw-w64
+
+
+def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
+                     output: str | Path = "RVReducer.fmu", points: int | None = None,
+                     progress=None, sources: dict | None = None) -> Path:
+    """Write the native reducer FMU for `design` and one reducer's `errors` to `output`.
+
+    The arguments are `build.build_fmu`'s.  binaries/<this platform> is compiled
+    with fmpy's CMake builder (the C compiler directly where cmake is missing),
+    binaries/win64 with mingw-w64 where it is installed; `native_platforms` says
+    which an FMU carries.
+    """
+    errors = zero_errors(design) if errors is None else errors.check(design)
+    output = Path(output)
+    if output.suffix != ".fmu":
+        output = output.with_suffix(".fmu")
+    te_map = build_te_map(design, errors, points=points, progress=progress)
+    with tempfile.TemporaryDirectory(prefix="rvte_native_") as tmp:
+        unzipped = Path(tmp) / "fmu"
+        resources, source_dir = unzipped / "resources", unzipped / "sources"
+        resources.mkdir(parents=True)
+        source_dir.mkdir()
+        write_table(te_map, design.rated_torque, resources / TABLE_NAME)
+        sources = sources or {}
+        (resources / BUNDLED_DESIGN).write_text(_source_line(sources.get("design"))
+                                                + toml_text(design.file_values()))
+        (resources / BUNDLED_ERRORS).write_text(_source_line(sources.get("errors"))
+                                                + toml_text(error_file_values(errors)))
+        for name in (*SOURCE_FILES, "model.h"):
+            shutil.copy2(NATIVE_SOURCES / name, source_dir / name)
+        (unzipped / "modelDescription.xml").write_bytes(model_description())
+        compile_binaries(unzipped, Path(tmp) / "build")
+        output.parent.mkdir(parents=True, exist_ok=True)
+        with zipfile.ZipFile(output, "w", zipfile.ZIP_DEFLATED) as archive:
+            for path in sorted(unzipped.rglob("*")):
+                if path.is_file():
+                    archive.write(path, path.relative_to(unzipped).as_posix())
+    complete_model_description(output)     # units, default experiment, initial unknowns
+    return output
+
+
+def write_table(te_map: TEMap, rated_torque: float, path: Path) -> None:
+    """Write `te_map` and the load classes of `rated_torque` [N*m] as the table (module doc)."""
+    points, levels = te_map.theta_in.size, te_map.torque_magnitude.size
+    header = TABLE_HEADER.pack(TABLE_MAGIC, TABLE_VERSION, points, levels, 0, te_map.ratio,
+                               rated_torque, MOMENTARY_FACTOR, EMERGENCY_FACTOR)
+    body = [np.ascontiguousarray(a, dtype="<f8").tobytes()
+            for a in (te_map.torque_magnitude, te_map.te, te_map.tau_in)]
+    path.write_bytes(header + b"".join(body))
+
+
+def read_table(path: str | Path) -> tuple[TEMap, float]:
+    """(the TE map, the rated torque [N*m]) of a table; for checks, the FMU reads it in C.
+
+    The table stores no angles (evenly spaced over one output revolution, the
+    interpolation needs only their count): the map's theta_in is rebuilt.
+    """
+    data = Path(path).read_bytes()
+    magic, version, points, levels, _, ratio, rated, _, _ = TABLE_HEADER.unpack_from(data)
+    if magic != TABLE_MAGIC or version != TABLE_VERSION:
+        raise ValueError(f"{path}: not a version {TABLE_VERSION} TE map table")
+    values = np.frombuffer(data, "<f8", offset=TABLE_HEADER.size).astype(float)
+    magnitude, te, tau_in = np.split(values, [levels, levels + 2 * levels * points])
+    angles = np.arange(points) * (2.0 * np.pi * ratio / points)
+    return (TEMap(ratio, angles, magnitude, te.reshape(2, levels, points),
+                  tau_in.reshape(2, levels, points)), rated)
+
+
+def model_description() -> bytes:
+    """modelDescription.xml without units and default experiment (`complete_model_description`
+    adds them): the pythonfmu slave's inputs and outputs, the sources, no parameter."""
+    from .slave import RVReducer
+
+    slave = RVReducer(instance_name="native")
+    declared = [v for v in slave.to_xml().find("ModelVariables")
+                if v.get("causality") in ("input", "output")]
+    names = [(v.get("name"), int(v.get("valueReference"))) for v in declared]
+    if names != [(name, vr) for vr, name in enumerate(VARIABLES)]:
+        raise RuntimeError(f"the slave's inputs and outputs {names} are not those of "
+                           f"fmi2Functions.c {VARIABLES}: update the C code")
+    root = ET.Element("fmiModelDescription", fmiVersion="2.0", modelName=MODEL_IDENTIFIER,
+                      guid=f"{{{uuid.uuid4()}}}",
+                      description=f"{RVReducer.description}; native code, the TE map only",
+                      author=RVReducer.author, generationTool="rvte (native FMU)",
+                      generationDateAndTime=datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                      variableNamingConvention="structured", numberOfEventIndicators="0")
+    cosim = ET.SubElement(root, "CoSimulation", modelIdentifier=MODEL_IDENTIFIER,
+                          canHandleVariableCommunicationStepSize="true",
+                          canBeInstantiatedOnlyOncePerProcess="false",
+                          canNotUseMemoryManagementFunctions="true",
+                          canGetAndSetFMUstate="true", canSerializeFMUstate="true")
+    files = ET.SubElement(cosim, "SourceFiles")
+    for name in SOURCE_FILES:
+        ET.SubElement(files, "File", name=name)
+    categories = ET.SubElement(root, "LogCategories")
+    for name, text in LOG_CATEGORIES.items():
+        ET.SubElement(categories, "Category", name=name, description=text)
+    variables = ET.SubElement(root, "ModelVariables")
+    variables.extend(declared)
+    outputs = ET.SubElement(ET.SubElement(root, "ModelStructure"), "Outputs")
+    for index, variable in enumerate(declared, start=1):
+        if variable.get("causality") == "output":
+            ET.SubElement(outputs, "Unknown", index=str(index))
+    ET.indent(root)
+    return ET.tostring(root, encoding="utf-8", xml_declaration=True)
+
+
+def compile_binaries(unzipped: Path, build_dir: Path) -> list[str]:
+    """Compile sources/ into binaries/<platform>/; returns the platforms built.
+
+    This platform's library is built by fmpy's builder, the CMake project with
+    which `fmpy compile` builds a source FMU, given C_FLAGS (only the last bit
+    depends on them: the sources need no flag and no library beyond libc);
+    where cmake is missing, by the C compiler directly.  win64 is
+    cross-compiled with mingw-w64 where it is installed.
+    """
+    import fmpy
+    from fmpy.build import build_platform_binary
+
+    headers = Path(fmpy.__file__).parent / "c-code"     # the FMI 2.0 headers fmpy ships
+    unzipped, build_dir = Path(unzipped).resolve(), Path(build_dir).resolve()   # cmake wants both
+    built = [fmpy.platform]
+    if shutil.which("cmake"):
+        build_dir.mkdir(parents=True, exist_ok=True)
+        with _output_to(build_dir / "build.log") as log:
+            try:
+                build_platform_binary(unzipped, build_dir,
+                                      cmake_options={"CMAKE_C_FLAGS:STRING": C_FLAGS})
+            except subprocess.CalledProcessError as exc:
+                raise RuntimeError(f"compiling the native FMU failed ({exc}):\n"
+                                   f"{log.read_text()[-3000:]}") from None
+    else:
+        library = ".dll" if os.name == "nt" else (".dylib" if sys.platform == "darwin" else ".so")
+        _compile(os.environ.get("CC", "cc"), ["-fPIC"], unzipped, headers,
+                 f"binaries/{fmpy.platform}/{MODEL_IDENTIFIER}{library}")
+    if fmpy.platform != "win64" and shutil.which(WIN64_COMPILER):
+        # libgcc linked in: the DLL then needs only what every Windows has (kernel32, msvcrt)
+        _compile(WIN64_COMPILER, ["-static-libgcc"], unzipped, headers,
+                 f"binaries/win64/{MODEL_IDENTIFIER}.dll")
+        built.append("win64")
+    return built
+
+
+def native_platforms(fmu: str | Path) -> list[str]:
+    """The platforms an FMU has binaries for (binaries/<platform>/)."""
+    with zipfile.ZipFile(fmu) as archive:
+        parts = [name.split("/") for name in archive.namelist()]
+    return sorted({p[1] for p in parts if len(p) == 3 and p[0] == "binaries" and p[2]})
+
+
+def binaries_note(fmu: str | Path) -> str:
+    """One line naming the platforms an FMU carries, and how to add win64 if it is missing."""
+    platforms = native_platforms(fmu)
+    note = f"binaries: {', '.join(platforms) or 'none'}"
+    if "win64" not in platforms:
+        note += (f"; no win64: {WIN64_COMPILER} was not found (Debian: apt-get install "
+                 "mingw-w64), or a tool can compile sources/ for it")
+    return note
+
+
+def _compile(compiler, flags, unzipped: Path, headers: Path, target: str) -> None:
+    """Compile sources/ into the shared library `target` (relative to `unzipped`)."""
+    target = unzipped / target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    command = [compiler, "-shared", *C_FLAGS.split(), *flags, f"-I{headers}",
+               f"-I{unzipped / 'sources'}", *(str(unzipped / "sources" / f) for f in SOURCE_FILES),
+               "-o", str(target)]
+    done = subprocess.run(command, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise RuntimeError(f"compiling the native FMU failed: {' '.join(command)}\n"
+                           f"{done.stderr[-3000:]}")
+
+
+@contextlib.contextmanager
+def _output_to(log: Path):
+    """Send this process's stdout and stderr (and its children's: cmake's) to `log`."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    with open(log, "w") as file:
+        os.dup2(file.fileno(), 1)
+        os.dup2(file.fileno(), 2)
+        try:
+            yield log
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            for fd, copy in zip((1, 2), saved):
+                os.dup2(copy, fd)
+                os.close(copy)

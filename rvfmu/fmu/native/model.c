@@ -1,0 +1,344 @@
+/* The quasi-static RV reducer stepped from its TE map (docs/model.md section 8).
+ *
+ * The TE map: rvfmu.core.te_map solves the quasi-static model once on a grid of
+ * input angle (one output revolution) x output torque magnitude, on two branches
+ * (resisting and driving loads: the TE jumps by the lost motion where the torque
+ * changes sign).  Here it is read from the table the build wrote and interpolated
+ * exactly as `TEMap.evaluate_one` does: periodic linear in the angle, linear in the
+ * torque, the last two levels extrapolated beyond the grid.  Every operation below
+ * is in Python's order, so that the results are the Python FMU's to the last bit
+ * where the compiler does not fuse a*b + c (build with -ffp-contract=off; fused
+ * multiply-adds would differ by a rounding error of the TE).  Only libc is needed.
+ *
+ * The table, resources/te_map.bin (all numbers little-endian; written by
+ * rvfmu/fmu/native.py, whose docstring has the same layout):
+ *
+ *   offset           type              field
+ *   0                char[8]           magic "RVTEMAP\0"
+ *   8                uint32            format version, 1
+ *   12               uint32            A, angle points over one output revolution (>= 2)
+ *   16               uint32            T, torque levels (>= 2)
+ *   20               uint32            0 (keeps the float64 fields 8-byte aligned)
+ *   24               float64           ratio i (> 0)
+ *   32               float64           rated torque [N*m] (> 0)
+ *   40               float64           momentary maximum class, x rated (> 0)
+ *   48               float64           emergency-stop class, x rated (>= the momentary)
+ *   56               float64[T]        torque magnitudes [N*m], ascending, the first 0
+ *   56 + 8T          float64[2][T][A]  te [rad]; branch 0 resisting, 1 driving loads
+ *   56 + 8T + 16TA   float64[2][T][A]  tau_in [N*m]
+ *   56 + 8T + 32TA                     end of file
+ */
+#ifdef __MINGW32__
+#define __USE_MINGW_ANSI_STDIO 1   /* C99 printf and strtod (two-digit exponents), not msvcrt's */
+#endif
+#include "model.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PI 3.14159265358979323846
+#define ARCSEC_RAD (PI / 180.0 / 3600.0)   /* rvfmu.core.units.ARCSEC, same expression */
+
+static const char MAGIC[8] = {'R', 'V', 'T', 'E', 'M', 'A', 'P', '\0'};
+enum { FORMAT_VERSION = 1, HEADER_SIZE = 56 };
+
+/* -- reading the table ---------------------------------------------------------------- */
+
+static uint32_t read_u32(const unsigned char *p) {
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static double read_f64(const unsigned char *p) {
+    uint64_t bits = 0;
+    double value;
+    int k;
+    for (k = 7; k >= 0; k--) bits = bits << 8 | p[k];
+    memcpy(&value, &bits, sizeof value);   /* IEEE 754 binary64 on every FMI platform */
+    return value;
+}
+
+static int fail(char *message, size_t size, const char *path, const char *reason) {
+    snprintf(message, size, "TE map table %s: %s", path, reason);
+    return -1;
+}
+
+/* Read the whole file; NULL with the reason in `message` if it cannot be read. */
+static unsigned char *read_file(const char *path, size_t *length, char *message, size_t size) {
+    FILE *file = fopen(path, "rb");
+    unsigned char *data = NULL;
+    long end;
+    if (!file) {
+        fail(message, size, path, "cannot be opened");
+        return NULL;
+    }
+    if (fseek(file, 0, SEEK_END) == 0 && (end = ftell(file)) >= 0 && fseek(file, 0, SEEK_SET) == 0) {
+        *length = (size_t)end;
+        data = malloc(*length ? *length : 1);
+        if (data && fread(data, 1, *length, file) != *length) {
+            free(data);
+            data = NULL;
+        }
+    }
+    fclose(file);
+    if (!data) fail(message, size, path, "cannot be read");
+    return data;
+}
+
+static int all_finite(const double *values, size_t count) {
+    size_t k;
+    for (k = 0; k < count; k++)
+        if (!isfinite(values[k])) return 0;
+    return 1;
+}
+
+int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
+    size_t length = 0, A, T, cells, k;
+    double *values;
+    const unsigned char *p;
+    unsigned char *data = read_file(path, &length, message, size);
+    char reason[160];
+
+    memset(map, 0, sizeof *map);
+    if (!data) return -1;
+    if (length < HEADER_SIZE || memcmp(data, MAGIC, sizeof MAGIC) != 0) {
+        free(data);
+        return fail(message, size, path, "not a TE map table (no RVTEMAP magic)");
+    }
+    if (read_u32(data + 8) != FORMAT_VERSION) {
+        snprintf(reason, sizeof reason, "format version %lu, this FMU reads version %d",
+                 (unsigned long)read_u32(data + 8), FORMAT_VERSION);
+        free(data);
+        return fail(message, size, path, reason);
+    }
+    A = read_u32(data + 12);
+    T = read_u32(data + 16);
+    /* sizes against the file length, by division: no product can overflow */
+    if (A < 2 || T < 2 || T > (length - HEADER_SIZE) / 8
+        || A > (length - HEADER_SIZE - 8 * T) / (32 * T)
+        || length != HEADER_SIZE + 8 * T + 32 * T * A) {
+        snprintf(reason, sizeof reason, "%lu angle points x %lu torque levels do not fit its %lu "
+                 "bytes (%lu expected)", (unsigned long)A, (unsigned long)T, (unsigned long)length,
+                 (unsigned long)(HEADER_SIZE + 8 * T + 32 * T * A));
+        free(data);
+        return fail(message, size, path, reason);
+    }
+    cells = 2 * T * A;
+    values = malloc((T + 2 * cells) * sizeof *values);
+    if (!values) {
+        free(data);
+        return fail(message, size, path, "out of memory");
+    }
+    map->points = (int)A;
+    map->levels = (int)T;
+    map->ratio = read_f64(data + 24);
+    map->rated_torque = read_f64(data + 32);
+    map->momentary_factor = read_f64(data + 40);
+    map->emergency_factor = read_f64(data + 48);
+    for (k = 0, p = data + HEADER_SIZE; k < T + 2 * cells; k++, p += 8) values[k] = read_f64(p);
+    free(data);
+    map->magnitude = values;
+    map->te = values + T;
+    map->tau_in = values + T + cells;
+
+    if (!(isfinite(map->ratio) && map->ratio > 0 && isfinite(map->rated_torque)
+          && map->rated_torque > 0 && isfinite(map->momentary_factor) && map->momentary_factor > 0
+          && isfinite(map->emergency_factor) && map->emergency_factor >= map->momentary_factor))
+        strcpy(reason, "ratio, rated torque and load classes must be finite and > 0");
+    else if (!all_finite(values, T + 2 * cells))
+        strcpy(reason, "non-finite values in the torque levels, te or tau_in");
+    else if (map->magnitude[0] != 0.0)
+        strcpy(reason, "the first torque level must be 0");
+    else {
+        reason[0] = '\0';
+        for (k = 1; k < T; k++)
+            if (!(map->magnitude[k] > map->magnitude[k - 1])) {
+                strcpy(reason, "the torque levels must be strictly ascending");
+                break;
+            }
+    }
+    if (reason[0]) {
+        te_map_free(map);
+        return fail(message, size, path, reason);
+    }
+    /* as TEMap.period and TEMap._per_radian */
+    map->period = 2.0 * PI * map->ratio;
+    map->per_radian = (double)A / map->period;
+    return 0;
+}
+
+void te_map_free(TEMap *map) {
+    free(map->magnitude);
+    memset(map, 0, sizeof *map);
+}
+
+/* -- interpolation: TEMap.evaluate_one ------------------------------------------------- */
+
+/* |x| mod y for y > 0, exactly as fmod computes it, with the sign of x: subtracting y * 2^k
+ * from r when y * 2^k <= r < 2 y * 2^k is exact (Sterbenz), and so is halving y * 2^k.  Not
+ * fmod itself: then the library needs no libm, which a tool building sources/ may not link. */
+static double remainder_of(double x, double y) {
+    double r = fabs(x), d = y;
+    if (isinf(x)) return x - x;      /* NaN, as fmod */
+    if (r < y) return x;
+    while (d <= r / 2) d += d;       /* the largest y * 2^k <= r */
+    for (;;) {
+        if (r >= d) r -= d;          /* r < 2d before, r < d after */
+        if (d == y) break;
+        d *= 0.5;
+    }
+    return x < 0 ? -r : r;
+}
+
+/* Python's float `%` for a divisor y > 0: the remainder is >= 0 (CPython float_rem). */
+static double python_mod(double x, double y) {
+    double mod = remainder_of(x, y);
+    if (mod != 0.0) {
+        if (mod < 0) mod += y;
+    } else {
+        mod = 0.0;
+    }
+    return mod;
+}
+
+/* bisect.bisect_right: the index of the first level > x. */
+static int bisect_right(const double *levels, int count, double x) {
+    int lo = 0, hi = count;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (x < levels[mid]) hi = mid;
+        else lo = mid + 1;
+    }
+    return lo;
+}
+
+/* Linear in angle on two levels' rows, then linear in torque between them. */
+static double bilinear(const double *lo, const double *hi, int i0, int i1, double wa, double wt) {
+    double a = lo[i0] + wa * (lo[i1] - lo[i0]);
+    return a + wt * (hi[i0] + wa * (hi[i1] - hi[i0]) - a);
+}
+
+void te_map_evaluate(const TEMap *map, double theta_in, double tau_load, double *te, double *tau_in) {
+    const int A = map->points, last_level = map->levels - 2;
+    double position = python_mod(theta_in, map->period) * map->per_radian;
+    long whole = (long)position;          /* int(position): position >= 0 */
+    double wa = position - (double)whole;
+    int i0 = (int)(whole % A), i1 = i0 + 1 < A ? i0 + 1 : 0;
+    int branch = tau_load > 0;            /* 1: driving loads; 0: resisting loads and no load */
+    double magnitude = branch ? tau_load : -tau_load;
+    const double *levels = map->magnitude;
+    int j0 = bisect_right(levels, map->levels, magnitude) - 1;
+    double wt;
+    size_t row;                           /* te[branch][j0][0], tau_in[branch][j0][0] */
+    j0 = j0 < 0 ? 0 : (j0 > last_level ? last_level : j0);   /* beyond the grid: extrapolate */
+    wt = (magnitude - levels[j0]) / (levels[j0 + 1] - levels[j0]);
+    row = ((size_t)branch * (size_t)map->levels + (size_t)j0) * (size_t)A;
+    *te = bilinear(map->te + row, map->te + row + A, i0, i1, wa, wt);
+    *tau_in = bilinear(map->tau_in + row, map->tau_in + row + A, i0, i1, wa, wt);
+}
+
+/* -- the reducer: QuasiStaticReducer --------------------------------------------------- */
+
+void reducer_initialize(Reducer *reducer, const TEMap *map, double time, double theta_in,
+                        double tau_load) {
+    te_map_evaluate(map, theta_in, tau_load, &reducer->te, &reducer->tau_in);
+    reducer->time = time;
+    reducer->theta_out = theta_in / map->ratio + reducer->te;
+    reducer->omega_out = 0.0;
+}
+
+void reducer_step(Reducer *reducer, const TEMap *map, double time, double step_size,
+                  double theta_in, double tau_load) {
+    double theta_out;
+    te_map_evaluate(map, theta_in, tau_load, &reducer->te, &reducer->tau_in);
+    theta_out = theta_in / map->ratio + reducer->te;
+    reducer->omega_out = step_size > 0 ? (theta_out - reducer->theta_out) / step_size : 0.0;
+    reducer->theta_out = theta_out;
+    reducer->time = time + step_size;
+}
+
+double te_arcsec(double te) {
+    return te / ARCSEC_RAD;
+}
+
+/* -- input checks: rvfmu/fmu/slave.py and rvfmu.core.limits.check_load ------------------ */
+
+InputCheck reducer_check_inputs(const TEMap *map, double theta_in, double tau_load, int check_step,
+                                double step_size, char *message, size_t size) {
+    char value[40];
+    double ratio;
+    if (check_step && !(step_size > 0.0)) {
+        format_number(step_size, value, sizeof value);
+        snprintf(message, size, "communication step size = %s: must be a number > 0", value);
+        return INPUT_REFUSED;
+    }
+    if (!isfinite(theta_in) || !isfinite(tau_load)) {
+        const char *name = isfinite(theta_in) ? "tau_load" : "theta_in";
+        format_number(isfinite(theta_in) ? tau_load : theta_in, value, sizeof value);
+        snprintf(message, size, "input %s = %s: must be finite", name, value);
+        return INPUT_REFUSED;
+    }
+    ratio = fabs(tau_load) / map->rated_torque;
+    if (ratio > map->emergency_factor) {
+        format_number(tau_load, value, sizeof value);
+        snprintf(message, size, "input tau_load = %s: must be within +-%g x the rated torque %g N*m "
+                 "(emergency-stop class, %g N*m): the small-displacement model does not hold "
+                 "beyond", value, map->emergency_factor, map->rated_torque,
+                 map->emergency_factor * map->rated_torque);
+        return INPUT_REFUSED;
+    }
+    if (ratio > map->momentary_factor) {
+        snprintf(message, size, "input tau_load = %g N*m is %.2g x the rated torque %g N*m, above "
+                 "the momentary maximum class (%g x): the small-displacement model is stretched; "
+                 "treat the results with care", tau_load, ratio, map->rated_torque,
+                 map->momentary_factor);
+        return INPUT_WARNING;
+    }
+    return INPUT_OK;
+}
+
+void format_number(double value, char *text, size_t size) {
+    char shortest[40], digits[24], fixed[48];
+    const char *p;
+    int precision, exponent, count = 0, k;
+    size_t n = 0;
+    if (isnan(value)) {
+        snprintf(text, size, "nan");
+        return;
+    }
+    if (isinf(value)) {
+        snprintf(text, size, value > 0 ? "inf" : "-inf");
+        return;
+    }
+    for (precision = 1; precision < 17; precision++) {   /* the fewest digits that read back */
+        snprintf(shortest, sizeof shortest, "%.*e", precision - 1, value);
+        if (strtod(shortest, NULL) == value) break;
+    }
+    snprintf(shortest, sizeof shortest, "%.*e", precision - 1, value);
+    for (p = shortest; *p && *p != 'e'; p++)
+        if (*p >= '0' && *p <= '9') digits[count++] = *p;
+    exponent = atoi(p + 1);
+    if (exponent < -4 || exponent >= 16) {   /* repr's switch to scientific notation */
+        snprintf(text, size, "%s", shortest);
+        return;
+    }
+    /* fixed notation with at least one digit after the point, as repr */
+    if (signbit(value)) fixed[n++] = '-';
+    if (exponent < 0) {
+        fixed[n++] = '0';
+        fixed[n++] = '.';
+        for (k = -1; k > exponent; k--) fixed[n++] = '0';
+        for (k = 0; k < count; k++) fixed[n++] = digits[k];
+    } else {
+        for (k = 0; k <= exponent; k++) fixed[n++] = k < count ? digits[k] : '0';
+        fixed[n++] = '.';
+        if (count > exponent + 1)
+            for (k = exponent + 1; k < count; k++) fixed[n++] = digits[k];
+        else
+            fixed[n++] = '0';
+    }
+    fixed[n] = '\0';
+    snprintf(text, size, "%s", fixed);
+}

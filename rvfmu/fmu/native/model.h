@@ -1,0 +1,80 @@
+/* The quasi-static RV reducer stepped from its TE map: the physics of the native FMU.
+ *
+ * Knows nothing of FMI (fmi2Functions.c maps the FMI calls onto it).  The TE
+ * map is the one `rvfmu.core.te_map.TEMap` holds, read from the binary table
+ * that `rvfmu.fmu.native` writes (layout in model.c); interpolating it and
+ * stepping the reducer reproduce `TEMap.evaluate_one` and
+ * `rvfmu.core.reducer_model.QuasiStaticReducer` operation for operation.
+ */
+#ifndef RVTE_MODEL_H
+#define RVTE_MODEL_H
+
+#include <stddef.h>
+
+/* Kept out of the shared library's exports where the compiler can: only the fmi2 functions
+ * are the FMU's interface, and a host may load other FMUs with functions of these names. */
+#if defined __GNUC__ && !defined _WIN32
+#pragma GCC visibility push(hidden)
+#endif
+
+#define RV_MESSAGE_SIZE 1024   /* room for any message of this file, a path included */
+
+/* TE [rad] and input torque [N*m] over input angle x torque magnitude, two load branches. */
+typedef struct {
+    int points;                /* A: angle points over one output revolution */
+    int levels;                /* T: torque levels */
+    double ratio;              /* i = theta_in / theta_out */
+    double rated_torque;       /* [N*m] */
+    double momentary_factor;   /* x rated: above, the step is computed with a warning */
+    double emergency_factor;   /* x rated: above, the step is refused */
+    double period;             /* input angle of one output revolution [rad] */
+    double per_radian;         /* angle points per radian of input */
+    double *magnitude;         /* (T,) ascending torque magnitudes [N*m], the first 0 */
+    double *te;                /* (2, T, A): branch 0 resisting loads, 1 driving loads [rad] */
+    double *tau_in;            /* (2, T, A) [N*m] */
+} TEMap;
+
+/* The reducer's whole state, and its outputs at `time`. */
+typedef struct {
+    double time;        /* [s] */
+    double theta_out;   /* [rad] */
+    double omega_out;   /* [rad/s]: change of theta_out over the last step / its size */
+    double te;          /* [rad] */
+    double tau_in;      /* [N*m] */
+} Reducer;
+
+typedef enum { INPUT_OK = 0, INPUT_WARNING = 1, INPUT_REFUSED = 2 } InputCheck;
+
+/* Read and check the table at `path`; 0 on success, else -1 with the reason in `message`. */
+int te_map_read(const char *path, TEMap *map, char *message, size_t size);
+void te_map_free(TEMap *map);
+
+/* TE [rad] and input torque [N*m] at one input angle [rad] and load torque [N*m]. */
+void te_map_evaluate(const TEMap *map, double theta_in, double tau_load, double *te, double *tau_in);
+
+/* Outputs at `time` for the initial inputs: omega_out = 0. */
+void reducer_initialize(Reducer *reducer, const TEMap *map, double time, double theta_in,
+                        double tau_load);
+
+/* Outputs at time + step_size (step_size > 0) for the inputs there. */
+void reducer_step(Reducer *reducer, const TEMap *map, double time, double step_size,
+                  double theta_in, double tau_load);
+
+/* te [rad] in arcseconds. */
+double te_arcsec(double te);
+
+/* Whether the model can take these inputs (and, if check_step, this step size).
+ * INPUT_REFUSED: an input not finite, a step size not > 0 or a load beyond the
+ * emergency-stop class; INPUT_WARNING: a load beyond the momentary maximum class.
+ * The reason goes to `message` (the texts of the pythonfmu FMU, rvfmu/fmu/slave.py). */
+InputCheck reducer_check_inputs(const TEMap *map, double theta_in, double tau_load, int check_step,
+                                double step_size, char *message, size_t size);
+
+/* Python's repr() of a float (shortest text that reads back the same, "0.0", "nan", "-inf"). */
+void format_number(double value, char *text, size_t size);
+
+#if defined __GNUC__ && !defined _WIN32
+#pragma GCC visibility pop
+#endif
+
+#endif
