@@ -183,3 +183,20 @@ def test_the_fmu_bundles_the_compiled_kernels_and_a_host_loads_them_without_comp
     loaded = [line for line in proc.stdout.splitlines() if line.startswith("[cache] data loaded")]
     assert len(loaded) == 2 and all(str(tmp_path) in line for line in loaded)
     assert "data saved" not in proc.stdout
+
+
+def test_the_dynamic_input_torque_is_the_mean_over_the_communication_step(rv40, seed002):
+    from rvfmu.core.dynamic_reducer import DynamicReducer
+
+    # 40 internal steps of 25 us in a 1 ms step are the 10 of each of its four 0.25 ms steps:
+    # the same motion, so the 1 ms tau_in is the mean of the four
+    speed, load = FAST, -206.0
+    coarse, fine = DynamicReducer(rv40, seed002, 2.5e-5), DynamicReducer(rv40, seed002, 2.5e-5)
+    coarse.initialize(0.0, 0.0, load)
+    fine.initialize(0.0, 0.0, load)
+    for k in range(5):
+        big = coarse.step(k * 1e-3, 1e-3, speed * (k + 1) * 1e-3, load)
+        small = [fine.step(k * 1e-3 + m * 2.5e-4, 2.5e-4, speed * (k * 1e-3 + (m + 1) * 2.5e-4), load)
+                 for m in range(4)]
+        assert big.tau_in == pytest.approx(np.mean([o.tau_in for o in small]), rel=1e-9, abs=1e-12)
+        assert big.te == pytest.approx(small[-1].te, rel=1e-9, abs=1e-15)

@@ -5,7 +5,8 @@ communication step; inside the step the input angle is taken as a straight
 line from its previous value (constant speed over the step, the only motion
 the host's samples define) and the load is held at its new value, and the
 Newmark stepper runs internal steps of at most `internal_step` seconds.  The
-state is the displacements, velocities and accelerations of every unknown with
+outputs are those at the end of the step, but for tau_in, its mean over the
+step.  The state is the displacements, velocities and accelerations of every unknown with
 the last input angle and time: a master can save it, roll back and re-step to
 the same results.
 """
@@ -47,12 +48,11 @@ class DynamicReducer:
             self.model = DynamicModel(self.design, self.errors, self.contact, self.mesh, flank)
         return self.model
 
-    def _outputs(self, omega_in: float, tau_load: float) -> Outputs:
+    def _outputs(self, omega_in: float, tau_in: float) -> Outputs:
         model, s = self.model, self.state
         te = s.q[model.carrier_rot] / model.scale
         omega_out = omega_in / self.design.ratio + s.v[model.carrier_rot] / model.scale
-        return Outputs(self.theta_in / self.design.ratio + te, omega_out, te,
-                       model.input_torque(s.q, s.v))
+        return Outputs(self.theta_in / self.design.ratio + te, omega_out, te, tau_in)
 
     def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:
         """At rest in the elastic equilibrium under tau_load at theta_in."""
@@ -62,7 +62,7 @@ class DynamicReducer:
         self.time, self.theta_in = float(time), float(theta_in)
         self.state = State(q, np.zeros(model.n), np.zeros(model.n))
         self.omega_in = 0.0
-        return self._outputs(0.0, tau_load)
+        return self._outputs(0.0, model.input_torque(q, np.zeros(model.n)))
 
     def step(self, time: float, step_size: float, theta_in: float, tau_load: float) -> Outputs:
         """Outputs at time + step_size for the inputs there."""
@@ -73,11 +73,18 @@ class DynamicReducer:
         model = self._model(tau_load)
         # the nominal motion's d'Alembert forces come at this constant speed (centripetal terms)
         model.prepare(Motion(t, angles, np.full(t.size, omega), np.zeros(t.size), tau_load))
+        start = model.input_torque(self.state.q, self.state.v)
         stepper = NewmarkStepper(model, self.state)
-        stepper.advance(count)
+        q, v = np.empty((count + 1, model.n)), np.empty((count + 1, model.n))
+        stepper.advance(count, q, v)
+        # tau_in over the step, its mean (trapezoid over the internal steps): what a host that
+        # holds it over its next step should get; the end value alone carries the sun's ringing
+        # on its shaft (kHz), sampled once per communication step
+        torque = np.concatenate([[start], model.input_torque(q[1:].T, v[1:].T)])
+        tau_in = float(np.sum(0.5 * np.diff(t) * (torque[1:] + torque[:-1])) / step_size)
         self.state = stepper.state
         self.time, self.theta_in, self.omega_in = time + step_size, float(theta_in), omega
-        return self._outputs(omega, tau_load)
+        return self._outputs(omega, tau_in)
 
     def get_state(self) -> dict:
         s = self.state
