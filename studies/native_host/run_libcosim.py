@@ -10,11 +10,14 @@ embedded interpreter where its standard library and numpy/scipy are; run it as
             [--duration S] [--model {quasistatic,dynamic}]
 
 (`python studies/native_host/env.py` prints those three values for this Python.)
+A native FMU (`rvte fmu build --native`) embeds no Python: it runs with none of
+the three, and it has no `model` parameter (it is the quasi-static TE map).
 The input shaft turns at a constant speed under a constant resisting load;
 the output angle, TE and input torque are written to a CSV file, one row per step.
 `--model` sets the FMU's string parameter `model` before initialisation:
 `quasistatic` (the TE map, the FMU's default) or `dynamic` (the dynamic model,
-stepped inside each 1 ms communication step at the FMU's `dynamic_step`).
+stepped inside each 1 ms communication step at the FMU's `dynamic_step`); an
+FMU without that parameter runs only as `quasistatic`.
 """
 
 import argparse
@@ -41,8 +44,11 @@ def run(fmu, out, speed=1600 * 2 * 3.141592653589793 / 60, load=0.0, step=1e-3, 
     execution.add_observer(observer)
     names = ["theta_out", "te_arcsec", "omega_out", "tau_in"]
     refs = [variables[n] for n in names]
-    if not execution.string_initial_value(index, variables["model"], model):
-        raise RuntimeError(f"libcosim refused the initial value model = {model!r}")
+    if "model" in variables:
+        if not execution.string_initial_value(index, variables["model"], model):
+            raise RuntimeError(f"libcosim refused the initial value model = {model!r}")
+    elif model != "quasistatic":
+        raise RuntimeError(f"{fmu} has no parameter `model`: it runs the quasi-static TE map only")
     execution.real_initial_value(index, variables["tau_load"], -load)
     rows = []
     steps = int(round(duration / step))
