@@ -21,26 +21,17 @@ from pathlib import Path
 import fmpy
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
+from fmpy import extract
 
 from conftest import ROOT
-from rvfmu.fmu.api import fmu_build
 from rvfmu.fmu.native import C_FLAGS, SOURCE_FILES, TABLE_NAME, read_table
-from test_fmu_native import corrupt
+from test_fmu_native import corrupt, native  # noqa: F401 - the native FMU fixture
 
-MAP_POINTS = 624                 # as test_fmu_native's `clean`: the hosts, not the map, are tested
 SPEED = 1600 * 2 * np.pi / 60    # rad/s at the input, as in seeds 000/001
 HEADERS = Path(fmpy.__file__).parent / "c-code"    # the FMI 2.0 headers fmpy ships
 HOST_SOURCE = Path(__file__).with_name("native_host_cycles.c")
 CYCLES, STEPS = 100, 300
 SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer"]
-
-
-@pytest.fixture(scope="module")
-def native(tmp_path_factory, rv40, seed002):
-    path = fmu_build(rv40, seed002, tmp_path_factory.mktemp("native") / "RVReducer.fmu",
-                     points=MAP_POINTS, native=True)
-    return path, read_model_description(str(path))
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,9 @@
-"""`rvte mc` and `rvte sobol`: registered on the `rvte` parser by `add_study_commands`,
-which `rvte` finds through the entry-point group `rvte.commands` (pyproject.toml).
+"""`rvte mc`, `rvte sobol` and `rvte report`: registered on the `rvte` parser by
+`add_study_commands`, which `rvte` finds through the entry-point group `rvte.commands`
+(pyproject.toml).
 
-Each sub-command is a few lines over `tolerance.run_mc` / `tolerance.run_sobol`.
+Each sub-command is a few lines over `tolerance.run_mc` / `tolerance.run_sobol` /
+`tolerance.report`.
 The table goes to stdout, or with --json one JSON document (for scripts);
 the progress bar, the load warning, the cost estimate and the one-line run
 summary go to stderr.
@@ -34,6 +36,15 @@ def _sobol(args):
                        scheduler=args.scheduler, progress=None, plots=not args.no_plots, log=_log,
                        yes=args.yes)
     _show(result, args.json)
+
+
+def _report(args):
+    from .html_report import report
+
+    result = report(args.output_dir, args.output, args.markdown, study_file=args.study)
+    for text in result.summary["warnings"]:
+        _log(f"warning: {text}")
+    print(json.dumps(result.to_json(), indent=1) if args.json else result.text())
 
 
 def _show(result, as_json):
@@ -76,3 +87,16 @@ def add_study_commands(subparsers) -> None:
     p.add_argument("--second-order", action="store_true", help="also second-order indices "
                    "(n*(2G+2) runs)")
     p.set_defaults(run=_sobol)
+
+    p = subparsers.add_parser("report", help="one self-contained HTML report (and a Markdown "
+                              "summary) of a study's output folder, to send or to keep")
+    p.add_argument("output_dir", help="the study's output folder (written by rvte mc / rvte sobol)")
+    p.add_argument("-o", "--output", metavar="HTML", help="the HTML file to write (default: "
+                   "report.html in the output folder)")
+    p.add_argument("--markdown", metavar="MD", help="the Markdown summary to write (default: the "
+                   "HTML file's name with .md)")
+    p.add_argument("--study", metavar="STUDY", help="the study file as it is now, to tell whether "
+                   "it changed since the results were computed (default: NAME.toml beside "
+                   "NAME/output, the default output folder of a study)")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON document")
+    p.set_defaults(run=_report)

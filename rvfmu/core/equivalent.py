@@ -198,7 +198,7 @@ class EquivalentModel:
     # -- geometry ------------------------------------------------------------------
     def _build_geometry(self):
         d, p = self.design, self.pose
-        A, n, n_c = p.theta_in.size, self.n_dof, d.n_c
+        A, n_c = p.theta_in.size, d.n_c
         a = d.crank_circle_radius
         r_s, r_pl = d.m * d.z_s / 2.0, d.m * d.z_pl / 2.0
         crank_dir = p.theta_out[:, None] + 2.0 * np.pi * np.arange(n_c) / n_c     # (A, n_c)

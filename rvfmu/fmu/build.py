@@ -59,11 +59,7 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
     """
     from pythonfmu import FmuBuilder
 
-    errors = zero_errors(design) if errors is None else errors.check(design)
-    output = Path(output)
-    if output.suffix != ".fmu":
-        output = output.with_suffix(".fmu")
-    te_map = build_te_map(design, errors, points=points, progress=progress)
+    errors, output, te_map = prepare(design, errors, output, points, progress)
     with tempfile.TemporaryDirectory(prefix="rvte_fmu_") as tmp:
         tmp = Path(tmp)
         package = tmp / "rvfmu"
@@ -71,9 +67,9 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
                         ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
         (package / "__init__.py").write_text((PACKAGE / "__init__.py").read_text())
         sources = sources or {}
-        (tmp / BUNDLED_DESIGN).write_text(_source_line(sources.get("design"))
+        (tmp / BUNDLED_DESIGN).write_text(source_line(sources.get("design"))
                                           + toml_text(design.file_values()))
-        (tmp / BUNDLED_ERRORS).write_text(_source_line(sources.get("errors"))
+        (tmp / BUNDLED_ERRORS).write_text(source_line(sources.get("errors"))
                                           + toml_text(error_file_values(errors)))
         np.savez(tmp / BUNDLED_MAP, **te_map.to_arrays())
         script = tmp / "src" / f"{MODULE_NAME}.py"
@@ -93,6 +89,15 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
         for path in compile_kernels():
             archive.write(path, f"resources/rvfmu/core/__pycache__/{path.name}")
     return Path(built)
+
+
+def prepare(design: RVDesign, errors: ErrorSet | None, output, points, progress):
+    """(errors, output path with the suffix .fmu, TE map): what every FMU build starts from."""
+    errors = zero_errors(design) if errors is None else errors.check(design)
+    output = Path(output)
+    if output.suffix != ".fmu":
+        output = output.with_suffix(".fmu")
+    return errors, output, build_te_map(design, errors, points=points, progress=progress)
 
 
 def complete_model_description(fmu: Path) -> None:
@@ -141,5 +146,5 @@ def complete_model_description(fmu: Path) -> None:
 SOURCE_PREFIX = "# source: "
 
 
-def _source_line(source) -> str:
+def source_line(source) -> str:
     return f"{SOURCE_PREFIX}{source}\n" if source else ""

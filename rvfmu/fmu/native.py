@@ -63,10 +63,10 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from ..core.design import RVDesign
-from ..core.errors import ErrorSet, error_file_values, toml_text, zero_errors
+from ..core.errors import ErrorSet, error_file_values, toml_text
 from ..core.limits import EMERGENCY_FACTOR, MOMENTARY_FACTOR
-from ..core.te_map import TEMap, build_te_map
-from .build import _source_line, complete_model_description
+from ..core.te_map import TEMap
+from .build import complete_model_description, prepare, source_line
 from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS
 
 NATIVE_SOURCES = Path(__file__).resolve().parent / "native"
@@ -96,11 +96,7 @@ def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
     binaries/win64 with mingw-w64 where it is installed; `native_platforms` says
     which an FMU carries.
     """
-    errors = zero_errors(design) if errors is None else errors.check(design)
-    output = Path(output)
-    if output.suffix != ".fmu":
-        output = output.with_suffix(".fmu")
-    te_map = build_te_map(design, errors, points=points, progress=progress)
+    errors, output, te_map = prepare(design, errors, output, points, progress)
     with tempfile.TemporaryDirectory(prefix="rvte_native_") as tmp:
         unzipped = Path(tmp) / "fmu"
         resources, source_dir = unzipped / "resources", unzipped / "sources"
@@ -108,9 +104,9 @@ def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
         source_dir.mkdir()
         write_table(te_map, design.rated_torque, resources / TABLE_NAME)
         sources = sources or {}
-        (resources / BUNDLED_DESIGN).write_text(_source_line(sources.get("design"))
+        (resources / BUNDLED_DESIGN).write_text(source_line(sources.get("design"))
                                                 + toml_text(design.file_values()))
-        (resources / BUNDLED_ERRORS).write_text(_source_line(sources.get("errors"))
+        (resources / BUNDLED_ERRORS).write_text(source_line(sources.get("errors"))
                                                 + toml_text(error_file_values(errors)))
         for name in (*SOURCE_FILES, "model.h"):
             shutil.copy2(NATIVE_SOURCES / name, source_dir / name)
