@@ -9,7 +9,7 @@ from rvfmu.core.metrics import (NOISE_FLOOR_ARCSEC, NOISE_FLOOR_RELATIVE, highes
                                 largest_orders, noise_floor, significant_orders)
 from rvfmu.core.quasistatic import TECurve, input_angles
 from rvfmu.core.units import rad_to_arcsec
-from tolerance import report, sobol
+from tolerance import sobol, summaries
 from tolerance.montecarlo import analyze as analyze_mc
 from tolerance.study import load_study
 from tolerance_toy import write_study
@@ -147,7 +147,7 @@ def test_plot_te_still_writes_the_file(tmp_path):
     ("something_else", "something_else"),
 ])
 def test_column_label(column, label):
-    assert report.column_label(column) == label
+    assert summaries.column_label(column) == label
 
 
 COLUMNS = ("te_pp_arcsec", "rms_arcsec", "lost_motion_arcmin", "torsional_rigidity_Nm_per_arcmin",
@@ -193,20 +193,20 @@ def test_mc_figure_labels_are_for_people(study, tmp_path):
     rng = np.random.default_rng(3)
     Y = fake_outputs(rng.random((40, len(study.columns))))
     analysis = analyze_mc(study, Y, np.ones(40, bool))
-    fig = report.figure_mc(study, Y, analysis)
+    fig = summaries.figure_mc(study, Y, analysis)
     assert len(fig.axes) == 2 * len(COLUMNS)
     for j, column in enumerate(COLUMNS):
         ax_h, ax_c = fig.axes[2 * j], fig.axes[2 * j + 1]
-        assert ax_h.get_xlabel() == ax_c.get_xlabel() == report.column_label(column)
+        assert ax_h.get_xlabel() == ax_c.get_xlabel() == summaries.column_label(column)
         assert ax_h.get_ylabel() == "reducers"
-        assert report.column_label(column) in ax_c.get_title()
+        assert summaries.column_label(column) in ax_c.get_title()
     te_pp_legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert te_pp_legend == ["spec ≤ 30 arcsec"]
     rigidity_legend = [t.get_text() for t in fig.axes[6].get_legend().get_texts()]
     assert rigidity_legend == ["spec ≥ 300 N·m/arcmin"]
     assert "yield" in fig.axes[1].get_title()
     no_column_names(all_texts(fig))
-    path = report.plot_mc(study, Y, analysis, tmp_path / "mc.png")   # the writer still works
+    path = summaries.plot_mc(study, Y, analysis, tmp_path / "mc.png")   # the writer still works
     assert path.is_file()
 
 
@@ -218,26 +218,26 @@ def analyses(study):
 
 
 def test_sobol_figures_labels_are_for_people(study, analyses, tmp_path):
-    bars = report.figure_sobol(study, analyses)
+    bars = summaries.figure_sobol(study, analyses)
     assert len(bars.axes) == len(COLUMNS)
     for ax, column in zip(bars.axes, COLUMNS):
-        assert ax.get_title().startswith(report.column_label(column) + ":")
+        assert ax.get_title().startswith(summaries.column_label(column) + ":")
         assert ax.get_ylabel() == "Sobol index (share of variance)"
         assert [t.get_text() for t in ax.get_xticklabels()][0] in study.groups
     no_column_names(all_texts(bars))
-    conv = report.figure_convergence(study, analyses)
+    conv = summaries.figure_convergence(study, analyses)
     for ax, column in zip(conv.axes, COLUMNS):
-        assert ax.get_title().startswith(report.column_label(column) + ":")
+        assert ax.get_title().startswith(summaries.column_label(column) + ":")
         assert ax.get_xlabel() == "base samples N" and ax.get_ylabel() == "total Sobol index ST"
     no_column_names(all_texts(conv))
-    assert report.plot_sobol(study, analyses, tmp_path / "bars.png").is_file()
-    assert report.plot_convergence(study, analyses, tmp_path / "conv.png").is_file()
+    assert summaries.plot_sobol(study, analyses, tmp_path / "bars.png").is_file()
+    assert summaries.plot_convergence(study, analyses, tmp_path / "conv.png").is_file()
 
 
 def test_tables_and_json_keep_the_column_names(study, analyses):
-    text = report.sobol_table(study, analyses, 16, 16 * 5, False)
+    text = summaries.sobol_table(study, analyses, 16, 16 * 5, False)
     assert "te_pp_arcsec  (S1, ST" in text
-    data = report.sobol_json(study, analyses, 16, 80, False, {})
+    data = summaries.sobol_json(study, analyses, 16, 80, False, {})
     assert set(data["metrics"]) == set(COLUMNS)
 
 
@@ -267,11 +267,11 @@ def test_the_sobol_table_explains_its_notes(study):
                         0.95)
     conv = sobol.Convergence((16, 32, 64), np.tile(S1, (3, 1)), np.tile(ST, (3, 1)))
     analyses = {"te_pp_arcsec": sobol.SobolAnalysis("te_pp_arcsec", ind, conv)}
-    text = report.sobol_table(study, analyses, 64, 64 * (G + 2), False)
+    text = summaries.sobol_table(study, analyses, 64, 64 * (G + 2), False)
     row = next(line for line in text.splitlines() if study.groups[0] + " " in line)
     assert "S1 0.015 > ST 0.004 beyond their CIs: sampling noise, raise n" in row
     legend = text[text.index("Notes:"):]
     assert "S1 > ST" in legend and "never exceeds ST" in legend
     assert "sampling noise around zero" in legend and "CI wide" in legend
-    data = report.sobol_json(study, analyses, 64, 64 * (G + 2), False, {})
+    data = summaries.sobol_json(study, analyses, 64, 64 * (G + 2), False, {})
     assert "sampling noise, raise n" in data["metrics"]["te_pp_arcsec"]["groups"][-1]["notes"][0]

@@ -14,16 +14,9 @@ SALib's scheme over the quasi-static model:
 
 Names other than `evaluate` are imported on first use, so that `rvte te` does
 not pay for SALib, pyarrow and Dask.
-
-`tolerance.report` is also the module of the tables and figures
-(tolerance/report.py, which the jobs import by that name): so that both hold,
-whichever is imported first, that module is made callable, a call being the
-report job.
 """
 
-import sys
 from importlib import import_module
-from types import ModuleType
 
 from .evaluate import evaluate  # eager: the name would otherwise be taken by the submodule
 
@@ -35,9 +28,10 @@ _WHERE = {
     "errors_from_unit": ("sampling", "errors_from_unit"),
     "run_mc": ("run", "run_mc"), "run_sobol": ("run", "run_sobol"),
     "MCResult": ("run", "MCResult"), "SobolResult": ("run", "SobolResult"),
+    "report": ("html_report", "report"),
 }
 
-__all__ = ["evaluate", "report", *_WHERE]
+__all__ = ["evaluate", *_WHERE]
 
 
 def __getattr__(name):
@@ -45,30 +39,3 @@ def __getattr__(name):
         raise AttributeError(f"module 'tolerance' has no attribute {name!r}")
     module, attribute = _WHERE[name]
     return getattr(import_module(f".{module}", __name__), attribute)
-
-
-class _ReportModule(ModuleType):
-    """tolerance/report.py, callable: `tolerance.report(output_dir, ...)` is the report job."""
-
-    def __call__(self, output_dir, html_path=None, markdown_path=None, **options):
-        """`tolerance.html_report.report`: the HTML report and Markdown summary of an output folder."""
-        job = import_module(".html_report", __name__).report
-        return job(output_dir, html_path, markdown_path, **options)
-
-
-class _Package(ModuleType):
-    """This package, whose `report` is both the report job and the module of tables and figures."""
-
-    @property
-    def report(self):
-        module = import_module(".report", __name__)
-        if not isinstance(module, _ReportModule):
-            module.__class__ = _ReportModule
-        return module
-
-    @report.setter
-    def report(self, module):
-        pass    # the import system binds the submodule here; the getter above serves it
-
-
-sys.modules[__name__].__class__ = _Package

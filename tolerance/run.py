@@ -28,7 +28,7 @@ from rvfmu.core.errors import error_file_values, toml_text
 from rvfmu.core.quasistatic import TECurve, te_curve
 from rvfmu.outputs import output_folder
 
-from . import aliasing, montecarlo, report, sobol
+from . import aliasing, montecarlo, sobol, summaries
 from .backends import make_backend
 from .sampling import errors_from_unit
 from .store import BatchResult, JobStore, open_output
@@ -230,10 +230,10 @@ class MCResult:
     files: dict = field(default_factory=dict)
 
     def table(self) -> str:
-        return report.mc_table(self.study, self.analysis, self.computed, self.aliasing)
+        return summaries.mc_table(self.study, self.analysis, self.computed, self.aliasing)
 
     def to_json(self) -> dict:
-        return report.mc_json(self.study, self.analysis, {
+        return summaries.mc_json(self.study, self.analysis, {
             "computed_rows": int(self.computed.Y.shape[0]), "batch_size": self.study.batch_size,
             "aliasing": None if self.aliasing is None else self.aliasing.to_json(),
             "output": str(self.study.output), "files": {k: str(v) for k, v in self.files.items()},
@@ -289,7 +289,7 @@ def run_mc(study_path, n: int | None = None, *, output=None, processes: int | No
 
         files["worst_te_csv"] = write_te_csv(worst_curve, folder / "mc_worst_te.csv")
     if plots:
-        files["distribution"] = report.plot_mc(study, Y, analysis, folder / "mc_distribution.png")
+        files["distribution"] = summaries.plot_mc(study, Y, analysis, folder / "mc_distribution.png")
         if worst_curve is not None:
             from rvfmu.plots import plot_te
 
@@ -297,7 +297,7 @@ def run_mc(study_path, n: int | None = None, *, output=None, processes: int | No
                 f"{study.name}: worst of {n} reducers (row {analysis.worst}), "
                 f"te_pp {worst_curve.te_pp_arcsec[0]:.2f}″, {study.points} points/rev"))
     result = MCResult(study, n, Y, converged, analysis, worst_curve, computed, alias, files)
-    report.write_json(files["summary"], result.to_json())
+    summaries.write_json(files["summary"], result.to_json())
     return result
 
 
@@ -336,12 +336,12 @@ class SobolResult:
     files: dict = field(default_factory=dict)
 
     def table(self) -> str:
-        text = report.sobol_table(self.study, self.analyses, self.n, self.Y.shape[0],
+        text = summaries.sobol_table(self.study, self.analyses, self.n, self.Y.shape[0],
                                   self.second_order)
         return "\n".join([text, *self.aliasing.lines()]) if self.aliasing else text
 
     def to_json(self) -> dict:
-        return report.sobol_json(self.study, self.analyses, self.n, self.Y.shape[0],
+        return summaries.sobol_json(self.study, self.analyses, self.n, self.Y.shape[0],
                                  self.second_order, {
                                      "aliasing": None if self.aliasing is None
                                      else self.aliasing.to_json(),
@@ -396,12 +396,12 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     folder = Path(study.output)
     files = {"indices": folder / "sobol_indices.json", "ranking": folder / "sobol_ranking.txt"}
     if plots:
-        files["bars"] = report.plot_sobol(study, analyses, folder / "sobol_bars.png")
-        files["convergence"] = report.plot_convergence(study, analyses,
+        files["bars"] = summaries.plot_sobol(study, analyses, folder / "sobol_bars.png")
+        files["convergence"] = summaries.plot_convergence(study, analyses,
                                                        folder / "sobol_convergence.png")
     result = SobolResult(study, n, second_order, X, computed.Y, analyses, computed, alias, files)
     files["ranking"].write_text(result.table() + "\n")
-    report.write_json(files["indices"], result.to_json())
+    summaries.write_json(files["indices"], result.to_json())
     return result
 
 
