@@ -222,9 +222,11 @@ class DynamicModel:
         h = np.diff(m.time[start - 1:stop]) if start else np.diff(m.time[:stop], prepend=m.time[0])
         L = gather(model.linear_rows, self._linear_cols)
         B = gather(model.bearing_rows, self._bearing_cols)
-        return Geometry(h, np.maximum(self._linear_cols, 0), L, k_lin, lin,
-                        np.maximum(self._bearing_cols, 0), B, brg,
-                        np.ascontiguousarray(model.pin_rows), pins, external)
+        # every array C-contiguous: the compiled kernels then see one type signature, the
+        # one `compile_kernels` compiles and the FMU bundles, whatever the chunk's length
+        parts = (h, np.maximum(self._linear_cols, 0), L, k_lin, lin, np.maximum(self._bearing_cols, 0),
+                 B, brg, model.pin_rows, pins, external)
+        return Geometry(*(np.ascontiguousarray(x) for x in parts))
 
     def external(self, step: int) -> np.ndarray:
         """(n,) external generalised force at a step [N]: the load torque on the carrier and
