@@ -9,6 +9,8 @@ SALib's scheme over the quasi-static model:
 - `analyze_mc(study, Y, converged)`, `analyze_sobol(problem, Y, columns, ...)`.
 - `run_mc(study_path, n=None, ...)`, `run_sobol(study_path, n=None, ...)`: the whole jobs
   (store, backends, cost estimate, aliasing check, report), behind `rvte mc` and `rvte sobol`.
+- `allocate(study_path, yield_target=0.9973, ...) -> AllocationResult`: the least-cost
+  tolerances for a yield target, verified by Monte Carlo, behind `rvte allocate`.
 - `report(output_dir, html_path=None, markdown_path=None)`: one self-contained HTML report and
   a Markdown summary of an output folder (tolerance/html_report.py), behind `rvte report`.
 
@@ -29,6 +31,7 @@ _WHERE = {
     "run_mc": ("run", "run_mc"), "run_sobol": ("run", "run_sobol"),
     "MCResult": ("run", "MCResult"), "SobolResult": ("run", "SobolResult"),
     "report": ("html_report", "report"),
+    "allocate": ("allocate", "allocate"), "AllocationResult": ("allocate", "AllocationResult"),
 }
 
 __all__ = ["evaluate", *_WHERE]

@@ -47,6 +47,14 @@ def _report(args):
     print(json.dumps(result.to_json(), indent=1) if args.json else result.text())
 
 
+def _allocate(args):
+    from .allocate import allocate
+
+    result = allocate(args.study, args.yield_target, output=args.output, progress=None, n=args.n,
+                      processes=args.processes, log=_log, yes=args.yes)
+    _show(result, args.json)
+
+
 def _show(result, as_json):
     if as_json:
         print(json.dumps(result.to_json(), indent=1))
@@ -100,3 +108,19 @@ def add_study_commands(subparsers) -> None:
                    "NAME/output, the default output folder of a study)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON document")
     p.set_defaults(run=_report)
+
+    p = subparsers.add_parser("allocate", help="least-cost tolerances of a study for a yield "
+                              "target, verified by Monte Carlo (see docs/studies.md)")
+    p.add_argument("study", help="study TOML file with a [spec] (costs: [tolerances.NAME.cost])")
+    p.add_argument("--yield", dest="yield_target", type=float, default=0.9973, metavar="Y",
+                   help="yield to reach against all spec lines at once (default 0.9973)")
+    p.add_argument("-n", type=int, help="reducers of each verification Monte Carlo (default: the "
+                   "study's [montecarlo] n, at least 10000 for a yield >= 0.99)")
+    p.add_argument("-o", "--output", help="output folder, this study's or new (default: the "
+                   "study's); gets <name>_allocated.toml and allocation.json")
+    p.add_argument("--processes", type=int, metavar="N", help="run the Monte Carlo verifications "
+                   "on N local worker processes")
+    p.add_argument("--json", action="store_true", help="print allocation.json instead of the table")
+    p.add_argument("--yes", action="store_true", help="run even if a Monte Carlo's estimate is "
+                   "above a day or above the free disk")
+    p.set_defaults(run=_allocate)

@@ -30,12 +30,19 @@ arcsec) and names every tolerance by its error name:
     distribution = "uniform"       # or "normal" (tolerance = +-3 sigma); default uniform
     group = "crankshaft"           # optional: Sobol group shared with other factors
 
+    [tolerances.crank_cam_eccentricity.cost]   # optional, for `rvte allocate` (tolerance/cost.py)
+    a = 0.0                        # cost = a + b / t^k, t the allocated tolerance [um]
+    b = 64.0
+    k = 2.0
+    tightest_um = 4.0              # the tightest and loosest tolerance the process can hold
+    loosest_um = 20.0
+
 The statistical model of each kind of tolerance is in tolerance/sampling.py.
 A load_Nm beyond 5x the rated torque is refused; beyond 2.5x the runs warn
 (`Study.load_warning`, rvfmu.core.limits).  The study hash
 (`Study.inputs_hash`) covers everything that changes a computed number; the
-spec, the sample counts and the analysis settings are left out, so changing
-them reuses the stored batches.
+spec, the sample counts, the analysis settings and the cost tables are left
+out, so changing them reuses the stored batches.
 """
 
 from __future__ import annotations
@@ -55,6 +62,7 @@ from rvfmu.core.limits import check_load
 from rvfmu.core.quasistatic import default_points
 
 from . import sampling
+from .cost import CostModel, check_bounds, cost_model
 from .evaluate import LOWER_LIMITED, metric_column, metric_kind, metric_order
 
 SECTIONS = {
@@ -65,7 +73,7 @@ SECTIONS = {
     "sobol": ("n", "second_order", "resamples", "confidence"),
     "tolerances": None,  # keys: error names
 }
-FACTOR_KEYS = ("distribution", "group")
+FACTOR_KEYS = ("distribution", "group", "cost")
 MAX_BATCH = 4096        # reducers per batch: bigger batches only cost memory (S x points x pins)
 METRIC_NAMES_TEXT = ("must be te_pp, rms, lost_motion, torsional_rigidity or order_<k> "
                      "(k cycles per output revolution)")
@@ -78,6 +86,9 @@ class Factor:
 
     Values in um: position_um (zone diameter), cumulative_um and single_um (F_p,
     f_pt), band_um (width of the band), min_um and max_um (clearance range).
+    cost: the [tolerances.NAME.cost] table (tolerance/cost.py), or None for the
+    defaults of the kind; it changes no computed number, so it is not in
+    `file_values` and not in the study's inputs hash.
     """
 
     name: str
@@ -90,6 +101,7 @@ class Factor:
     band_um: float = 0.0
     min_um: float = 0.0
     max_um: float = 0.0
+    cost: CostModel | None = None
 
     def __post_init__(self):
         here = f"tolerances.{self.name}"
@@ -115,6 +127,10 @@ class Factor:
                                  "> 0 um (leave it out for no limit beyond cumulative_um)")
         if self.max_um < self.min_um:
             raise InputError(f"{here}.max_um", self.max_um, f"must be >= min_um = {self.min_um}")
+        if self.cost is not None:
+            if not isinstance(self.cost, CostModel):
+                raise InputError(f"{here}.cost", self.cost, "must be a tolerance.cost.CostModel")
+            check_bounds(self, f"{here}.cost")
 
     def file_values(self) -> dict:
         """The factor as the study file writes it (its kind's keys only)."""
@@ -393,6 +409,8 @@ def _factors(table: dict, where: str) -> tuple[Factor, ...]:
             if missing:
                 raise InputError(f"tolerances.{name}.{missing[0]}", None, f"is missing: a {kind} "
                                  f"tolerance needs {', '.join(required)} (um)", where)
+        if "cost" in values:
+            values = {**values, "cost": cost_model(values["cost"], f"tolerances.{name}.cost", where)}
         try:
             factors.append(Factor(name=name, kind=kind, **values))
         except InputError as exc:   # the same message, located in the study file

@@ -1,0 +1,254 @@
+"""Tolerance allocation: the cost model, the least-cost core on a stack-up with a closed form,
+and `allocate` / `rvte allocate` on a small reducer study."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy.special import ndtr, ndtri
+
+import tolerance
+from rvfmu.core.checks import InputError
+from tolerance import cost as costs
+from tolerance.allocate import Chaos, Limit, ScaledModel, allocate_scales
+from tolerance.run import run_mc
+from tolerance.study import load_study
+from tolerance_toy import toml_value, write_study
+
+
+def priced_study(folder, costs_of: dict, **options):
+    """`write_study` with a [tolerances.NAME.cost] table per entry of costs_of."""
+    path = write_study(folder, **options)
+    lines = [path.read_text()]
+    for name, table in costs_of.items():
+        lines.append(f"[tolerances.{name}.cost]\n" + "".join(f"{key} = {toml_value(value)}\n"
+                                                             for key, value in table.items()))
+    path.write_text("".join(lines))
+    return path
+
+
+# -- the cost model --------------------------------------------------------------------------------
+
+def test_reciprocal_power_cost_and_its_defaults_by_hand(tmp_path):
+    model = costs.CostModel(a=1.0, b=32.0, k=2.0, tightest_um=2.0, loosest_um=8.0)
+    assert model.cost(4.0) == pytest.approx(1.0 + 32.0 / 16.0)
+    assert model.slope(4.0) == pytest.approx(-2.0 * 32.0 / 16.0)   # d cost / d ln t
+    study = load_study(write_study(tmp_path))
+    zone = study.factors[0]                                       # carrier_assembly, 8 um
+    default = costs.resolved(zone)
+    assert (default.a, default.k, default.b) == (0.0, 2.0, 8.0 ** 2)  # one unit at 8 um (seed 002)
+    assert default.cost(8.0) == pytest.approx(1.0)
+    assert default.tightest_um == pytest.approx(8.0 / 10 ** 0.4)     # two IT grades either side
+    assert default.loosest_um == pytest.approx(8.0 * 10 ** 0.4)
+
+
+def test_the_allocated_number_of_each_kind_and_what_follows_it(tmp_path):
+    study = load_study(write_study(tmp_path, tolerances={
+        "disc_pitch": {"cumulative_um": 6.0, "single_um": 1.9},
+        "crank_disc_clearance": {"min_um": 2.0, "max_um": 8.0},
+        "pin_radial": {"band_um": 5.0}, "carrier_assembly": {"position_um": 8.0}}))
+    pitch, clearance, band, zone = study.factors
+    assert costs.scaled_values(pitch, 0.5) == {"cumulative_um": 3.0, "single_um": 0.95}
+    assert costs.scaled_values(clearance, 0.5) == {"max_um": 4.0, "min_um": 1.0}
+    assert costs.scaled_values(band, 2.0) == {"band_um": 10.0}
+    assert costs.scaled_values(zone, 0.25) == {"position_um": 2.0}
+    assert [costs.current_um(f) for f in study.factors] == [6.0, 8.0, 5.0, 8.0]
+
+
+def test_a_cost_section_changes_no_computed_number(tmp_path):
+    plain = load_study(write_study(tmp_path, name="plain"))
+    priced = load_study(priced_study(tmp_path, {
+        "carrier_assembly": {"a": 2.0, "b": 10.0, "k": 1.5, "tightest_um": 4.0, "loosest_um": 12.0},
+        "crank_cam_eccentricity": {"k": 1.0}}, name="priced"))
+    assert priced.inputs_hash == plain.inputs_hash
+    assert priced.factors[0].cost == costs.CostModel(a=2.0, b=10.0, k=1.5, tightest_um=4.0,
+                                                     loosest_um=12.0)
+    assert costs.resolved(priced.factors[1]).b == pytest.approx(8.0)   # 8 um ** k = 1
+
+
+@pytest.mark.parametrize("cost, field, words", [
+    ({"k": -1.0}, "cost.k", "exponent must be >= 0"),
+    ({"b": -2.0}, "cost.b", "must be >= 0"),
+    ({"tightest_um": 6.0, "loosest_um": 5.0}, "cost.tightest_um", "must be <= loosest_um"),
+    ({"tightest_um": 10.0}, "cost.tightest_um", "must be <= the current tolerance position_um"),
+    ({"tightest_um": 2.0, "loosest_um": 7.0}, "cost.loosest_um", "must be >= the current"),
+    ({"colour": 1}, "cost.colour", "is not a key of the cost table"),
+])
+def test_bad_cost_sections_are_one_line_naming_the_field(tmp_path, cost, field, words):
+    path = priced_study(tmp_path, {"carrier_assembly": cost},
+                        tolerances={"carrier_assembly": {"position_um": 8.0}})
+    with pytest.raises(InputError) as error:
+        load_study(path)
+    message = str(error.value)
+    assert "\n" not in message and message.startswith("toy.toml: ")
+    assert f"tolerances.carrier_assembly.{field} = " in message and words in message
+
+
+# -- the core on an analytic stack-up ----------------------------------------------------------------
+
+def test_chaos_evaluates_as_openturns_does():
+    rng = np.random.default_rng(4)
+    X = rng.uniform(-1, 1, (400, 3))
+    y = 1.0 + X[:, 0] - 2.0 * X[:, 1] * X[:, 2] + 0.5 * X[:, 2] ** 2
+    chaos = Chaos(X, y)
+    test = rng.uniform(-1, 1, (50, 3))
+    np.testing.assert_allclose(chaos(test), np.asarray(chaos.metamodel(test))[:, 0], atol=1e-12)
+    np.testing.assert_allclose(chaos(test), 1.0 + test[:, 0] - 2.0 * test[:, 1] * test[:, 2]
+                               + 0.5 * test[:, 2] ** 2, atol=1e-9)
+
+
+def test_linear_stack_up_recovers_the_closed_form_least_cost_allocation():
+    """y = sum x_i, x_i normal with sigma t_i / 3, spec |y| <= L: yield 2 Phi(L / sigma_y) - 1.
+
+    Minimising sum b_i t_i^-k subject to sum t_i^2 = 9 sigma_y^2 (Lagrange):
+    t_i proportional to b_i^(1 / (k + 2)).
+    """
+    b, k, L, target = np.array([1.0, 2.0, 4.0]), 1.0, 1.13, 0.9973
+    current = np.ones(3)
+    models = tuple(costs.CostModel(a=0.0, b=bi, k=k, tightest_um=0.2, loosest_um=5.0) for bi in b)
+
+    def values(U):                      # each factor's error at the current tolerance
+        return ndtri(np.clip(U, 1e-12, 1 - 1e-12)) * current / 3
+
+    def evaluate(s, U, job):
+        return (values(U) * s).sum(axis=1, keepdims=True)
+
+    verifications = []
+
+    def verify(s, n):                   # a fresh Monte Carlo every time
+        U = np.random.default_rng([11, len(verifications)]).random((n, 3))
+        verifications.append(s)
+        return U, evaluate(s, U, "verify")
+
+    model = ScaledModel(("x0", "x1", "x2"), current, models, (Limit(0, L, "max"), Limit(0, -L, "min")),
+                        3, values, evaluate, verify, log_inputs=False, seed=3)
+    result = allocate_scales(model, target, 1_000_000, draws=2 ** 16)
+
+    sigma_y = L / ndtri((1 + target) / 2)
+    best = b ** (1 / (k + 2))
+    best *= 3 * sigma_y / np.sqrt(np.sum(best ** 2))
+    best_cost = np.sum(b * best ** -k)
+    assert result.feasible and result.allocated.estimate >= target
+    assert result.current.estimate == pytest.approx(2 * ndtr(L / np.sqrt(3) * 3) - 1, abs=1e-3)
+    assert model.cost(result.scales).sum() == pytest.approx(best_cost, rel=0.02)
+    np.testing.assert_allclose(result.scales * current, best, rtol=0.05)
+    assert result.allocated.n == 1_000_000
+    assert result.allocated.low <= result.allocated.estimate <= result.allocated.high
+    assert len(verifications) == 1 + len(result.rounds)
+
+
+# -- a small reducer study -----------------------------------------------------------------------------
+
+TOLERANCES = {"crank_cam_eccentricity": {"position_um": 9.0, "distribution": "normal"},
+              "pin_radial": {"band_um": 5.0}}
+
+
+def small_study(folder, spec=30.0, name="small"):
+    """Two factors, TE only, 64 points: a reducer model in milliseconds.  One output folder for
+    every spec: the spec is not part of the study's identity, so the stored runs are shared."""
+    return priced_study(folder, {"crank_cam_eccentricity": {"tightest_um": 4.0, "loosest_um": 18.0}},
+                        name=name, study={"metrics": ["te_pp"], "batch_size": 32,
+                                          "output": "small/output"},
+                        spec={"te_pp_arcsec": spec}, montecarlo={"n": 512}, tolerances=TOLERANCES)
+
+
+@pytest.fixture(scope="module")
+def allocated(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("allocate")
+    path = small_study(folder, spec=25.0)
+    return path, tolerance.allocate(path, 0.95, progress=False)
+
+
+def test_allocation_meets_its_target_in_the_verification_monte_carlo(allocated):
+    path, result = allocated
+    assert result.feasible and result.yield_allocated.estimate >= 0.95 > result.yield_current.estimate
+    assert result.yield_allocated.n == 512           # the study's [montecarlo] n below 0.99
+    low, high = tolerance.wilson_interval(round(result.yield_allocated.estimate * 512), 512, 0.95)
+    assert (result.yield_allocated.low, result.yield_allocated.high) == pytest.approx((low, high))
+    assert result.total_cost_allocated < result.total_cost_current
+    # the allocated study file is ready to run and its Monte Carlo is the verification, reused
+    mc = run_mc(result.allocated_study_file, 512, plots=False)
+    assert mc.computed.computed == 0
+    assert mc.analysis.yields[0].fraction == pytest.approx(result.yield_allocated.estimate)
+    allocated_study = load_study(result.allocated_study_file)
+    for factor, record in zip(allocated_study.factors, result.factors):
+        assert costs.current_um(factor) == pytest.approx(record.allocated, abs=1e-9)
+        assert record.lower <= record.allocated <= record.upper
+    assert path.read_text() == small_study(path.parent, spec=25.0).read_text()  # never overwritten
+
+
+def test_allocation_json_has_exactly_the_schema_the_report_reads(allocated):
+    path, result = allocated
+    folder = path.parent / "small" / "output"
+    document = json.loads((folder / "allocation.json").read_text())
+    assert (folder / "mc_summary.json").is_file()        # the current tolerances: `rvte mc`'s files
+    assert document == json.loads(json.dumps(result.to_json()))
+    assert list(document) == ["study", "study_file", "allocated_study_file", "target_yield",
+                              "feasible", "factors", "total_cost", "yield", "surrogate",
+                              "model_evaluations"]
+    assert [f["name"] for f in document["factors"]] == ["crank_cam_eccentricity.position_um",
+                                                        "pin_radial.band_um"]
+    assert set(document["factors"][0]) == {"name", "unit", "current", "allocated", "lower", "upper",
+                                           "cost_current", "cost_allocated", "binding"}
+    assert {f["binding"] for f in document["factors"]} <= {"none", "lower", "upper"}
+    assert document["factors"][0]["lower"] == 4.0 and document["factors"][0]["upper"] == 18.0
+    assert set(document["yield"]) == {"current", "allocated"}
+    assert set(document["yield"]["allocated"]) == {"estimate", "low", "high", "n"}
+    assert set(document["surrogate"]) == {"kind", "samples", "validation"}
+    assert set(document["total_cost"]) == {"current", "allocated"}
+    assert isinstance(document["model_evaluations"], int) and document["model_evaluations"] > 1024
+
+
+def test_an_unreachable_target_gives_the_best_yield_and_the_binding_bounds(allocated):
+    path, _ = allocated
+    strict = small_study(path.parent, spec=4.0, name="strict")   # same study, same output folder
+    result = tolerance.allocate(strict, 0.99, n=512, progress=False)
+    assert not result.feasible
+    assert [f.binding for f in result.factors] == ["lower", "lower"]
+    assert [f.allocated for f in result.factors] == pytest.approx([f.lower for f in result.factors])
+    assert result.yield_allocated.estimate < 0.99 and result.yield_allocated.n == 512
+    assert "OUT OF REACH" in result.table()
+
+
+def test_rvte_allocate_prints_the_same_document_and_refuses_bad_input_in_one_line(allocated, tmp_path):
+    path, result = allocated
+    proc = rvte("allocate", path, "--yield", 0.95, "--json")         # everything is stored: reused
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout) == json.loads(json.dumps(result.to_json()))
+
+    bad = priced_study(tmp_path, {"pin_radial": {"k": -2.0}}, name="bad",
+                       tolerances={"pin_radial": {"band_um": 5.0}})
+    proc = rvte("allocate", bad)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]
+    assert "tolerances.pin_radial.cost.k = -2.0" in proc.stderr
+
+    other = write_study(tmp_path, name="other", tolerances={"pin_radial": {"band_um": 3.0}})
+    proc = rvte("allocate", other, "-o", path.parent / "small" / "output")
+    assert proc.returncode == 2 and "output = " in proc.stderr and "belongs to another study" \
+        in proc.stderr and "Traceback" not in proc.stderr
+
+    proc = rvte("allocate", path, "--yield", 1.5)
+    assert proc.returncode == 2 and "yield = 1.5" in proc.stderr
+
+
+def test_bounds_that_exclude_the_current_tolerance_stop_allocate_before_any_work(tmp_path):
+    path = priced_study(tmp_path, {"pin_radial": {"loosest_um": 4.0}},
+                        tolerances={"pin_radial": {"band_um": 5.0}})
+    with pytest.raises(InputError, match="tolerances.pin_radial.cost.loosest_um = 4.0: must be >= "
+                                         "the current tolerance band_um = 5"):
+        tolerance.allocate(path)
+    assert not (tmp_path / "toy").exists()
+
+
+def test_allocate_is_the_package_function_even_once_its_module_is_imported():
+    import tolerance.allocate as module
+
+    assert callable(tolerance.allocate) and module.allocate.__name__ == "allocate"
+
+
+def rvte(*args):
+    return subprocess.run([sys.executable, "-m", "rvfmu.cli", *map(str, args)], capture_output=True,
+                          text=True, timeout=600)
