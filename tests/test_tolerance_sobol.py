@@ -126,3 +126,29 @@ def test_sobol_cli_json_is_machine_readable(toy_sobol, capsys):
     assert data["n"] == 32 and data["evaluations"] == 160
     assert data["metrics"]["te_pp_arcsec"]["convergence"]["n"] == [8, 16, 32]
     assert Path(data["output"]) == result.study.output
+
+
+def test_raising_n_reuses_the_smaller_run_and_matches_a_fresh_run(toy_sobol, tmp_path, capsys):
+    """n = 64 after n = 32: the first 160 reducers are copied, not recomputed, and every
+    row equals that of a run at n = 64 in an empty folder."""
+    path, small = toy_sobol
+    assert main(["sobol", str(path), "-n", "64", "--json", "--no-plots"]) == 0
+    err = capsys.readouterr().err
+    assert "sobol-n64: 320 reducers in 40 batches of 8 (20 reused, 20 computed)" in err
+    raised = run_sobol(path, n=64, plots=False)
+    fresh = run_sobol(path, n=64, output=tmp_path / "fresh", plots=False)
+    assert fresh.computed.computed == 40
+    np.testing.assert_array_equal(raised.Y, fresh.Y)
+    np.testing.assert_array_equal(raised.Y[:160], small.Y)
+
+
+def test_batches_that_fail_the_store_checks_are_not_reused(toy_sobol, tmp_path):
+    """A smaller run's folder holding files of another job is refused by the store's checks:
+    the larger run computes those rows itself, and gets the same numbers."""
+    path, small = toy_sobol
+    out = tmp_path / "other"
+    run_sobol(path, n=16, output=out, plots=False)
+    (out / "sobol-n16").rename(out / "sobol-n8")     # files that say job sobol-n16, in sobol-n8
+    result = run_sobol(path, n=32, output=out, plots=False)
+    assert result.computed.computed == 20
+    np.testing.assert_array_equal(result.Y, small.Y)

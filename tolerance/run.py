@@ -132,11 +132,14 @@ def size_text(size: float) -> str:
 
 def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: bool | None = False,
             log=None, output: Path | None = None, yes: bool = False,
-            size_field: tuple[str, int] | None = None) -> Computed:
+            size_field: tuple[str, int] | None = None, prefix_jobs=()) -> Computed:
     """Metrics of rows [0, n_rows) of `job`, reusing the batches already in the output folder.
 
     rows(start, stop) -> (stop - start, D) sample rows.  Batches are the
-    study's batch_size rows each, at fixed boundaries.  The first missing
+    study's batch_size rows each, at fixed boundaries.  prefix_jobs: (job,
+    rows) of smaller jobs whose rows are the first `rows` of this one's (a
+    Sobol' run at n/2, n/4, ...): their finished batches are checked against
+    this job's rows and copied in, not recomputed.  The first missing
     batch is computed and timed before the others: a run estimated above a day,
     or above the free disk, stops there with an InputError on `size_field`
     (name, value) unless `yes`.  log(str) gets the estimate and the summary.
@@ -147,6 +150,9 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
     B = study.batch_size
     n_batches = -(-n_rows // B)
     done = store.load(n_rows, rows)
+    for other, other_rows in prefix_jobs:
+        if (folder / other).is_dir():
+            _copy_prefix(JobStore(folder, study, other), store, min(other_rows, n_rows), rows, done)
     missing = n_batches - len(done)
     todo_rows = n_rows - sum(r.stop - r.start for r in done.values())
     start_time = time.perf_counter()
@@ -192,6 +198,24 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
     if log is not None:
         log(result.summary(job))
     return result
+
+
+def _copy_prefix(source: JobStore, target: JobStore, n_rows: int, rows, done: dict) -> None:
+    """Copy into `target` the whole batches of `source` below n_rows that `done` lacks.
+
+    Each is read through the store's checks against this job's own rows, so a
+    batch of other rows, or of another study or model, is refused as usual.
+    """
+    size = target.study.batch_size
+    whole = n_rows - n_rows % size
+    try:
+        found = source.load(whole, rows)
+    except InputError:
+        return   # not a prefix after all, or a damaged file: this job computes its own
+    for (start, stop), result in sorted(found.items()):
+        if (start, stop) not in done:
+            target.write(start, stop, rows(start, stop), result.Y, result.converged)
+            done[(start, stop)] = result
 
 
 def _batches(n_rows: int, size: int):
@@ -381,9 +405,14 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     _check_sample_memory(problem, n, second_order)
     X = sobol.sample(problem, n, second_order, seed=study.seed)
     job = sobol_job(n, second_order)
+    per_base = sobol.rows_per_base_sample(problem, second_order)
+    # A scrambled Sobol' sequence of n points begins with the one of n/2: a run that
+    # raises n (the convergence check asks for it) reuses the smaller runs' reducers.
+    smaller = [(sobol_job(m, second_order), m * per_base)
+               for m in (n >> k for k in range(1, n.bit_length())) if m >= 1]
     computed = compute(study, job, X.shape[0], lambda s, e: X[s:e],
                        make_backend(processes, workers, scheduler), progress, log, yes=yes,
-                       size_field=("n", n))
+                       size_field=("n", n), prefix_jobs=smaller)
     bad = np.flatnonzero(~np.all(np.isfinite(computed.Y), axis=1))
     if bad.size:
         raise RuntimeError(f"the model failed on {bad.size} of {X.shape[0]} Sobol rows (first: row "
