@@ -31,7 +31,7 @@ _WHERE = {
     "run_mc": ("run", "run_mc"), "run_sobol": ("run", "run_sobol"),
     "MCResult": ("run", "MCResult"), "SobolResult": ("run", "SobolResult"),
     "report": ("html_report", "report"),
-    "allocate": ("allocate", "allocate"), "AllocationResult": ("allocate", "AllocationResult"),
+    "allocate": ("allocation", "allocate"), "AllocationResult": ("allocation", "AllocationResult"),
 }
 
 __all__ = ["evaluate", *_WHERE]

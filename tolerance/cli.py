@@ -48,7 +48,7 @@ def _report(args):
 
 
 def _allocate(args):
-    from .allocate import allocate
+    from .allocation import allocate
 
     result = allocate(args.study, args.yield_target, output=args.output, progress=None, n=args.n,
                       processes=args.processes, log=_log, yes=args.yes)

@@ -1,0 +1,147 @@
+"""The surrogate of the allocation search: P(a reducer passes every spec line | its error sizes).
+
+A sparse polynomial chaos (OpenTURNS FunctionalChaosAlgorithm, Legendre basis
+of total degree DEGREE, LARS with corrected leave-one-out) gives the mean of
+each spec metric (its log, when it is positive), and a second one the log of
+the squared residual (heteroscedastic noise: the spread of TE at given error
+sizes grows with them).  Polynomial chaos rather than Kriging: the training
+holds thousands to tens of thousands of reducers whose metric is a noisy
+function of its inputs (phases and tooth patterns are not inputs); LARS fits
+that in seconds and its cost grows linearly with the samples, where Kriging's
+grows with their cube and would interpolate the noise.  OpenTURNS fits the
+chaos; numpy evaluates it (the optimiser calls it millions of times).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import ndtr
+
+DEGREE = 2                  # total degree of the chaos; 3 fitted no better on the RV-40E studies
+SIGMA_FLOOR = 0.02          # residual sigma >= this x the metric's spread: keeps the yield smooth
+SURROGATE_KIND = ("polynomial chaos (OpenTURNS FunctionalChaosAlgorithm, Legendre degree "
+                  f"{DEGREE}, LARS, corrected leave-one-out) of each spec metric and of its "
+                  "residual variance")
+
+
+
+# -- the surrogate ------------------------------------------------------------------------------
+
+class Chaos:
+    """A sparse polynomial chaos on inputs in [-1, 1]^d: fitted by OpenTURNS, evaluated by numpy.
+
+    Orthonormal Legendre polynomials (the basis of the uniform measure on
+    [-1, 1]), total degree `degree`, terms chosen by LARS with the corrected
+    leave-one-out error.  `metamodel` is OpenTURNS's own evaluation (for checks).
+    """
+
+    def __init__(self, X: np.ndarray, y: np.ndarray, degree: int = DEGREE):
+        import openturns as ot
+
+        d = X.shape[1]
+        basis = ot.OrthogonalProductPolynomialFactory([ot.LegendreFactory()] * d)
+        enumerate_ = basis.getEnumerateFunction()
+        algo = ot.FunctionalChaosAlgorithm(
+            ot.Sample(np.ascontiguousarray(X)), ot.Sample(np.ascontiguousarray(y)[:, None]),
+            ot.JointDistribution([ot.Uniform(-1.0, 1.0)] * d),
+            ot.FixedStrategy(basis, enumerate_.getBasisSizeFromTotalDegree(degree)),
+            ot.LeastSquaresStrategy(ot.LeastSquaresMetaModelSelectionFactory(
+                ot.LARS(), ot.CorrectedLeaveOneOut())))
+        algo.run()
+        result = algo.getResult()
+        self.degree = degree
+        self.alpha = np.array([list(enumerate_(int(i))) for i in result.getIndices()], dtype=int)
+        self.coefficients = np.asarray(result.getCoefficients())[:, 0]
+        self.metamodel = result.getMetaModel()
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        """Values at X (n, d) in [-1, 1]: (n,)."""
+        X = np.ascontiguousarray(X.T)                   # (d, n): each polynomial row contiguous
+        P = np.empty((self.degree + 1,) + X.shape)
+        P[0] = 1.0
+        if self.degree:
+            P[1] = X
+        for n in range(1, self.degree):                 # Bonnet's recursion
+            P[n + 1] = ((2 * n + 1) * X * P[n] - n * P[n - 1]) / (n + 1)
+        P *= np.sqrt(2.0 * np.arange(self.degree + 1) + 1.0)[:, None, None]
+        out = np.zeros(X.shape[1])
+        for alpha, c in zip(self.alpha, self.coefficients):
+            nonzero = np.flatnonzero(alpha)
+            if nonzero.size == 0:
+                out += c
+                continue
+            term = c * P[alpha[nonzero[0]], nonzero[0]]
+            for i in nonzero[1:]:
+                term *= P[alpha[i], i]
+            out += term
+        return out
+
+
+class Surrogate:
+    """P(a reducer passes every limit | its inputs Z), from the training inputs Z (n, F) and Y (n, M).
+
+    Per metric column: g = log(value) if every value and limit is positive,
+    else the value; g = mean(Z) + sigma(Z) * e, mean and log sigma^2 each a
+    `Chaos`; e standard normal.  Lines are treated as independent given Z.
+    """
+
+    def __init__(self, Z: np.ndarray, Y: np.ndarray, limits: tuple,
+                 degree: int = DEGREE):
+        self.limits = limits
+        self.low, self.high = Z.min(axis=0), Z.max(axis=0)
+        self.high = np.where(self.high > self.low, self.high, self.low + 1.0)
+        X = self.unit(Z)
+        self.fits = {}
+        for column in sorted({limit.column for limit in limits}):
+            y = Y[:, column]
+            log = bool(np.all(y > 0) and all(l.limit > 0 for l in limits if l.column == column))
+            g = np.log(y) if log else y
+            spread = float(g.std()) or 1.0
+            mean = Chaos(X, g, degree)
+            residual = g - mean(X)
+            tiny = (1e-3 * spread) ** 2
+            log_variance = Chaos(X, np.log(residual ** 2 + tiny), degree)
+            # in-sample residuals understate the spread by the terms fitted; E[log chi2_1] = -1.2704
+            inflate = X.shape[0] / max(1, X.shape[0] - mean.coefficients.size)
+            fitted = log_variance(X)
+            self.fits[column] = (log, mean, log_variance, inflate, SIGMA_FLOOR * spread,
+                                 (fitted.min(), fitted.max()))
+
+    def unit(self, Z: np.ndarray) -> np.ndarray:
+        """Inputs mapped onto [-1, 1] over the training range (clipped: no extrapolation)."""
+        return np.clip(2.0 * (Z - self.low) / (self.high - self.low) - 1.0, -1.0, 1.0)
+
+    def transform(self, column: int, values):
+        log = self.fits[column][0]
+        return np.log(values) if log else np.asarray(values, dtype=float)
+
+    def mean_sigma(self, column: int, X: np.ndarray):
+        log, mean, log_variance, inflate, floor, (lo, hi) = self.fits[column]
+        variance = np.exp(np.clip(log_variance(X), lo, hi) + 1.2704) * inflate
+        return mean(X), np.maximum(np.sqrt(variance), floor)
+
+    def probability(self, Z: np.ndarray) -> np.ndarray:
+        """P(pass every limit) of each input row (n,)."""
+        X = self.unit(Z)
+        p = np.ones(Z.shape[0])
+        cache = {}
+        for limit in self.limits:
+            if limit.column not in cache:
+                cache[limit.column] = self.mean_sigma(limit.column, X)
+            mu, sigma = cache[limit.column]
+            bound = self.transform(limit.column, limit.limit)
+            p *= ndtr(((bound - mu) if limit.sense == "max" else (mu - bound)) / sigma)
+        return p
+
+    def check(self, Z: np.ndarray, Y: np.ndarray) -> str:
+        """Held-out quality: per column Q2 of the mean and mean/sd of the standardised residual."""
+        X = self.unit(Z)
+        parts = []
+        for column in self.fits:
+            g = self.transform(column, Y[:, column])
+            mu, sigma = self.mean_sigma(column, X)
+            q2 = 1.0 - np.mean((g - mu) ** 2) / max(np.var(g), 1e-300)
+            e = (g - mu) / sigma
+            parts.append(f"column {column}: Q2 {q2:.3f}, standardised residual mean "
+                         f"{e.mean():+.2f} sd {e.std():.2f}")
+        return "; ".join(parts)
