@@ -164,11 +164,15 @@ def allocated(tmp_path_factory):
 
 def test_allocation_meets_its_target_in_the_verification_monte_carlo(allocated):
     path, result = allocated
-    assert result.feasible and result.yield_allocated.estimate >= 0.95 > result.yield_current.estimate
+    # met: the low end of the verification's 95 % interval, not only its estimate
+    assert result.feasible and result.yield_allocated.low >= 0.95 > result.yield_current.estimate
     assert result.yield_allocated.n == 512           # the study's [montecarlo] n below 0.99
     low, high = tolerance.wilson_interval(round(result.yield_allocated.estimate * 512), 512, 0.95)
     assert (result.yield_allocated.low, result.yield_allocated.high) == pytest.approx((low, high))
-    assert result.total_cost_allocated < result.total_cost_current
+    # the cam position decides the TE (the pin band hardly does): it is tightened, relatively,
+    # more than the pin band
+    cam, band = result.factors
+    assert cam.allocated / cam.current < band.allocated / band.current
     # the allocated study file is ready to run and its Monte Carlo is the verification, reused
     mc = run_mc(result.allocated_study_file, 512, plots=False)
     assert mc.computed.computed == 0

@@ -127,7 +127,8 @@ class AllocationResult:
             lines.append(f"yield, {label:<9} {y.estimate:.5f}  ({c} interval {y.low:.5f} - "
                          f"{y.high:.5f}, Monte Carlo of {y.n} reducers of the true model)")
         if self.feasible:
-            lines.append(f"target {self.target_yield:g}: met by the verification's estimate")
+            lines.append(f"target {self.target_yield:g}: met (the low end of the verification's "
+                         f"{c} interval is at or above it)")
         else:
             bound = [f"{f.name} ({'tightest' if f.binding == 'lower' else 'loosest'})"
                      for f in self.factors if f.binding != "none"]
