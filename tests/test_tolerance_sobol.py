@@ -152,3 +152,12 @@ def test_batches_that_fail_the_store_checks_are_not_reused(toy_sobol, tmp_path):
     result = run_sobol(path, n=32, output=out, plots=False)
     assert result.computed.computed == 20
     np.testing.assert_array_equal(result.Y, small.Y)
+
+
+def test_lowering_n_reuses_the_first_rows_of_a_larger_run(toy_sobol, tmp_path):
+    path, small = toy_sobol
+    out = tmp_path / "down"
+    run_sobol(path, n=32, output=out, plots=False)
+    lower = run_sobol(path, n=16, output=out, plots=False)
+    assert lower.computed.computed == 0 and lower.computed.reused == 10
+    np.testing.assert_array_equal(lower.Y, small.Y[:80])

@@ -86,6 +86,7 @@ class AllocationResult:
     confidence: float = 0.95
     rounds: tuple[Round, ...] = ()
     files: dict = field(default_factory=dict)
+    unconfirmed: bool = False    # verified allocations met the target, fresh draws did not
 
     def to_json(self) -> dict:
         """The allocation.json document (its schema is read by the HTML report: keep it)."""
@@ -126,7 +127,11 @@ class AllocationResult:
         for label, y in (("current", self.yield_current), ("allocated", self.yield_allocated)):
             lines.append(f"yield, {label:<9} {y.estimate:.5f}  ({c} interval {y.low:.5f} - "
                          f"{y.high:.5f}, Monte Carlo of {y.n} reducers of the true model)")
-        if self.feasible:
+        if self.unconfirmed:
+            lines.append(f"target {self.target_yield:g}: NOT CONFIRMED: the cheapest allocations "
+                         "that met it in the search fell short on fresh draws (the yield above); "
+                         "give a larger -n")
+        elif self.feasible:
             lines.append(f"target {self.target_yield:g}: met (the low end of the verification's "
                          f"{c} interval is at or above it)")
         else:
@@ -150,8 +155,8 @@ def allocate(study_path, yield_target: float = 0.9973, output=None, progress: bo
     The yield is that of all spec lines at once; costs and bounds come from the
     [tolerances.NAME.cost] tables (tolerance/cost.py).  n: reducers of each
     verification Monte Carlo (default the study's [montecarlo] n, at least
-    MIN_HIGH_YIELD_N for a target >= HIGH_YIELD); processes: worker processes
-    for those Monte Carlo runs.  Everything is stored in the output folder
+    MIN_HIGH_YIELD_N for a target >= HIGH_YIELD); processes: local worker
+    processes for the training groups and those Monte Carlo runs.  Everything is stored in the output folder
     (default the study's; it must be this study's or new): the current
     tolerances' Monte Carlo as `rvte mc` would store it, the training and the
     verifications under allocation/, and `<study name>_allocated.toml` (ready
@@ -186,6 +191,23 @@ def allocate(study_path, yield_target: float = 0.9973, output=None, progress: bo
     return wiring.report(result, target, allocated_path)
 
 
+def study_model(study_path, output=None, processes: int | None = None, log=None) -> ScaledModel:
+    """The study's reducer model as the search sees it: a ScaledModel over its nonzero tolerances.
+
+    For other searches over the same problem (studies/benchmarks/bench_allocate.py
+    runs a plain Monte-Carlo-in-the-loop optimiser on it); `allocate` builds the same.
+    """
+    from .run import _load
+    from .store import open_output
+
+    study = _load(study_path, output)
+    factors = [f for f in study.factors if costs.current_um(f) > 0]
+    if not factors:
+        raise InputError("tolerances", None, "every tolerance is zero: nothing to allocate")
+    folder = open_output(study, study.output)
+    return _StudyWiring(study, factors, folder, False, log, True, processes).model()
+
+
 class _StudyWiring:
     """The study's reducer model as a ScaledModel: scaled studies, computed through the store."""
 
@@ -205,7 +227,8 @@ class _StudyWiring:
             current=self.current, costs=self.models, limits=limits,
             columns=len(study.columns), magnitudes=self.magnitudes, evaluate=self.evaluate,
             verify=self.verify, log_inputs=True, snap=self.snap, seed=study.seed,
-            confidence=study.mc_confidence)
+            confidence=study.mc_confidence, evaluate_groups=self.evaluate_groups,
+            confirm=self.confirm)
 
     def magnitudes(self, U: np.ndarray) -> np.ndarray:
         """RMS of each allocated factor's error values [um] at the current tolerances: (n, F)."""
@@ -245,17 +268,37 @@ class _StudyWiring:
             out.append(f)
         return tuple(out)
 
+    def scaled_study(self, scales, rows: int):
+        """The study at these scales, one batch of `rows`, stored under allocation/<hash>."""
+        study = replace(self.study, factors=self.scaled_factors(scales, False), batch_size=rows,
+                        text="")
+        return replace(study, output=self.folder / "allocation" / study.inputs_hash[:12])
+
     def evaluate(self, scales, U, job) -> np.ndarray:
         """Metrics of training reducers U at scales, stored in their scaled study's folder."""
-        from .backends import make_backend
-        from .run import compute
+        return _train_group(self.scaled_study(scales, U.shape[0]), U, job)
 
-        study = replace(self.study, factors=self.scaled_factors(scales, False),
-                        batch_size=U.shape[0], text="")
-        study = replace(study, output=self.folder / "allocation" / study.inputs_hash[:12])
-        computed = compute(study, job, U.shape[0], lambda a, b: U[a:b], make_backend(),
-                           progress=False, output=study.output, yes=True)
-        return np.where(np.isfinite(computed.Y), computed.Y, np.nan)
+    def evaluate_groups(self, tasks):
+        """The training groups (scales, U, job), in order; on worker processes if asked."""
+        studies = [(self.scaled_study(s, U.shape[0]), U, job) for s, U, job in tasks]
+        if not self.processes or self.processes < 2:
+            yield from (_train_group(*task) for task in studies)
+            return
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+        from concurrent.futures.process import BrokenProcessPool
+
+        from .backends import _DIED, ONE_THREAD, _environment
+
+        # as the Processes backend: spawned workers, one BLAS thread each
+        with _environment(ONE_THREAD):
+            pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("spawn"))
+        try:
+            yield from pool.map(_train_group, *zip(*studies), chunksize=4)
+        except BrokenProcessPool as exc:
+            raise RuntimeError(_DIED.format(exc=exc)) from None
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
 
     def verify(self, scales, n: int):
         """The Monte Carlo of the study file with these tolerances: its `rvte mc` rows and store.
@@ -278,6 +321,25 @@ class _StudyWiring:
                            make_backend(self.processes), self.progress, self.log,
                            output=study.output, yes=self.yes, size_field=("n", n))
         return montecarlo.rows(study, 0, n), computed.Y[:n]
+
+    def confirm(self, scales, n: int):
+        """Fresh draws: rows [k, k + n) of the same `rvte mc` sequence, k = n rounded up to
+        whole batches (every verification used rows [0, n)); `rvte mc FILE -n k+n` reuses both."""
+        from . import montecarlo
+        from .backends import make_backend
+        from .run import compute
+
+        study, output = ((self.study, self.folder) if np.all(scales == 1.0) else
+                         (lambda s: (s, s.output))(self.candidate(scales)[1]))
+        start = self.confirm_start(n)
+        total = start + math.ceil(n / study.batch_size) * study.batch_size
+        computed = compute(study, "mc", total, lambda a, b: montecarlo.rows(study, a, b),
+                           make_backend(self.processes), self.progress, self.log,
+                           output=output, yes=self.yes, size_field=("n", n))
+        return montecarlo.rows(study, start, start + n), computed.Y[start:start + n]
+
+    def confirm_start(self, n: int) -> int:
+        return math.ceil(n / self.study.batch_size) * self.study.batch_size
 
     def candidate(self, scales, header: str = ""):
         """(text, Study) of the study file with the allocated tolerances at scales.
@@ -321,7 +383,13 @@ class _StudyWiring:
                      "these tolerances") +
                   f"; total cost {sum(f.cost_allocated for f in factors):.4g} (was "
                   f"{sum(f.cost_current for f in factors):.4g}).\n"
-                  f"Run: rvte mc {path.name} -n {allocated.n}   (reuses the verification)")
+                  + (f"The yield is that of rows {self.confirm_start(allocated.n)}-"
+                     f"{self.confirm_start(allocated.n) + allocated.n - 1} of this file's Monte "
+                     f"Carlo, fresh draws that no step of the search saw (rows 0-{allocated.n - 1} "
+                     "were its verification).\n" if result.confirmations else "") +
+                  f"Run: rvte mc {path.name} -n "
+                  f"{self.confirm_start(allocated.n) + allocated.n if result.confirmations else allocated.n}"
+                  "   (reuses the search's Monte Carlo runs)")
         text, _ = self.candidate(result.scales, header)
         path.write_text(text)
         record = AllocationResult(
@@ -334,9 +402,20 @@ class _StudyWiring:
             surrogate_validation=result.validation, model_evaluations=result.evaluations,
             spec=tuple(str(l) for l in study.spec), confidence=study.mc_confidence,
             rounds=result.rounds,
+            unconfirmed=not result.feasible and bool(result.confirmations),
             files={"allocated_study": path, "allocation": self.folder / "allocation.json"})
         (self.folder / "allocation.json").write_text(json.dumps(record.to_json(), indent=1) + "\n")
         return record
+
+
+def _train_group(study, U, job) -> np.ndarray:
+    """Metrics of one training group (its own Study, one batch) through the store."""
+    from .backends import make_backend
+    from .run import compute
+
+    computed = compute(study, job, U.shape[0], lambda a, b: U[a:b], make_backend(),
+                       progress=False, output=study.output, yes=True)
+    return np.where(np.isfinite(computed.Y), computed.Y, np.nan)
 
 
 def allocated_text(study, factors, output: str, header: str = "") -> str:
@@ -392,4 +471,5 @@ def _file_name(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
 
 
-__all__ = ["allocate", "AllocationResult", "FactorAllocation", "YieldEstimate", "allocated_text"]
+__all__ = ["allocate", "AllocationResult", "FactorAllocation", "YieldEstimate", "allocated_text",
+           "study_model"]

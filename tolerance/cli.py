@@ -118,8 +118,8 @@ def add_study_commands(subparsers) -> None:
                    "study's [montecarlo] n, at least 10000 for a yield >= 0.99)")
     p.add_argument("-o", "--output", help="output folder, this study's or new (default: the "
                    "study's); gets <name>_allocated.toml and allocation.json")
-    p.add_argument("--processes", type=int, metavar="N", help="run the Monte Carlo verifications "
-                   "on N local worker processes")
+    p.add_argument("--processes", type=int, metavar="N", help="run the training and the Monte "
+                   "Carlo verifications on N local worker processes")
     p.add_argument("--json", action="store_true", help="print allocation.json instead of the table")
     p.add_argument("--yes", action="store_true", help="run even if a Monte Carlo's estimate is "
                    "above a day or above the free disk")

@@ -63,6 +63,12 @@ model has the last word:
    target, not merely its estimate: an allocation that meets a 0.9973 target
    does so with 97.5 % confidence, and a second Monte Carlo of the allocated
    study agrees.
+   Confirmation: the verifications share their draws (common random numbers:
+   differences between allocations are not noise), so the search chooses
+   among them with those draws and the chosen one's yield is flattered.  The
+   answer's yield is therefore a last, fresh Monte Carlo of n reducers with
+   other draws (`confirm`); if that falls short of the target, the next
+   cheapest verified allocation is confirmed, up to MAX_CONFIRMATIONS.
 6. Out of reach: the surrogate's best point verified short REACH_TRIES times
    (nothing having met the target): the answer is the best verified yield,
    with the bounds that bind.  Often every tolerance at its tightest, but not
@@ -96,6 +102,7 @@ LOG_FLOOR = 0.05            # of the mean error size: log inputs stay finite for
 MARGIN_START = 0.25         # probit units, before any verification (0.9973 -> 0.9985)
 STOP_NOISE = 2.5            # proven: prediction and verification within this many standard errors
 MAX_ROUNDS = 8              # verifications at most (each n reducers)
+MAX_CONFIRMATIONS = 3       # fresh Monte Carlo runs of the cheapest verified allocations, in turn
 REACH_TRIES = 2             # the surrogate's best reachable yield verified short twice: out of reach
 TRUST_START = 0.5           # trust region about the centre, in ln s (x1.65): the surrogate's
 TRUST_MAX = 1.0             # errors differ from place to place, so its calibration only holds
@@ -126,7 +133,12 @@ class ScaledModel:
     current (F,): the tolerances at s = 1; costs: one resolved CostModel per
     factor (bounds in the same unit as current).  magnitudes(U (n, D)) -> (n, F):
     each factor's error size in each draw at s = 1 (>= 0 if log_inputs).
-    evaluate(s (F,), U (n, D), job) -> Y (n, M), NaN for a failed reducer.
+    evaluate(s (F,), U (n, D), job) -> Y (n, M), NaN for a failed reducer;
+    evaluate_groups(tasks), optional: the same for a list of (s, U, job), Y in
+    order as an iterator (e.g. on worker processes).  confirm(s, n), optional:
+    as verify, but other draws than every verify's: the fresh Monte Carlo whose
+    yield is the answer's (the search chose among the verified points with
+    verify's draws, so their yields flatter the one it chose).
     verify(s, n) -> (U (n, D), Y (n, M)): the Monte Carlo that judges an
     allocation.  snap(s) -> the scales that will be written (rounding).
     """
@@ -143,6 +155,8 @@ class ScaledModel:
     snap: Callable = staticmethod(lambda s: s)
     seed: int = 0
     confidence: float = 0.95
+    evaluate_groups: Callable | None = None
+    confirm: Callable | None = None
 
     @property
     def lower(self) -> np.ndarray:
@@ -206,6 +220,7 @@ class ScaleAllocation:
     samples: int
     validation: str
     evaluations: int
+    confirmations: tuple[Verified, ...] = ()
 
 # -- the core: scales -> cheapest verified allocation ---------------------------------------------
 
@@ -241,10 +256,12 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
     box = qmc.LatinHypercube(d=F, seed=np.random.default_rng([model.seed, 1])).random(groups)
     S = np.exp(np.log(lower) + (np.log(upper) - np.log(lower)) * box)
     bar = _bar(groups * TRAIN_GROUP, "allocate training", progress)
-    for g in range(groups):
-        U = np.random.default_rng([model.seed, 0x616C6C6F, g]).random((TRAIN_GROUP, model.columns))
-        Y = model.evaluate(S[g], U, f"allocation-train-{g}")
-        data.append((np.tile(S[g], (TRAIN_GROUP, 1)), model.magnitudes(U), Y, g))
+    tasks = [(S[g], np.random.default_rng([model.seed, 0x616C6C6F, g]).random(
+        (TRAIN_GROUP, model.columns)), f"allocation-train-{g}") for g in range(groups)]
+    results = (model.evaluate_groups(tasks) if model.evaluate_groups is not None else
+               (model.evaluate(*task) for task in tasks))
+    for g, ((scales, U, _), Y) in enumerate(zip(tasks, results)):
+        data.append((np.tile(scales, (TRAIN_GROUP, 1)), model.magnitudes(U), Y, g))
         if bar is not None:
             bar.update(TRAIN_GROUP)
     if bar is not None:
@@ -346,12 +363,35 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
         reached = _centre(points, target)
         return ScaleAllocation(reached.verified.scales, False, current, reached.verified,
                                rounds, samples, validation, evaluations)
-    best = min(meeting, key=lambda done: done.cost)
-    if best is not points[0]:
-        validation += (f"; at the allocation: predicted {best.predicted:.5f}, verified "
-                       f"{best.verified.estimate:.5f}")
-    return ScaleAllocation(best.verified.scales, True, current, best.verified, rounds,
-                           samples, validation, evaluations)
+    meeting.sort(key=lambda done: done.cost)
+    if model.confirm is None:
+        best = meeting[0]
+        if best is not points[0]:
+            validation += (f"; at the allocation: predicted {best.predicted:.5f}, verified "
+                           f"{best.verified.estimate:.5f}")
+        return ScaleAllocation(best.verified.scales, True, current, best.verified, rounds,
+                               samples, validation, evaluations)
+    # Confirmation: the cheapest verified point that met the target, on fresh draws; if
+    # those fall short, the next cheapest, and so on.
+    confirmations = []
+    for done in meeting[:MAX_CONFIRMATIONS]:
+        U, Y = model.confirm(done.verified.scales, n)
+        evaluations += n
+        confirmed = _judge(model, done.verified.scales, Y)
+        confirmations.append(confirmed)
+        say(f"allocate: confirmation on fresh draws at cost {done.cost:.4g}: yield "
+            f"{confirmed.estimate:.5f} [{confirmed.low:.5f}, {confirmed.high:.5f}] of "
+            f"{confirmed.n}" + ("" if confirmed.meets(target) else " (below the target)"))
+        if confirmed.meets(target):
+            validation += (f"; at the allocation: predicted {done.predicted:.5f}, verified "
+                           f"{done.verified.estimate:.5f}, confirmed on fresh draws "
+                           f"{confirmed.estimate:.5f}")
+            return ScaleAllocation(done.verified.scales, True, current, confirmed, rounds,
+                                   samples, validation, evaluations, tuple(confirmations))
+    best = max(confirmations, key=lambda c: c.estimate)
+    validation += "; no verified allocation was confirmed on fresh draws"
+    return ScaleAllocation(best.scales, False, current, best, rounds, samples, validation,
+                           evaluations, tuple(confirmations))
 
 
 def _centre(points, target: float) -> Round:
@@ -475,13 +515,18 @@ def optimise(model: ScaledModel, yield_at, wanted: float, starts=(), lower=None,
 def _verify(model: ScaledModel, scales, n: int):
     """The true model's Monte Carlo at scales: (Verified, U (n, D), Y (n, M))."""
     U, Y = model.verify(np.asarray(scales, dtype=float), n)
+    return _judge(model, scales, Y), U, Y
+
+
+def _judge(model: ScaledModel, scales, Y) -> Verified:
+    """The yield of metrics Y (n, M) against every limit, with its interval."""
     ok = np.all(np.isfinite(Y), axis=1)
     passes = ok.copy()
     for limit in model.limits:
         passes[ok] &= limit.passes(Y[ok, limit.column])
     evaluated, passed = int(ok.sum()), int(passes.sum())
     low, high = wilson_interval(passed, evaluated, model.confidence)
-    return Verified(np.asarray(scales, dtype=float).copy(), passed, evaluated, low, high), U, Y
+    return Verified(np.asarray(scales, dtype=float).copy(), passed, evaluated, low, high)
 
 
 def _binomial_probit_noise(p: float, n: int) -> float:

@@ -137,8 +137,8 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
 
     rows(start, stop) -> (stop - start, D) sample rows.  Batches are the
     study's batch_size rows each, at fixed boundaries.  prefix_jobs: (job,
-    rows) of smaller jobs whose rows are the first `rows` of this one's (a
-    Sobol' run at n/2, n/4, ...): their finished batches are checked against
+    rows) of other jobs whose first `rows` rows are the first rows of this
+    one's (Sobol' runs at other n): their finished batches are checked against
     this job's rows and copied in, not recomputed.  The first missing
     batch is computed and timed before the others: a run estimated above a day,
     or above the free disk, stops there with an InputError on `size_field`
@@ -407,12 +407,13 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     job = sobol_job(n, second_order)
     per_base = sobol.rows_per_base_sample(problem, second_order)
     # A scrambled Sobol' sequence of n points begins with the one of n/2: a run that
-    # raises n (the convergence check asks for it) reuses the smaller runs' reducers.
-    smaller = [(sobol_job(m, second_order), m * per_base)
-               for m in (n >> k for k in range(1, n.bit_length())) if m >= 1]
+    # raises n (the convergence check asks for it) reuses the smaller runs' reducers, and
+    # a run that lowers it (a quick look, a comparison) the larger runs' first rows.
+    others = [(sobol_job(m, second_order), m * per_base)
+              for m in (1 << k for k in range(31)) if m != n]
     computed = compute(study, job, X.shape[0], lambda s, e: X[s:e],
                        make_backend(processes, workers, scheduler), progress, log, yes=yes,
-                       size_field=("n", n), prefix_jobs=smaller)
+                       size_field=("n", n), prefix_jobs=others)
     bad = np.flatnonzero(~np.all(np.isfinite(computed.Y), axis=1))
     if bad.size:
         raise RuntimeError(f"the model failed on {bad.size} of {X.shape[0]} Sobol rows (first: row "
