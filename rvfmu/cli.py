@@ -81,6 +81,38 @@ def _errors(args):
         sys.stdout.write(text)
 
 
+def _measure(args):
+    report = api.measure(args.data, args.ratio, columns=args.columns, units=args.units,
+                         counts_per_rev=args.counts_per_rev, remove_orders=args.remove_orders,
+                         remove_input_orders=args.remove_input_orders, keep_orders=args.keep_orders,
+                         csv_path=args.csv, plot_path=args.plot)
+    _show(report, args.json, (("csv", args.csv), ("plot", args.plot)))
+
+
+def _names(text: str) -> tuple[str, ...]:
+    """A,B[,C] of --columns."""
+    return tuple(name.strip() for name in text.split(","))
+
+
+def _numbers(text: str) -> tuple[float, ...]:
+    """N[,N] of --counts-per-rev."""
+    try:
+        return tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected N or N_IN,N_OUT, e.g. 131072") from None
+
+
+def _orders(text: str) -> tuple[int, ...]:
+    """K[,K...] of the --*-orders options; "none" or "" for none."""
+    if text.strip().lower() in ("", "none"):
+        return ()
+    try:
+        return tuple(int(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected whole orders K[,K...], e.g. 1,2, "
+                                         "or none") from None
+
+
 def _time_and_load(text: str) -> tuple[float, float]:
     """TIME_S:NM of --load-step."""
     try:
@@ -153,6 +185,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", help="write a Campbell diagram (0 to 1.25 x the speed)")
     p.add_argument("--json", action="store_true", help="print the modes as JSON")
     p.set_defaults(run=_modes)
+
+    p = sub.add_parser("measure", help="TE from a bench's input and output encoder angles, "
+                       "the bench's runout removed")
+    p.add_argument("data", help="CSV with a header: time_s (optional), theta_in_deg, theta_out_deg "
+                   "(or _rad, _counts: the unit from the suffix)")
+    p.add_argument("--ratio", type=float, required=True, help="the reducer's ratio i (checked "
+                   "against the data: more than 1 %% off is refused)")
+    p.add_argument("--columns", type=_names, metavar="IN,OUT[,TIME]",
+                   help="names of the input angle, output angle and (optional) time columns")
+    p.add_argument("--units", choices=("deg", "rad", "counts"),
+                   help="unit of both angle columns (default: from their names' suffix)")
+    p.add_argument("--counts-per-rev", type=_numbers, metavar="N[,N_OUT]",
+                   help="encoder counts per revolution, for counts (two: input, output)")
+    p.add_argument("--remove-orders", type=_orders, default=(1,), metavar="K[,K...]",
+                   help="orders of the output rotation fitted and removed as bench runout "
+                   "(default 1; none: none)")
+    p.add_argument("--remove-input-orders", type=_orders, default=(), metavar="K[,K...]",
+                   help="orders of the input rotation (cycles per input revolution) removed too "
+                   "(default none)")
+    p.add_argument("--keep-orders", type=_orders, default=(), metavar="K[,K...]",
+                   help="output orders to keep after all (the reducer's own)")
+    p.add_argument("--csv", help="write [time_s,]theta_in_rad,theta_out_rad,te_arcsec,"
+                   "runout_arcsec,te_reducer_arcsec")
+    p.add_argument("--plot", help="write a figure of the TE and its spectra (by order, in Hz)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(run=_measure)
 
     p = sub.add_parser("errors", help="write a complete error file to fill in")
     p.add_argument("--template", metavar="DESIGN", required=True,

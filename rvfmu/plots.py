@@ -203,3 +203,55 @@ def plot_campbell(design, frequencies_hz, speeds_rpm, lines: dict, speed_rpm: fl
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return path
+
+
+def plot_measured(measured, path: str | Path, title: str | None = None) -> Path:
+    """A bench record's TE (`rvfmu.measured.MeasuredTE`): the measured TE, the removed
+    runout and the TE without it against the output angle turned (top), both spectra by
+    order with the removed orders marked (middle) and, with a time column, in Hz (bottom)."""
+    plt = _pyplot()
+    m = measured
+    panels = 3 if m.hz is not None else 2
+    fig, axes = plt.subplots(panels, 1, figsize=(9, 3.3 * panels), constrained_layout=True)
+    ax_te, ax_sp = axes[0], axes[1]
+    out_deg = np.degrees(m.output_angle)
+    pp = m.te_pp_arcsec
+    ax_te.plot(out_deg, m.te_arcsec, lw=0.6, color="0.6", label=f"measured (te_pp {pp[0]:.2f}″)")
+    ax_te.plot(out_deg, m.runout_arcsec, lw=0.9, ls="--", color="C3", label="removed runout")
+    ax_te.plot(out_deg, m.te_reducer_arcsec, lw=0.7, color="C0",
+               label=f"without the runout (te_pp {pp[1]:.2f}″)")
+    ax_te.set_xlabel("output angle turned, θ_in / i [deg]")
+    ax_te.set_ylabel("transmission error [arcsec]")
+    ax_te.set_xlim(0, 360 * m.revolutions)
+    ax_te.set_title(title or f"measured TE, ratio {m.ratio:g}: {m.revolutions} output "
+                             f"revolution{'s' if m.revolutions > 1 else ''}, "
+                             f"{m.points_per_revolution} rows per revolution")
+    ax_te.legend(loc="upper right", fontsize=8)
+    ax_te.grid(alpha=0.3)
+
+    def spectrum(ax, axis, amplitude, unit):
+        ax.vlines(axis[1:], 0, amplitude[0, 1:], color="0.6", lw=0.8, label="measured")
+        ax.vlines(axis[1:], 0, amplitude[1, 1:], color="C1", lw=1.0, label="without the runout")
+        ax.set_xscale("log")
+        ax.set_xlim(0.8 * axis[1], axis[-1])
+        ax.set_ylim(0, 1.1 * float(amplitude[:, 1:].max()) or 1.0)
+        ax.set_xlabel(unit)
+        ax.set_ylabel("amplitude [arcsec]")
+        ax.legend(loc="upper right", fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+
+    spectrum(ax_sp, m.orders, m.spectrum, "order [cycles per output revolution]")
+    top = ax_sp.get_ylim()[1]
+    for c in m.components:
+        order = c.order if c.shaft == "output" else c.order * m.ratio
+        ax_sp.axvline(order, color="0.6", lw=0.6, ls=":")
+        ax_sp.annotate(f"removed: {c.shaft} order {c.order}", (order, 0.97 * top), xytext=(-3, 0),
+                       textcoords="offset points", fontsize=7, rotation=90, ha="right", va="top",
+                       color="0.3")
+    if m.hz is not None:
+        spectrum(axes[2], m.hz, m.spectrum_hz, "frequency [Hz]")
+        axes[2].set_title(f"output speed {m.output_speed_hz:.4g} Hz (mean)", fontsize=8)
+    path = Path(path)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
