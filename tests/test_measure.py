@@ -1,4 +1,4 @@
-"""`rvte measure`: TE from a bench's encoder angles, the bench's runout removed (issue 11).
+"""`rvte measure`: TE from a bench's encoder angles, the bench's runout removed.
 
 Every test makes its bench record from a known reducer TE and a known runout, so
 what measure finds is checked against what was put in, never against a number
@@ -205,7 +205,7 @@ def _lines(path):
 
 
 def _bad(tmp_path, record, case):
-    """(file, extra arguments, column, row) of one bad-data case of issue 11, item 7."""
+    """(file, extra arguments, column, row) of one bad-data case (unequal lengths, NaN, time, too short, unknown column)."""
     path = deg_file(tmp_path / f"{case}.csv", record)
     lines = _lines(path)
     if case == "short row":                     # unequal column lengths in a file
