@@ -22,6 +22,7 @@ import time
 from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import tolerance
@@ -169,6 +170,9 @@ def test_the_report_stands_alone_says_it_is_up_to_date_and_is_reproducible(study
     assert all(link.startswith(("data:", "#")) for link in page.links), \
         [link[:40] for link in page.links if not link.startswith(("data:", "#"))]
     assert len(page.images) >= 4       # nominal TE, distributions, Sobol bars, convergence
+    # the toy study's 64 points alias the pin-passing order: the nominal figure does not
+    assert "at 12480 points per revolution (resolving the pin-passing order; the study&#x27;s " \
+           "metrics use its 64)" in text
     for src in page.images:
         assert base64.b64decode(src.partition(",")[2])[:8] == b"\x89PNG\r\n\x1a\n"
     assert page.banners[0][0] == "ok" and str(path) in page.banners[0][1]
@@ -180,6 +184,12 @@ def test_the_report_stands_alone_says_it_is_up_to_date_and_is_reproducible(study
         assert needle in text
     errors_file = (ROOT / "studies" / "seed002_errors.toml").read_text()
     assert html.escape(errors_file) in text      # the error file as written
+    # the software that computed the results, as recorded when the store was made, and now
+    recorded = json.loads((out / "manifest.json").read_text())["versions"]
+    assert recorded["numpy"] == np.__version__ and "python" in recorded
+    row = [cell[-1] for cell in page.cells]
+    at = row.index("numpy")
+    assert row[at + 1:at + 3] == [np.__version__, np.__version__]
     html_bytes, md_bytes = written.html.read_bytes(), written.markdown.read_bytes()
     again = report(out)
     assert again.html.read_bytes() == html_bytes and again.markdown.read_bytes() == md_bytes

@@ -30,10 +30,8 @@ import hashlib
 import html
 import io
 import json
-import platform
 import tomllib
 from dataclasses import dataclass, field, replace
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +41,7 @@ from rvfmu.core import metrics
 from rvfmu.core.checks import InputError
 from rvfmu.core.design import design_from_file_values
 from rvfmu.core.errors import error_file_values, errors_from_file_values, load_errors, toml_text
-from rvfmu.core.quasistatic import te_curve
+from rvfmu.core.quasistatic import default_points, te_curve
 from rvfmu.outputs import output_file
 from rvfmu.plots import figure_te
 
@@ -54,14 +52,13 @@ from .summaries import (NOTES_LEGEND, column_label, figure_convergence, figure_m
                      operating_text)
 from .sampling import KEYS, KIND_OF
 from .sobol import Convergence, Indices, SobolAnalysis
-from .store import FILE_DIGEST
+from .store import FILE_DIGEST, software_versions
 from .study import Factor, Study, _spec, load_study, model_fingerprint
 
 # The keys of the JSON outputs the report reads (tolerance/summaries.py writes them).
 MC_KEYS = ("n", "evaluated", "failed", "not_converged", "metrics", "yields", "worst",
            "computed_rows", "batch_size", "operating")
 SOBOL_KEYS = ("n", "second_order", "evaluations", "resamples", "confidence", "factors", "metrics")
-PACKAGES = ("rvte", "numpy", "scipy", "SALib", "matplotlib", "pyarrow", "numba", "dask")
 # 100 dpi: the builders' 9-10 inch figures come out about 1000 px wide, the report's column
 # at laptop width (1366 px), so the browser shows them at about their own size.
 FIGURE_DPI = 100
@@ -478,7 +475,8 @@ class Nominal:
     """The reducer with every tolerance zero at the study's operating point.
 
     metrics: {column: value} by the study's own metric definitions (`evaluate`);
-    curve: its TE curve at the study's load and points.
+    curve: its TE curve at the study's load, at the study's points if they resolve the
+    pin-passing order, else at 8 z_p z_c points (a figure must not alias what it shows).
     """
 
     metrics: dict
@@ -492,7 +490,8 @@ def nominal_reducer(study: Study) -> Nominal:
         replace(f, position_um=0.0, cumulative_um=0.0, single_um=None, band_um=0.0, min_um=0.0,
                 max_um=0.0) for f in study.factors))
     Y, _ = evaluate(zero, np.full((1, len(zero.columns)), 0.5))
-    curve = te_curve(study.design, study.base_errors, tau_load=-study.load_Nm, points=study.points)
+    points = default_points(study.design) if aliases(study) else study.points
+    curve = te_curve(study.design, study.base_errors, tau_load=-study.load_Nm, points=points)
     errors = (f"with the study's fixed errors ({study.errors_source or 'errors file'})"
               if study.base_errors is not None else "no errors: the design as drawn")
     return Nominal(dict(zip(study.metric_columns, Y[0].tolist())), curve, errors)
@@ -553,8 +552,10 @@ def _nominal_section(study: Study, nominal: Nominal) -> Section:
              f"the orders are those above the spectrum's noise floor."),
         Table(("quantity", "nominal"), rows),
         Figure(_png(figure_te(c, title=title)), "Nominal TE over one output revolution (top) and "
-               f"its order spectrum (bottom), {nominal.errors}, at the study's {c.points} points "
-               "per revolution"),
+               f"its order spectrum (bottom), {nominal.errors}, at {c.points} points per "
+               "revolution" + ("" if c.points == study.points else
+                               f" (resolving the pin-passing order; the study's metrics use its "
+                               f"{study.points})")),
     ])
 
 
@@ -752,9 +753,11 @@ def _inputs_section(folder: Path, study: Study, found: Found, fresh: Freshness) 
         blocks.append(_fixed_errors(study, found, fresh))
     if found.worst_errors:
         blocks.append(Code("Worst reducer's errors (mc_worst_errors.toml)", found.worst_errors))
-    blocks.append(Table(("package", "version"), package_versions(),
-                        "Software of this report (the model hash above says whether the model is "
-                        "the one that computed the results)"))
+    blocks.append(Table(("package", "when the store was created", "now"),
+                        package_versions(found.manifest.get("versions")),
+                        "Software that computed the results (recorded in manifest.json when the "
+                        "output folder was created) and of this report; the model hash above says "
+                        "whether the model is the one that computed them"))
     return Section("inputs", "Inputs, versions and hashes", blocks)
 
 
@@ -796,14 +799,13 @@ def job_fingerprints(folder: Path) -> list:
     return rows
 
 
-def package_versions() -> list:
-    rows = [("python", platform.python_version())]
-    for name in PACKAGES:
-        try:
-            rows.append((name, metadata.version(name)))
-        except metadata.PackageNotFoundError:
-            continue
-    return rows
+def package_versions(recorded: dict | None) -> list:
+    """(package, version when computed, version now) rows; older stores recorded none."""
+    now = software_versions()
+    recorded = recorded if isinstance(recorded, dict) else {}
+    names = list(now) + [name for name in recorded if name not in now]
+    return [(name, str(recorded.get(name, "not recorded")), now.get(name, "not installed"))
+            for name in names]
 
 
 def _key_results(study: Study, found: Found, nominal: Nominal) -> Section:

@@ -93,7 +93,7 @@ def open_output(study: Study, folder: Path | None = None) -> Path:
                              "a study output folder; choose an empty or new folder")
         folder.mkdir(parents=True, exist_ok=True)
         manifest = {"format": FORMAT, "study": study.name, "inputs_hash": study.inputs_hash,
-                    "model_hash": model, "created": _now()}
+                    "model_hash": model, "created": _now(), "versions": software_versions()}
         _write_atomic(folder / "inputs.json", json.dumps(study.inputs(), indent=1, sort_keys=True))
         _write_atomic(manifest_path, json.dumps(manifest, indent=1))
     if study.text:
@@ -216,6 +216,24 @@ class JobStore:
             pid = temporary.name.rsplit(".", 2)[-2]
             if not pid.isdigit() or not _alive(int(pid)):
                 temporary.unlink(missing_ok=True)
+
+
+PACKAGES = ("rvte", "numpy", "scipy", "SALib", "matplotlib", "pyarrow", "numba", "dask",
+            "openturns")
+
+
+def software_versions() -> dict:
+    """{package: version} of Python and the packages that compute and store the results."""
+    import platform
+    from importlib import metadata
+
+    versions = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return versions
 
 
 def _differences(folder: Path, study: Study) -> str:
