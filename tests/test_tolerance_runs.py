@@ -112,6 +112,46 @@ def test_a_killed_run_resumes_and_matches_an_uninterrupted_one(tmp_path):
     np.testing.assert_array_equal(resumed.Y, uninterrupted.Y)
 
 
+def children(pid: int) -> set:
+    """PIDs of the live processes whose parent is `pid` (from /proc)."""
+    found = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            found.add(int(stat.parent.name))
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc to list processes")
+def test_the_worker_processes_of_a_killed_run_end_with_it(tmp_path):
+    """SIGKILL runs no clean-up: the pool's spawned workers must notice and exit by themselves."""
+    path = write_study(tmp_path, study={"batch_size": 16}, operating={"points": 720},
+                       montecarlo={"n": 4096})
+    out = tmp_path / "killed"
+    command = [sys.executable, "-m", "rvfmu.cli", "mc", str(path), "-o", str(out), "--no-plots",
+               "--processes", "2"]
+    run = subprocess.Popen(command, env={**os.environ, "PYTHONPATH": str(ROOT)},
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while not list((out / "mc").glob("batch-*.parquet")):   # the pool is up and working
+        assert run.poll() is None and time.monotonic() < deadline
+        time.sleep(0.05)
+    workers = children(run.pid)
+    assert len(workers) >= 2               # the two workers (and the resource tracker)
+    run.send_signal(signal.SIGKILL)
+    run.wait()
+    deadline = time.monotonic() + 30
+    alive = workers
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.2)
+        alive = {pid for pid in workers if Path(f"/proc/{pid}").exists()
+                 and Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"}
+    assert not alive, f"workers {sorted(alive)} outlived the killed run"
+
+
 def test_a_corrupted_or_truncated_batch_is_refused_by_name(toy, tmp_path):
     path, _ = toy
     for damage in ("truncate", "flip"):

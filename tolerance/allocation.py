@@ -284,17 +284,14 @@ class _StudyWiring:
         if not self.processes or self.processes < 2:
             yield from (_train_group(*task) for task in studies)
             return
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
         from concurrent.futures.process import BrokenProcessPool
 
-        from .backends import _DIED, ONE_THREAD, _environment
+        from .backends import _DIED, ONE_THREAD, _environment, local_pool
 
-        # as the Processes backend: spawned workers, one BLAS thread each
-        with _environment(ONE_THREAD):
-            pool = ProcessPoolExecutor(self.processes, mp_context=multiprocessing.get_context("spawn"))
+        pool = local_pool(self.processes)     # as the Processes backend's
         try:
-            yield from pool.map(_train_group, *zip(*studies), chunksize=4)
+            with _environment(ONE_THREAD):    # workers start at the first tasks
+                yield from pool.map(_train_group, *zip(*studies), chunksize=4)
         except BrokenProcessPool as exc:
             raise RuntimeError(_DIED.format(exc=exc)) from None
         finally:

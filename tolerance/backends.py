@@ -87,6 +87,32 @@ def _warm_up():
     return model_fingerprint()
 
 
+def _follow_parent(parent: int) -> None:
+    """Run in each new worker: exit when the process that started the pool is gone.
+
+    A pool's workers wait on their queue for ever if the main process is killed
+    (SIGTERM, SIGKILL: no clean-up runs), each holding a core's worth of memory;
+    this thread ends them within a second of their parent.
+    """
+    import threading
+    import time
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(3)
+
+    threading.Thread(target=watch, name="follow-parent", daemon=True).start()
+
+
+def local_pool(workers: int) -> ProcessPoolExecutor:
+    """Spawned worker processes, one BLAS thread each, that end with the process that made them."""
+    # Spawned children inherit the environment at their start, before numpy loads.
+    with _environment(ONE_THREAD):
+        return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_follow_parent, initargs=(os.getpid(),))
+
+
 class Processes:
     """A pool of `workers` spawned local processes, one BLAS thread each."""
 
@@ -98,11 +124,9 @@ class Processes:
         return f"{self.workers} worker processes"
 
     def __enter__(self):
-        # Spawned children inherit the environment at their start, before numpy loads:
-        # start them all now, with one BLAS thread each.
+        # start them all now, with one BLAS thread each
+        self._pool = local_pool(self.workers)
         with _environment(ONE_THREAD):
-            self._pool = ProcessPoolExecutor(self.workers,
-                                             mp_context=multiprocessing.get_context("spawn"))
             starts = [self._pool.submit(_warm_up) for _ in range(self.workers)]
             try:
                 for start in starts:
