@@ -243,7 +243,7 @@ def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
     given = [name for name, value in (("load_step", load_step), ("load_csv", load_csv))
              if value is not None]
     if len(given) > 1:
-        raise InputError(given[1], locals()[given[1]], f"give one of --load-step and --load-csv")
+        raise InputError(given[1], locals()[given[1]], "give one of --load-step and --load-csv")
     if load_step is not None:
         at, after = load_step
         load = Sampled.step(load, at, after)
@@ -600,3 +600,303 @@ def _counts_per_rev(counts_per_rev, units_of):
 
 
 __all__ += ["measure", "MeasureReport"]
+
+
+# -- measured against modelled: rvte compare, rvte calibrate ---------------------------------
+
+BY_ORDER_SHOWN = 8
+
+
+@dataclass(frozen=True)
+class CompareReport:
+    """A bench record beside the model (`rvfmu.compare.Comparison`), with where it came from."""
+
+    comparison: object
+    data: str
+    errors: str | None
+
+    def summary(self) -> str:
+        c = self.comparison
+        m, d = c.measured, c.design
+        pp, rms = c.te_pp_arcsec, c.rms_arcsec
+        removed = ", ".join(f"{x.shaft} order {x.order}" for x in m.components) or "none"
+        lines = [
+            f"design            {d.name} (ratio {d.ratio:g}), errors: {self.errors or 'none'}, "
+            f"load {c.load_Nm:g} N*m resisting" + ("  (no-load limit)" if c.load_Nm == 0 else ""),
+            f"data              {self.data}: {m.revolutions} whole output revolution"
+            f"{'s' if m.revolutions > 1 else ''}, {m.rows} rows, "
+            f"{'positive' if m.sense > 0 else 'negative'} sense",
+            f"model             on a grid of {c.points} points per output revolution, "
+            + ("one revolution (the TE repeats every output revolution: whole ratio)"
+               if c.periodic else "over the record's input angles")
+            + ", linearly interpolated to the record's input angles (the input encoder read as "
+            "the model's theta_in)",
+            f"bench processing  the mean and the runout orders removed from both curves alike "
+            f"(removed: {removed})",
+            f"te_pp             {pp[0]:.3f} arcsec measured, {pp[1]:.3f} arcsec model",
+            f"rms               {rms[0]:.3f} arcsec measured, {rms[1]:.3f} arcsec model",
+            f"correlation       {c.correlation:.4f}",
+            f"difference        {c.rms_difference_arcsec:.3f} arcsec RMS, "
+            f"{np.ptp(c.difference_arcsec):.3f} arcsec peak-to-peak (measured - model)",
+            f"best shift        {c.shift_deg:+.3f} deg of output (model delayed), correlation "
+            f"{c.shift_correlation:.4f} there; the figures above are at zero shift",
+            f"by order          {'order':>8} {'measured':>9} {'model':>9} {'|diff|':>9}  [arcsec]",
+        ]
+        lines += [f"                  {o:>8g} {a:>9.3f} {b:>9.3f} {x:>9.3f}"
+                  for o, a, b, x in c.by_order(BY_ORDER_SHOWN)]
+        if not c.converged:
+            lines.append("warning           the model's equilibrium did not converge at some angles")
+        nyquist = c.points // 2
+        if nyquist <= d.z_p * d.z_c:
+            lines.append(f"note              {c.points} model points per revolution do not resolve "
+                         f"the pin-passing order {d.z_p * d.z_c}")
+        lines += [f"warning           {text}" for text in m.warnings]
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        c = self.comparison
+        pp, rms = c.te_pp_arcsec, c.rms_arcsec
+        return _json_safe({"design": c.design.name, "data": self.data, "errors": self.errors,
+                "load_Nm": c.load_Nm, "model_points_per_revolution": c.points,
+                "model_grid": "one periodic output revolution" if c.periodic else "record range",
+                "model_at_rows": "linear interpolation from the grid",
+                "revolutions": c.measured.revolutions, "rows": c.measured.rows,
+                "removed": [{"shaft": x.shaft, "order": x.order} for x in c.measured.components],
+                "te_pp_arcsec": {"measured": float(pp[0]), "model": float(pp[1])},
+                "rms_arcsec": {"measured": float(rms[0]), "model": float(rms[1])},
+                "correlation": c.correlation, "rms_difference_arcsec": c.rms_difference_arcsec,
+                "best_shift_deg": c.shift_deg, "best_shift_correlation": c.shift_correlation,
+                "by_order": [{"order": o, "measured_arcsec": a, "model_arcsec": b,
+                              "difference_arcsec": x} for o, a, b, x in c.by_order(BY_ORDER_SHOWN)],
+                "converged": c.converged, "warnings": list(c.measured.warnings)})
+
+
+def _json_safe(value):
+    """`value` with every float that is not finite as text ("inf", "nan"): JSON has neither."""
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else str(float(value))
+    return value
+
+
+def _design_ratio(design: RVDesign, ratio) -> float:
+    """The design's ratio, or a stated one that must agree with it."""
+    if ratio is None:
+        return design.ratio
+    from .core.checks import positive
+
+    ratio = positive("ratio", ratio)
+    if abs(ratio / design.ratio - 1.0) > 1e-9:
+        raise InputError("ratio", ratio, f"the design {design.name} has ratio {design.ratio:g}: "
+                         "leave --ratio out (it is taken from the design) or give that")
+    return design.ratio
+
+
+def compare(design, data, errors=None, load: float = 0.0, ratio: float | None = None,
+            columns=None, units: str | None = None, counts_per_rev=None, remove_orders=(1,),
+            remove_input_orders=(), keep_orders=(), points: int | None = None,
+            csv_path: str | Path | None = None,
+            plot_path: str | Path | None = None) -> CompareReport:
+    """A bench record (read and processed as `measure` does, the ratio the design's) beside the
+    model of `design` with `errors` at the resisting `load` [N*m] the bench ran at: te_pp,
+    RMS, correlation and the difference, by angle and by order (`rvfmu.compare`).
+
+    points: the model's grid per output revolution (default 8 per pin-passing period); the
+    model is interpolated from it to the record's input angles.  csv_path: theta_in_rad,
+    te_measured_arcsec, te_model_arcsec, difference_arcsec; plot_path: the curves, their
+    spectra and the difference.  Paths, design, errors, load and points are checked before
+    the data are read.
+    """
+    from .compare import compare_te
+    from .core.checks import integer
+
+    csv_path = None if csv_path is None else output_file("csv", csv_path)
+    plot_path = None if plot_path is None else figure_file("plot", plot_path)
+    design = resolve_design(design)
+    error_set = resolve_errors(design, errors)
+    check_load("load", load, design.rated_torque)
+    points = None if points is None else integer("points", points, 8)
+    ratio = _design_ratio(design, ratio)
+    record = measure(data, ratio, columns=columns, units=units, counts_per_rev=counts_per_rev,
+                     remove_orders=remove_orders, remove_input_orders=remove_input_orders,
+                     keep_orders=keep_orders).measured
+    result = compare_te(record, design, error_set, load, points)
+    report = CompareReport(result, str(data), None if errors is None else str(errors))
+    if csv_path is not None:
+        write_columns(csv_path, {"theta_in_rad": (record.theta_in, ".12g"),
+                                 "te_measured_arcsec": (result.measured_arcsec, ".6f"),
+                                 "te_model_arcsec": (result.model_arcsec, ".6f"),
+                                 "difference_arcsec": (result.difference_arcsec, ".6f")})
+    if plot_path is not None:
+        from .plots import plot_comparison
+
+        plot_comparison(result, plot_path, title=f"{Path(data).name} against {design.name} at "
+                                                 f"{load:g} N·m")
+    return report
+
+
+@dataclass(frozen=True)
+class CalibrateReport:
+    """A calibration (`rvfmu.calibration.Calibration`) with its inputs and output file."""
+
+    calibration: object
+    data: tuple[str, ...]
+    output: str | None
+
+    def summary(self) -> str:
+        from .calibration import describe
+
+        cal = self.calibration
+        prob = cal.problem
+        d = prob.design
+        unit = "relative" if prob.target == "catalogue" else "arcsec"
+        lines = [
+            f"design            {d.name} (ratio {d.ratio:g})",
+            f"data              {', '.join(self.data)}: {len(prob.datasets)} data set"
+            f"{'s' if len(prob.datasets) > 1 else ''}, target {prob.target}",
+        ]
+        if prob.target != "catalogue":
+            from .calibration import default_points as calibration_points
+
+            full = default_points(d)
+            lines.append(f"model             {prob.points} points per output revolution (" + (
+                f"the pin-passing order {d.z_p * d.z_c} resolved)" if prob.points // 2 > d.z_p * d.z_c
+                else f"32*z_p or more: under load the peaks within ~1 % of the {full}-point "
+                     "model's, see rvfmu/calibration.py)" if prob.points >= calibration_points(d)
+                else f"fewer than the default {calibration_points(d)}: the peaks may be several % "
+                     f"below the {full}-point model's)"))
+        lines += [f"fit               least squares on ln(value): differential_evolution, then "
+                  f"least_squares; {cal.evaluations} model evaluations"]
+        width = max(17, *(len(p.name) + 1 for p in prob.parameters))
+        lines.append(f"{'value [N/m]':<{width}} {'start':>10} {'bounds':>21} {'fitted':>10} "
+                     f"{'1-sigma':>9} {'per +1 %':>9}")
+        for p, v, s, b, sens in zip(prob.parameters, cal.values, cal.sigma, cal.at_bound,
+                                    cal.sensitivity()):
+            note = "  at bound" if b else ""
+            if not np.isfinite(s):
+                note += "  not identifiable" if np.isinf(s) else "  (no variance left)"
+            elif s > v:
+                note += "  (sigma > value: not determined by these data)"
+            lines.append(f"{p.name:<{width}} {p.value:>10.4g} {p.lower:>10.4g}-{p.upper:<10.4g} "
+                         f"{v:>10.4g} {s:>9.3g} {sens:>9.3g}{note}")
+        lines.append(f"{'':<{width}} per +1 %: RMS change of the residuals [{unit}]")
+        lines += [f"{'':<{width}} {p.name}: {describe(p)}" for p in prob.parameters
+                  if p.name != p.field]
+        rows = cal.misfit()
+        if prob.target == "peaks":
+            lines.append(f"{'data set':<17} {'measured':>9} {'before':>9} {'misfit':>8} {'after':>9} "
+                         f"{'misfit':>8} {'improvement':>12}  [arcsec]")
+            lines += [f"{r['name']:<17} {r['measured']:>9.3f} {r['before']:>9.3f} "
+                      f"{r['misfit_before']:>+8.3f} {r['after']:>9.3f} {r['misfit_after']:>+8.3f} "
+                      f"{r['improvement_percent']:>11.2f} %" for r in rows]
+        elif prob.target == "curve":
+            lines.append(f"{'data set':<17} {'te_pp':>9} {'before':>9} {'after':>9} "
+                         f"{'RMS misfit before':>18} {'after':>8} {'improvement':>12}  [arcsec]")
+            lines += [f"{r['name']:<17} {r['measured']:>9.3f} {r['before']:>9.3f} {r['after']:>9.3f} "
+                      f"{r['misfit_before']:>18.3f} {r['misfit_after']:>8.3f} "
+                      f"{r['improvement_percent']:>11.2f} %" for r in rows]
+        else:
+            lines.append(f"{'figure':<34} {'catalogue':>10} {'before':>10} {'after':>10}")
+            for r in rows:
+                for name, m, b, a in zip(r["figures"], r["measured"], r["before"], r["after"]):
+                    lines.append(f"{name:<34} {m:>10.4g} {b:>10.4g} {a:>10.4g}")
+        v0, v1 = cal.v_index
+        lines.append(f"V (mean squared misfit) {v0:.4g} before, {v1:.4g} after"
+                     + (f" ({100 * (1 - v1 / v0):.2f} % reduction)" if v0 else ""))
+        lines += [f"optimiser         {m}" for m in cal.messages]
+        if not cal.converged:
+            lines.append("warning           the model's equilibrium did not converge at some poses")
+        if self.output:
+            lines.append(f"wrote design      {self.output} (for rvte te, rvte fmu build and the "
+                         "studies)")
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        cal = self.calibration
+        prob = cal.problem
+        v0, v1 = cal.v_index
+        return _json_safe({"design": prob.design.name, "data": list(self.data), "target": prob.target,
+                "points_per_revolution": prob.points, "evaluations": cal.evaluations,
+                "fitted": [{"name": p.name, "field": p.field, "start_N_per_m": p.value,
+                            "bounds_N_per_m": [p.lower, p.upper], "value_N_per_m": float(v),
+                            "sigma_N_per_m": float(s), "at_bound": bool(b),
+                            "field_value_N_per_m": p.field_value(float(v)),
+                            "rms_change_per_percent": float(k)}
+                           for p, v, s, b, k in zip(prob.parameters, cal.values, cal.sigma,
+                                                    cal.at_bound, cal.sensitivity())],
+                "misfit": cal.misfit(), "v_index": {"before": v0, "after": v1},
+                "dof": cal.dof, "messages": list(cal.messages), "converged": cal.converged,
+                "output": self.output})
+
+
+def calibrate(design, data, fit, target: str | None = None, errors=None, load: float = 0.0,
+              bounds: dict | None = None, ratio: float | None = None, columns=None,
+              units: str | None = None, counts_per_rev=None, remove_orders=(1,),
+              remove_input_orders=(), keep_orders=(), points: int | None = None,
+              maxiter: int | None = None, popsize: int | None = None, seed: int | None = None,
+              output: str | Path | None = None, progress=None) -> CalibrateReport:
+    """Identify stiffnesses of `design` from measurements (`rvfmu.calibration`).
+
+    data: files, each a bench CSV (read as `measure` reads it, the design's ratio; at
+    `load` with `errors`), a data-set TOML ([[dataset]] tables with te_pp_arcsec or data,
+    load_Nm, errors, error_scale) or a catalogue TOML (torsional_rigidity_Nm_per_arcmin,
+    lost_motion_arcmin, rated_torque_Nm).  fit: names (R_ca, R_b, R_pd of seed 003, or
+    stiffness fields); target: peaks, curve or catalogue (default: what the data bring);
+    bounds: {name: (lower, upper)} [N/m].  maxiter, popsize, seed: differential_evolution's
+    budget and seed.  output: the calibrated design TOML to write.  Everything is checked
+    before the first model evaluation.  progress(total, done): optional.
+    """
+    from . import calibration as calib
+
+    output = None if output is None else output_file("output", output, ("toml",))
+    resolved = resolve_design(design)
+    check_load("load", load, resolved.rated_torque)
+    ratio = _design_ratio(resolved, ratio)
+    paths = [data] if isinstance(data, (str, Path)) else list(data)
+    if not paths:
+        raise InputError("data", [], "give one or more data files (bench CSV, data-set or "
+                         "catalogue TOML)")
+    error_set = None if errors is None else resolve_errors(resolved, errors)
+
+    def read_record(path):
+        return measure(path, ratio, columns=columns, units=units, counts_per_rev=counts_per_rev,
+                       remove_orders=remove_orders, remove_input_orders=remove_input_orders,
+                       keep_orders=keep_orders).measured
+
+    sources = calib.design_sources(design) if isinstance(design, (str, Path)) else \
+        calib.design_sources(resolved.name.split(" (")[0])
+    # The values and bounds first: a wrong --fit name is reported before any file is read.
+    calib.parameters(resolved, fit, bounds, sources)
+    datasets = []
+    for path in paths:
+        path = Path(path)
+        if not path.is_file():
+            raise InputError("data", str(path), "must be an existing bench CSV, data-set TOML or "
+                             "catalogue TOML")
+        if path.suffix.lower() == ".toml":
+            values = calib.read_toml("data", path)
+            if calib.is_catalogue(values):
+                datasets.append(calib.catalogue_dataset(path, values, load, error_set))
+            else:
+                datasets += calib.peaks_datasets(path, values, resolved, load, errors, read_record)
+        else:
+            datasets.append(calib.DataSet(path.name, float(load), error_set,
+                                          measured=read_record(path)))
+    prob = calib.problem(resolved, datasets, fit, target, bounds, sources, points)
+    budget = {k: v for k, v in (("maxiter", maxiter), ("popsize", popsize), ("seed", seed))
+              if v is not None}
+    total = ((budget.get("maxiter", calib.DE_MAXITER) + 1) * budget.get("popsize", calib.DE_POPSIZE)
+             * len(prob.parameters))
+    result = calib.calibrate(prob, progress=None if progress is None else
+                             (lambda done: progress(max(total, done), done)), **budget)
+    if output is not None:
+        output.write_text(calib.design_text(result, [str(p) for p in paths], sources,
+                                            str(design) if isinstance(design, (str, Path)) else ""))
+    return CalibrateReport(result, tuple(str(p) for p in paths),
+                           None if output is None else str(output))
+
+
+__all__ += ["compare", "CompareReport", "calibrate", "CalibrateReport"]

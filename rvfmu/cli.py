@@ -190,27 +190,14 @@ def build_parser() -> argparse.ArgumentParser:
                        "the bench's runout removed")
     p.add_argument("data", help="CSV with a header: time_s (optional), theta_in_deg, theta_out_deg "
                    "(or _rad, _counts: the unit from the suffix)")
-    p.add_argument("--ratio", type=float, required=True, help="the reducer's ratio i (checked "
-                   "against the data: more than 1 %% off is refused)")
-    p.add_argument("--columns", type=_names, metavar="IN,OUT[,TIME]",
-                   help="names of the input angle, output angle and (optional) time columns")
-    p.add_argument("--units", choices=("deg", "rad", "counts"),
-                   help="unit of both angle columns (default: from their names' suffix)")
-    p.add_argument("--counts-per-rev", type=_numbers, metavar="N[,N_OUT]",
-                   help="encoder counts per revolution, for counts (two: input, output)")
-    p.add_argument("--remove-orders", type=_orders, default=(1,), metavar="K[,K...]",
-                   help="orders of the output rotation fitted and removed as bench runout "
-                   "(default 1; none: none)")
-    p.add_argument("--remove-input-orders", type=_orders, default=(), metavar="K[,K...]",
-                   help="orders of the input rotation (cycles per input revolution) removed too "
-                   "(default none)")
-    p.add_argument("--keep-orders", type=_orders, default=(), metavar="K[,K...]",
-                   help="output orders to keep after all (the reducer's own)")
+    _record_arguments(p, ratio_help="the reducer's ratio i (checked against the data: more than "
+                      "1 %% off is refused)", required=True)
     p.add_argument("--csv", help="write [time_s,]theta_in_rad,theta_out_rad,te_arcsec,"
                    "runout_arcsec,te_reducer_arcsec")
     p.add_argument("--plot", help="write a figure of the TE and its spectra (by order, in Hz)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(run=_measure)
+    add_model_data_commands(sub)
 
     p = sub.add_parser("errors", help="write a complete error file to fill in")
     p.add_argument("--template", metavar="DESIGN", required=True,
@@ -266,6 +253,106 @@ def main(argv=None) -> int:
         print(f"rvte {args.command}: error: {exc}", file=sys.stderr)
         return 2
     return 0
+
+
+# -- measured against modelled: rvte compare, rvte calibrate -------------------------------------
+
+def _compare(args):
+    report = api.compare(args.design, args.data, args.errors, load=args.load, ratio=args.ratio,
+                         **_record_options(args), points=args.points, csv_path=args.csv,
+                         plot_path=args.plot)
+    _show(report, args.json, (("csv", args.csv), ("plot", args.plot)))
+
+
+def _calibrate(args):
+    bounds = dict(args.bounds or ())
+    with ProgressBar("calibrate", unit="model") as bar:
+        report = api.calibrate(args.design, args.data, args.fit, target=args.target,
+                               errors=args.errors, load=args.load, bounds=bounds, ratio=args.ratio,
+                               **_record_options(args), points=args.points, maxiter=args.maxiter,
+                               popsize=args.popsize, seed=args.seed, output=args.output,
+                               progress=bar)
+    _show(report, args.json, ())
+
+
+def _record_options(args) -> dict:
+    return {"columns": args.columns, "units": args.units, "counts_per_rev": args.counts_per_rev,
+            "remove_orders": args.remove_orders, "remove_input_orders": args.remove_input_orders,
+            "keep_orders": args.keep_orders}
+
+
+def _bound(text: str) -> tuple[str, tuple[float, float]]:
+    """NAME=LOWER:UPPER of --bounds."""
+    try:
+        name, pair = text.split("=", 1)
+        lower, upper = (float(x) for x in pair.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=LOWER:UPPER in N/m, e.g. "
+                                         "R_ca=7.4e10:8.0e10") from None
+    return name.strip(), (lower, upper)
+
+
+def _record_arguments(p, ratio_help: str = "the reducer's ratio (default and only allowed value: "
+                      "the design's)", required: bool = False) -> None:
+    """How a bench CSV is read: the options of `rvte measure`, `compare` and `calibrate`."""
+    p.add_argument("--ratio", type=float, required=required, help=ratio_help)
+    p.add_argument("--columns", type=_names, metavar="IN,OUT[,TIME]",
+                   help="names of the input angle, output angle and (optional) time columns")
+    p.add_argument("--units", choices=("deg", "rad", "counts"),
+                   help="unit of both angle columns (default: from their names' suffix)")
+    p.add_argument("--counts-per-rev", type=_numbers, metavar="N[,N_OUT]",
+                   help="encoder counts per revolution, for counts (two: input, output)")
+    p.add_argument("--remove-orders", type=_orders, default=(1,), metavar="K[,K...]",
+                   help="orders of the output rotation fitted and removed as bench runout (from "
+                   "a model curve too, where there is one; default 1; none: none)")
+    p.add_argument("--remove-input-orders", type=_orders, default=(), metavar="K[,K...]",
+                   help="orders of the input rotation (cycles per input revolution) removed too "
+                   "(default none)")
+    p.add_argument("--keep-orders", type=_orders, default=(), metavar="K[,K...]",
+                   help="output orders to keep after all (the reducer's own)")
+
+
+def add_model_data_commands(sub) -> None:
+    """`rvte compare` and `rvte calibrate`: the model against measurements."""
+    p = sub.add_parser("compare", help="a bench record beside the model at the record's load: "
+                       "te_pp, RMS, correlation, difference by angle and order")
+    _reducer_arguments(p, "resisting output torque [N*m] the bench ran at (0: no-load limit)")
+    p.add_argument("data", help="bench CSV, as for rvte measure (time_s, theta_in_deg, "
+                   "theta_out_deg or _rad, _counts)")
+    _record_arguments(p)
+    p.add_argument("--points", type=int, help="model points per output revolution (default "
+                   "8*z_p*z_c), interpolated to the record's input angles")
+    p.add_argument("--csv", help="write theta_in_rad,te_measured_arcsec,te_model_arcsec,"
+                   "difference_arcsec")
+    p.add_argument("--plot", help="write a figure of both curves, the difference and the spectra")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(run=_compare)
+
+    p = sub.add_parser("calibrate", help="identify stiffnesses of a design from measured TE "
+                       "peaks, curves or catalogue figures (least squares)")
+    _reducer_arguments(p, "resisting output torque [N*m] of the bench CSVs (a data-set TOML "
+                          "gives its own)")
+    p.add_argument("data", nargs="+", help="bench CSVs, data-set TOMLs ([[dataset]] with "
+                   "te_pp_arcsec or data, load_Nm, errors) or a catalogue TOML "
+                   "(torsional_rigidity_Nm_per_arcmin, lost_motion_arcmin, rated_torque_Nm)")
+    p.add_argument("--fit", type=_names, required=True, metavar="NAME[,NAME...]",
+                   help="R_ca, R_b, R_pd (seed 003) or stiffness fields, e.g. pin_disc_stiffness")
+    p.add_argument("--target", choices=("peaks", "curve", "catalogue"),
+                   help="what is matched (default: what the data bring)")
+    p.add_argument("--bounds", type=_bound, action="append", metavar="NAME=LOWER:UPPER",
+                   help="bounds of a fitted value in N/m (default: its start /4 to x4); repeat "
+                   "for each")
+    _record_arguments(p)
+    p.add_argument("--points", type=int, help="model points per output revolution (default "
+                   "32*z_p: under load the peaks within ~1 %% of the fully resolved model's)")
+    p.add_argument("--maxiter", type=int, help="differential_evolution generations (default 30)")
+    p.add_argument("--popsize", type=int, help="differential_evolution members per fitted value "
+                   "(default 10)")
+    p.add_argument("--seed", type=int, help="seed of differential_evolution (default 3)")
+    p.add_argument("-o", "--output", help="write the calibrated design TOML (for rvte te, "
+                   "rvte fmu build, the studies)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(run=_calibrate)
 
 
 if __name__ == "__main__":

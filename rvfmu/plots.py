@@ -255,3 +255,46 @@ def plot_measured(measured, path: str | Path, title: str | None = None) -> Path:
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return path
+
+
+def plot_comparison(comparison, path: str | Path, title: str | None = None) -> Path:
+    """A bench record beside the model (`rvfmu.compare.Comparison`): both TE curves against
+    the output angle turned (top), their difference (middle) and both spectra by order with
+    the difference's (bottom)."""
+    plt = _pyplot()
+    c = comparison
+    m = c.measured
+    fig, (ax_te, ax_diff, ax_sp) = plt.subplots(3, 1, figsize=(9, 9.5), constrained_layout=True)
+    out_deg = np.degrees(m.output_angle)
+    pp = c.te_pp_arcsec
+    ax_te.plot(out_deg, c.measured_arcsec, lw=1.6, color="C0", alpha=0.5,
+               label=f"measured (te_pp {pp[0]:.2f}″)")
+    ax_te.plot(out_deg, c.model_arcsec, lw=0.7, color="C1", label=f"model (te_pp {pp[1]:.2f}″)")
+    ax_te.set_xlabel("output angle turned, θ_in / i [deg]")
+    ax_te.set_ylabel("TE, mean and runout orders removed [arcsec]")
+    ax_te.set_xlim(0, 360 * m.revolutions)
+    ax_te.set_title(title or f"measured against {c.design.name} at {c.load_Nm:g} N·m")
+    ax_te.legend(loc="upper right", fontsize=8)
+    ax_te.grid(alpha=0.3)
+    ax_diff.plot(out_deg, c.difference_arcsec, lw=0.7, color="C3")
+    ax_diff.set_xlim(0, 360 * m.revolutions)
+    ax_diff.set_xlabel("output angle turned, θ_in / i [deg]")
+    ax_diff.set_ylabel("measured − model [arcsec]")
+    ax_diff.set_title(f"correlation {c.correlation:.4f}, difference {c.rms_difference_arcsec:.3f}″ "
+                      f"RMS; model on {c.points} points per revolution", fontsize=8)
+    ax_diff.grid(alpha=0.3)
+    for k, (label, color, width) in enumerate((("measured", "C0", 1.6), ("model", "C1", 1.0),
+                                               ("difference", "C3", 0.6))):
+        ax_sp.vlines(c.orders[1:], 0, c.spectrum[k, 1:], color=color, lw=width, label=label,
+                     alpha=0.8)
+    ax_sp.set_xscale("log")
+    ax_sp.set_xlim(0.8 * c.orders[1], c.orders[-1])
+    ax_sp.set_ylim(0, 1.1 * float(c.spectrum[:, 1:].max()) or 1.0)
+    ax_sp.set_xlabel("order [cycles per output revolution]")
+    ax_sp.set_ylabel("amplitude [arcsec]")
+    ax_sp.legend(loc="upper right", fontsize=8)
+    ax_sp.grid(alpha=0.3, which="both")
+    path = Path(path)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path

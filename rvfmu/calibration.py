@@ -1,0 +1,690 @@
+"""Calibrating a design's stiffnesses against measurements.
+
+The question: which values of a few stiffnesses make the model of this design
+reproduce what was measured: the TE peak of each data set (seed 003), whole TE
+curves of bench records, or the catalogue's torsional rigidity and lost motion?
+How it is answered, and why so:
+
+- Least squares between measured and modelled quantities, seed 003's objective
+  1/2 sum (u*_i - u_i)^2, over the logarithms of the fitted values: stiffnesses
+  act by ratio and span decades, and a log scale keeps them positive.
+  Residuals: peaks and curves in arcsec; catalogue figures relative to the
+  catalogue's value, so that rigidity and lost motion weigh alike.
+- Global, then local: scipy.optimize.differential_evolution within the bounds
+  (the misfit of a contact model need not be convex: pins come in and out of
+  contact), from a seeded population so that the same data give the same answer
+  next month, then scipy.optimize.least_squares from its best member.  No
+  hand-written genetic algorithm (seed 003 uses one).
+- Uncertainty: the Jacobian J of the residuals with respect to ln(value) at the
+  optimum (central differences), covariance (J^T J)^-1 s^2 with the residual
+  variance s^2 = sum r^2 / (n - p); the 1-sigma of a value is value x the sigma of
+  its logarithm (linearised).  A direction in which the residuals do not change
+  (a singular value of J below SINGULAR_RELATIVE x the largest, or below what the
+  solver resolves) is not identifiable from these data: a value that moves along
+  it gets sigma = inf; a value whose sigma exceeds itself is reported as not
+  determined by the data.
+  With as many residuals as values (n = p) there is no variance left: sigma = nan.
+- Seed 003's names (its equations of the carrier, planets and discs):
+  R_ca, the angular contact bearings of the carrier, is `main_bearing_stiffness`;
+  R_b, the tapered roller bearings of the crankshafts in the carrier, is
+  `crank_carrier_bearing_stiffness`; R_pd, the cylindrical roller (needle)
+  bearing between a cam and its disc, is the bearing inside
+  `crank_disc_bearing_stiffness`, which the presets take as that bearing in
+  series with the crank bent between its supports (docs/model.md section 6,
+  `rvfmu.core.stiffness`).  Fitting R_pd therefore sets
+  crank_disc_bearing_stiffness = series(R_pd, 48 E I / L^3) with the crank's
+  diameter and span from the design's [sources] table (or its preset's): the
+  bearing is what seed 003 identifies, the crank's bending is geometry.
+- Cheap evaluations: a data set's model costs its grid, `points` per output
+  revolution, not its rows (`rvfmu.compare`); data sets at the same load are
+  solved as one batch.  The default for peaks and curves, POINTS_PER_CRANK_TURN
+  = 32 points per crank revolution (32 z_p: 1280 on the 40-pin presets, 1/10 of
+  the 8 z_p z_c = 12 480 that resolve the pin-passing ripple), resolves the
+  errors' low orders and the crank order and their harmonics; the pin-passing
+  ripple (order z_p z_c) is sampled, not resolved.  te_pp at 1280 against 12 480
+  points, seed 002's errors (x1 to x3.3) at rated torque: RV-20E 1.0 % and 0.4 %
+  low, RV-40E-121 0.15 % high and 0.5 % low; at no load, where interference
+  makes the peaks sharper, up to 4 % low.  At 640 points (16 z_p) the same
+  peaks are 2 to 6 % low, for half the cost.  A fit compares the model with
+  itself at one resolution, so the part of such a bias that does not change
+  with the fitted values cancels.
+
+Arrays and plain records in, a record out: the files are read and written by
+`rvfmu.api.calibrate`, except the small TOML inputs parsed here.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .compare import as_bench_sees, model_grid, periodic
+from .core.checks import InputError, finite_number, integer, non_negative, positive
+from .core.design import DESIGN_FIELDS, PRESET_NAMES, RVDesign
+from .core.errors import ErrorSet, load_errors, stack, toml_text, zero_errors
+from .core.quasistatic import windup
+from .core.stiffness import series, simply_supported_beam_stiffness
+from .core.units import MM
+from .measured import MeasuredTE
+
+TARGETS = ("peaks", "curve", "catalogue")
+
+# The stiffness fields of a design: every one may be fitted.
+STIFFNESS_FIELDS = tuple(spec for spec in DESIGN_FIELDS if spec.file_key.endswith("_N_per_m"))
+_BY_NAME = {**{s.field: s for s in STIFFNESS_FIELDS}, **{s.file_key: s for s in STIFFNESS_FIELDS}}
+
+# Seed 003's support stiffnesses and the design field each one sets (module docstring).
+SEED003_NAMES = {"R_ca": "main_bearing_stiffness", "R_b": "crank_carrier_bearing_stiffness",
+                 "R_pd": "crank_disc_bearing_stiffness"}
+SEED003_DOC = {"R_ca": "carrier angular contact bearings (seed 003)",
+               "R_b": "crank tapered roller bearings in the carrier (seed 003)",
+               "R_pd": "crank-disc needle bearing (seed 003), in series with the crank's bending"}
+
+# Default bounds: the starting value divided and multiplied by this.  Wide enough for an
+# estimate from a formula (the presets' bearing stiffnesses are within x3 of seed 003's
+# identified ones), narrow enough for a small global search.
+DEFAULT_BOUND_FACTOR = 4.0
+
+POINTS_PER_CRANK_TURN = 32          # default grid: 32 z_p points per output revolution
+
+# differential_evolution budget: popsize x (number of values) members, maxiter generations.
+# Seeded (seed 003's number): the same data give the same fit.
+DE_POPSIZE = 10
+DE_MAXITER = 30
+DE_TOL = 1e-3
+DE_SEED = 3
+LS_MAX_EVALUATIONS = 200
+
+# Step of ln(value) for the Jacobians: 0.1 % of a stiffness moves a TE by ~1e-4 of itself,
+# far above the solver's convergence (~1e-8 arcsec) and small enough to stay linear.
+JACOBIAN_STEP = 1e-3
+# A singular value of J below this share of the largest, or below SENSITIVITY_FLOOR: that
+# direction is not identifiable.  The floor: a residual change under 1e-6 (arcsec, or
+# relative) for a factor e in the values is below what the solver resolves (its
+# regularisation moves a TE by ~1e-6 of itself, rvfmu/core/metrics.py).
+SINGULAR_RELATIVE = 1e-6
+SENSITIVITY_FLOOR = 1e-6
+# A misfit that is not a number (a pose that did not solve) counts as this, in arcsec.
+FAILED_RESIDUAL = 1e6
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One fitted value.
+
+    name: as reported (R_ca, R_b, R_pd or a design field); field: the design field it
+    sets; value: the starting value [N/m] (of R_pd itself for R_pd); lower, upper:
+    bounds [N/m]; series_with: for R_pd, the crank's bending stiffness [N/m] in series.
+    """
+
+    name: str
+    field: str
+    value: float
+    lower: float
+    upper: float
+    series_with: float | None = None
+
+    def field_value(self, value: float) -> float:
+        """The design field's value [N/m] for the fitted `value` [N/m]."""
+        return value if self.series_with is None else series(value, self.series_with)
+
+
+@dataclass(frozen=True)
+class Catalogue:
+    """Catalogue figures of a reducer; rated_torque_Nm: the torque they refer to (lost motion
+    at +-3 % of it, rigidity between 50 and 100 %), None: the design's."""
+
+    torsional_rigidity_Nm_per_arcmin: float | None = None
+    lost_motion_arcmin: float | None = None
+    rated_torque_Nm: float | None = None
+
+    def figures(self) -> dict:
+        return {k: v for k, v in (("torsional_rigidity_Nm_per_arcmin",
+                                   self.torsional_rigidity_Nm_per_arcmin),
+                                  ("lost_motion_arcmin", self.lost_motion_arcmin)) if v is not None}
+
+
+@dataclass(frozen=True)
+class DataSet:
+    """What was measured on one reducer under one condition.
+
+    load_Nm: resisting output torque; errors: that reducer's errors (one sample), None for
+    none.  One of: te_pp_arcsec (a TE peak-to-peak, as seed 003 gives them), measured (a
+    bench record: its curve, or its te_pp without the runout), catalogue (figures).
+    """
+
+    name: str
+    load_Nm: float = 0.0
+    errors: ErrorSet | None = None
+    te_pp_arcsec: float | None = None
+    measured: MeasuredTE | None = None
+    catalogue: Catalogue | None = None
+
+    def target_value(self, target: str) -> np.ndarray:
+        """The measured quantity this data set brings to `target`, as an array."""
+        if target == "catalogue":
+            return np.array(list(self.catalogue.figures().values()))
+        if target == "curve":
+            return self.measured.te_reducer_arcsec
+        if self.te_pp_arcsec is not None:
+            return np.array([self.te_pp_arcsec])
+        return np.array([float(self.measured.te_pp_arcsec[1])])
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A calibration problem as plain data: the design, the values to fit, the data sets,
+    the target (peaks, curve or catalogue) and the model's points per output revolution."""
+
+    design: RVDesign
+    parameters: tuple[Parameter, ...]
+    datasets: tuple[DataSet, ...]
+    target: str
+    points: int
+
+    @property
+    def start(self) -> np.ndarray:
+        return np.array([p.value for p in self.parameters])
+
+    @property
+    def log_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of x = ln(value / start)."""
+        return (np.log([p.lower / p.value for p in self.parameters]),
+                np.log([p.upper / p.value for p in self.parameters]))
+
+    def design_at(self, values) -> RVDesign:
+        """The design with the fitted fields set from `values` (p,) [N/m]."""
+        return self.design.with_fields(**{p.field: p.field_value(float(v))
+                                          for p, v in zip(self.parameters, values)})
+
+    def measured(self) -> list[np.ndarray]:
+        return [d.target_value(self.target) for d in self.datasets]
+
+
+def resolve_name(name: str) -> tuple[str, str]:
+    """(reported name, design field) of a --fit name: R_ca, R_b, R_pd, a stiffness field or
+    its file key; an InputError naming what is allowed otherwise."""
+    text = str(name).strip()
+    if text in SEED003_NAMES:
+        return text, SEED003_NAMES[text]
+    if text in _BY_NAME:
+        return _BY_NAME[text].field, _BY_NAME[text].field
+    allowed = ", ".join(list(SEED003_NAMES) + [s.field for s in STIFFNESS_FIELDS])
+    raise InputError("fit", text, f"is not a stiffness of the design; fit one or more of {allowed} "
+                     "(or their file keys, e.g. pin_disc_stiffness_N_per_m)")
+
+
+def crank_bending_stiffness(design: RVDesign, sources: dict | None) -> float:
+    """The crank bent between its supports, 48 E I / L^3 [N/m], from [sources] crank_diameter_mm
+    and crank_span_mm and the design's Young's modulus; an InputError if they are missing."""
+    needed = ("crank_diameter_mm", "crank_span_mm")
+    if not sources or any(k not in sources for k in needed):
+        raise InputError("fit", "R_pd", "needs the crank's bending stiffness in series with the "
+                         "needle bearing: the design file (or its preset) must have a [sources] "
+                         "table with crank_diameter_mm and crank_span_mm; or fit "
+                         "crank_disc_bearing_stiffness itself")
+    diameter = positive("sources.crank_diameter_mm", sources["crank_diameter_mm"]) * MM
+    span = positive("sources.crank_span_mm", sources["crank_span_mm"]) * MM
+    return simply_supported_beam_stiffness(design.youngs_modulus, diameter, span)
+
+
+def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dict | None = None,
+               factor: float = DEFAULT_BOUND_FACTOR) -> tuple[Parameter, ...]:
+    """The values to fit: names (--fit), bounds {name: (lower, upper)} [N/m] for some of them
+    (default: start / factor to start x factor), sources: the design's [sources] (for R_pd)."""
+    names = [n for n in (str(x).strip() for x in names) if n]
+    if not names:
+        raise InputError("fit", "", "name at least one stiffness to fit, e.g. --fit R_ca,R_b,R_pd")
+    resolved = [resolve_name(n) for n in names]
+    fields = [f for _, f in resolved]
+    for k, f in enumerate(fields):
+        if f in fields[:k]:
+            raise InputError("fit", names[k], f"sets {f}, which another --fit name sets already")
+    given = {}
+    for key, pair in (bounds or {}).items():
+        name = resolve_name(key)[0]
+        if name not in [n for n, _ in resolved]:
+            raise InputError("bounds", key, "is not among the fitted names: "
+                             + ", ".join(n for n, _ in resolved))
+        given[name] = _bound_pair(name, pair)
+    out = []
+    for name, field in resolved:
+        current = getattr(design, field)
+        bending = None
+        if name == "R_pd":
+            bending = crank_bending_stiffness(design, sources)
+            if current >= bending:
+                raise InputError("crank_disc_bearing_stiffness_N_per_m", current, f"must be below "
+                                 f"the crank's bending stiffness {bending:.4g} N/m to be a needle "
+                                 "bearing in series with it (R_pd)")
+            current = 1.0 / (1.0 / current - 1.0 / bending)
+        lower, upper = given.get(name, (current / factor, current * factor))
+        out.append(Parameter(name, field, current, lower, upper, bending))
+    return tuple(out)
+
+
+def _bound_pair(name, pair):
+    field = f"bounds.{name}"
+    try:
+        lower, upper = pair
+    except (TypeError, ValueError):
+        raise InputError(field, pair, "give two numbers LOWER:UPPER in N/m") from None
+    lower, upper = finite_number(field, lower), finite_number(field, upper)
+    for value in (lower, upper):
+        if value <= 0.0:
+            raise InputError(field, value, "must be > 0 N/m: a stiffness, fitted on its logarithm")
+    if upper <= lower:
+        raise InputError(field, [lower, upper], "the upper bound must be above the lower one")
+    return lower, upper
+
+
+# -- the data files ------------------------------------------------------------------------
+
+CATALOGUE_KEYS = ("torsional_rigidity_Nm_per_arcmin", "lost_motion_arcmin", "rated_torque_Nm")
+DATASETS_KEYS = ("load_Nm", "errors", "error_scale", "source", "dataset")
+DATASET_KEYS = ("name", "te_pp_arcsec", "data", "load_Nm", "errors", "error_scale", "note")
+
+
+def read_toml(field: str, path) -> dict:
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(field, str(path), "must be an existing file")
+    try:
+        return tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(field, str(path), f"is not valid TOML ({exc})") from None
+
+
+def is_catalogue(values: dict) -> bool:
+    return any(k in values for k in CATALOGUE_KEYS) and "dataset" not in values
+
+
+def catalogue_dataset(path, values: dict, load: float = 0.0, errors=None) -> DataSet:
+    """A catalogue TOML (torsional_rigidity_Nm_per_arcmin, lost_motion_arcmin, optional
+    rated_torque_Nm) as a data set."""
+    where = Path(path).name
+    unknown = [k for k in values if k not in CATALOGUE_KEYS]
+    if unknown:
+        raise InputError(unknown[0], values[unknown[0]], "is not a catalogue key; known: "
+                         + ", ".join(CATALOGUE_KEYS), where)
+    figures = {k: positive(k, values[k], where) for k in CATALOGUE_KEYS if k in values}
+    if not set(figures) - {"rated_torque_Nm"}:
+        raise InputError("data", str(path), "a catalogue file needs torsional_rigidity_Nm_per_arcmin "
+                         "and/or lost_motion_arcmin")
+    return DataSet(where, load, errors, catalogue=Catalogue(**figures))
+
+
+def peaks_datasets(path, values: dict, design: RVDesign, load: float = 0.0,
+                   errors: str | Path | ErrorSet | None = None, read_record=None) -> list[DataSet]:
+    """The [[dataset]] tables of a data-set TOML, each with te_pp_arcsec (a measured TE
+    peak-to-peak) or data (a bench CSV, read by read_record(path) -> MeasuredTE), and
+    load_Nm, errors (an error file, relative to this file) and error_scale (x the errors),
+    each defaulting to the file's top-level value, then to `load` and `errors`."""
+    path = Path(path)
+    where = path.name
+    unknown = [k for k in values if k not in DATASETS_KEYS]
+    if unknown:
+        raise InputError(unknown[0], values[unknown[0]], "is not a data-set file key; known: "
+                         + ", ".join(DATASETS_KEYS), where)
+    entries = values.get("dataset")
+    if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
+        raise InputError("dataset", str(path), "needs one or more [[dataset]] tables", where)
+    top = {"load_Nm": load, "errors": errors, "error_scale": 1.0}
+    for key in ("load_Nm", "error_scale"):
+        if key in values:
+            top[key] = finite_number(key, values[key], where)
+    if "errors" in values:
+        top["errors"] = path.parent / str(values["errors"])
+    cache = {}
+    out = []
+    for k, entry in enumerate(entries):
+        at = f"{where} dataset {k + 1}"
+        unknown = [key for key in entry if key not in DATASET_KEYS]
+        if unknown:
+            raise InputError(unknown[0], entry[unknown[0]], "is not a [[dataset]] key; known: "
+                             + ", ".join(DATASET_KEYS), at)
+        name = str(entry.get("name", k + 1))
+        load_k = non_negative("load_Nm", entry.get("load_Nm", top["load_Nm"]), at)
+        scale = non_negative("error_scale", entry.get("error_scale", top["error_scale"]), at)
+        source = path.parent / str(entry["errors"]) if "errors" in entry else top["errors"]
+        err = None
+        if isinstance(source, ErrorSet):
+            err = source.check(design).scaled(scale)
+        elif source is not None:
+            if str(source) not in cache:
+                cache[str(source)] = load_errors(source, design)
+            err = cache[str(source)].scaled(scale)
+        if ("te_pp_arcsec" in entry) == ("data" in entry):
+            raise InputError("te_pp_arcsec", None, "give either te_pp_arcsec (a measured peak) or "
+                             "data (a bench CSV), not both or neither", at)
+        if "data" in entry:
+            if read_record is None:
+                raise InputError("data", entry["data"], "bench records are read by rvfmu.api", at)
+            record = read_record(path.parent / str(entry["data"]))
+            out.append(DataSet(name, load_k, err, measured=record))
+        else:
+            out.append(DataSet(name, load_k, err,
+                               te_pp_arcsec=positive("te_pp_arcsec", entry["te_pp_arcsec"], at)))
+    return out
+
+
+def design_sources(spec) -> dict | None:
+    """The [sources] table of a design: a preset name's, a design file's own, or (a file
+    that names a preset and has none) its preset's; None when there is none."""
+    text = str(spec)
+    if text in PRESET_NAMES:
+        return _preset_sources(text)
+    path = Path(spec)
+    if not path.is_file():
+        return None
+    try:
+        values = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError):
+        return None
+    if isinstance(values.get("sources"), dict):
+        return values["sources"]
+    return _preset_sources(values["preset"]) if values.get("preset") in PRESET_NAMES else None
+
+
+def _preset_sources(name):
+    text = resources.files("rvfmu.core.presets").joinpath(f"{name}.toml").read_text()
+    return tomllib.loads(text).get("sources")
+
+
+def check_target(datasets, target: str | None) -> str:
+    """The target: as given (checked against what the data sets bring), or the one they all
+    bring (catalogue figures, peaks, bench curves) when None."""
+    kinds = {"catalogue" if d.catalogue else "peaks" if d.te_pp_arcsec is not None else "curve"
+             for d in datasets}
+    if target is None:
+        if len(kinds) > 1:
+            raise InputError("target", None, f"the data bring {' and '.join(sorted(kinds))}: "
+                             "choose one with --target peaks, curve or catalogue")
+        return kinds.pop()
+    if target not in TARGETS:
+        raise InputError("target", target, "must be one of " + ", ".join(TARGETS))
+    for d in datasets:
+        ok = (d.catalogue is not None if target == "catalogue" else
+              d.measured is not None if target == "curve" else
+              d.catalogue is None)
+        if not ok:
+            what = ("catalogue figures (a TOML with torsional_rigidity_Nm_per_arcmin, "
+                    "lost_motion_arcmin)" if target == "catalogue" else
+                    "a bench record (CSV)" if target == "curve" else
+                    "a TE peak (te_pp_arcsec) or a bench record")
+            raise InputError("target", target, f"needs {what} in every data set; {d.name} has none")
+    return target
+
+
+def default_points(design: RVDesign) -> int:
+    """Model points per output revolution of a calibration: POINTS_PER_CRANK_TURN per crank
+    revolution (module docstring)."""
+    return POINTS_PER_CRANK_TURN * design.z_p
+
+
+def problem(design: RVDesign, datasets, fit, target: str | None = None, bounds=None,
+            sources=None, points: int | None = None) -> Problem:
+    """A checked calibration problem (see `Problem`)."""
+    datasets = tuple(datasets)
+    if not datasets:
+        raise InputError("data", [], "give one or more data files")
+    target = check_target(datasets, target)
+    points = default_points(design) if points is None else integer("points", points, 8)
+    return Problem(design, parameters(design, fit, bounds, sources), datasets, target, points)
+
+
+# -- the model and the residuals -------------------------------------------------------------
+
+def evaluate(problem: Problem, design: RVDesign) -> tuple[list[np.ndarray], bool]:
+    """(the model's quantity of each data set for `design`, as `DataSet.target_value` gives
+    the measured one; every pose converged).  Data sets at one load (and sense) are one batch."""
+    out = [None] * len(problem.datasets)
+    converged = True
+    if problem.target == "catalogue":
+        for k, d in enumerate(problem.datasets):
+            c = d.catalogue
+            model = design if c.rated_torque_Nm is None else design.with_fields(
+                rated_torque=c.rated_torque_Nm)
+            w = windup(model, _errors(design, d))
+            figures = {"torsional_rigidity_Nm_per_arcmin": w.torsional_rigidity_Nm_per_arcmin()[0],
+                       "lost_motion_arcmin": w.lost_motion_arcmin()[0]}
+            out[k] = np.array([figures[key] for key in c.figures()])
+            converged &= bool(w.converged[0])
+        return out, converged
+    groups = {}
+    for k, d in enumerate(problem.datasets):
+        sense = d.measured.sense if d.measured is not None else 1
+        batch = periodic(design) or d.measured is None
+        groups.setdefault((d.load_Nm, sense, k if not batch else -1), []).append(k)
+    for (load, sense, _), members in groups.items():
+        sets = [problem.datasets[k] for k in members]
+        span = None
+        if sets[0].measured is not None:
+            span = (float(sets[0].measured.theta_in.min()), float(sets[0].measured.theta_in.max()))
+        grid = model_grid(design, stack([_errors(design, d) for d in sets]), load, problem.points,
+                          sense, span)
+        converged &= bool(np.all(grid.converged))
+        for row, (k, d) in enumerate(zip(members, sets)):
+            if d.measured is None:
+                out[k] = np.array([np.ptp(grid.te_arcsec[row])])
+                continue
+            curve = as_bench_sees(d.measured, grid.at(d.measured.theta_in)[row])[0]
+            out[k] = curve if problem.target == "curve" else np.array([np.ptp(curve)])
+    return out, converged
+
+
+def _errors(design, dataset):
+    return zero_errors(design) if dataset.errors is None else dataset.errors
+
+
+def residuals_of(problem: Problem, model: list[np.ndarray]) -> np.ndarray:
+    """(n,) model - measured, every data set's in turn: arcsec for peaks and curves, relative
+    to the catalogue's figure for catalogue figures."""
+    parts = []
+    for measured, modelled in zip(problem.measured(), model):
+        r = modelled - measured
+        parts.append(r / measured if problem.target == "catalogue" else r)
+    r = np.concatenate(parts)
+    return np.where(np.isfinite(r), r, FAILED_RESIDUAL)
+
+
+def values_at(problem: Problem, x) -> np.ndarray:
+    """(p,) values [N/m] at x = ln(value / start)."""
+    return problem.start * np.exp(np.asarray(x, dtype=float))
+
+
+def residuals(problem: Problem, x) -> np.ndarray:
+    """(n,) residuals at x = ln(value / start), (p,)."""
+    return residuals_of(problem, evaluate(problem, problem.design_at(values_at(problem, x)))[0])
+
+
+# -- the fit ---------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Calibration:
+    """The fitted values with their uncertainty and the misfit before and after.
+
+    values, sigma: (p,) [N/m] (sigma inf: not identifiable from these data, nan: no
+    residual variance left); at_bound: (p,) bool; before, after: the model's quantity of
+    each data set at the start and at the fit (as `evaluate`); jacobian: (n, p)
+    d residual / d ln(value) at the fit; dof: n - p; evaluations: model evaluations;
+    design: the calibrated design; messages: the optimisers' ends.
+    """
+
+    problem: Problem
+    values: np.ndarray
+    sigma: np.ndarray
+    at_bound: np.ndarray
+    before: list
+    after: list
+    jacobian: np.ndarray
+    dof: int
+    evaluations: int
+    design: RVDesign
+    converged: bool
+    messages: tuple[str, ...]
+
+    @property
+    def residuals_before(self) -> np.ndarray:
+        return residuals_of(self.problem, self.before)
+
+    @property
+    def residuals_after(self) -> np.ndarray:
+        return residuals_of(self.problem, self.after)
+
+    @property
+    def v_index(self) -> tuple[float, float]:
+        """Mean squared residual before and after: seed 003's V for peaks."""
+        return (float(np.mean(self.residuals_before ** 2)),
+                float(np.mean(self.residuals_after ** 2)))
+
+    def misfit(self) -> list[dict]:
+        """One row per data set: measured, before, after (the quantity: one peak, a curve's
+        RMS misfit, catalogue figures) and the misfit before and after with the improvement
+        in % ((|before| - |after|) / |before|), as seed 003's table."""
+        rows = []
+        for d, measured, before, after in zip(self.problem.datasets, self.problem.measured(),
+                                              self.before, self.after):
+            if self.problem.target == "peaks":
+                b, a = float(before[0] - measured[0]), float(after[0] - measured[0])
+                row = {"name": d.name, "measured": float(measured[0]), "before": float(before[0]),
+                       "after": float(after[0]), "misfit_before": b, "misfit_after": a}
+            elif self.problem.target == "curve":
+                b = float(np.sqrt(np.mean((before - measured) ** 2)))
+                a = float(np.sqrt(np.mean((after - measured) ** 2)))
+                row = {"name": d.name, "measured": float(np.ptp(measured)),
+                       "before": float(np.ptp(before)), "after": float(np.ptp(after)),
+                       "misfit_before": b, "misfit_after": a}
+            else:
+                b = float(np.sqrt(np.mean(((before - measured) / measured) ** 2)))
+                a = float(np.sqrt(np.mean(((after - measured) / measured) ** 2)))
+                row = {"name": d.name, "figures": list(d.catalogue.figures()),
+                       "measured": measured.tolist(), "before": before.tolist(),
+                       "after": after.tolist(), "misfit_before": b, "misfit_after": a}
+            row["improvement_percent"] = (100.0 * (abs(b) - abs(a)) / abs(b)) if b else float("nan")
+            rows.append(row)
+        return rows
+
+    def sensitivity(self) -> np.ndarray:
+        """(p,) RMS change of the residuals [arcsec, or relative] per +1 % of each value."""
+        return np.sqrt(np.mean((0.01 * self.jacobian) ** 2, axis=0))
+
+
+def calibrate(problem: Problem, maxiter: int = DE_MAXITER, popsize: int = DE_POPSIZE,
+              seed: int = DE_SEED, progress=None) -> Calibration:
+    """Fit the problem's values: differential evolution on ln(value) within the bounds, then
+    least squares from its best member; the uncertainty from the Jacobian at the optimum.
+
+    progress(evaluations done): optional, called after each model evaluation.
+    """
+    from scipy.optimize import differential_evolution, least_squares
+
+    maxiter = integer("maxiter", maxiter, 0)
+    popsize = integer("popsize", popsize, 2)
+    seed = integer("seed", seed, 0)
+    count = [0]
+
+    def r(x):
+        count[0] += 1
+        if progress is not None:
+            progress(count[0])
+        return residuals(problem, x)
+
+    lower, upper = problem.log_bounds
+    before, ok_before = evaluate(problem, problem.design)
+    messages = []
+    start = np.clip(np.zeros(lower.size), lower, upper)
+    best = start
+    if maxiter > 0:
+        de = differential_evolution(lambda x: _half_ss(r(x)),
+                                    list(zip(lower, upper)), maxiter=maxiter, popsize=popsize,
+                                    tol=DE_TOL, seed=seed, polish=False, init="latinhypercube",
+                                    updating="immediate")
+        best = de.x
+        messages.append(f"differential_evolution: {de.message} ({de.nit} generations)")
+        # The design as given may fit better than every member (a flat misfit): start there.
+        if np.array_equal(start, np.zeros(lower.size)) and \
+                _half_ss(residuals_of(problem, before)) < de.fun:
+            best = start
+    ls = least_squares(r, best, bounds=(lower, upper), jac="2-point", diff_step=JACOBIAN_STEP,
+                       x_scale=1.0, max_nfev=LS_MAX_EVALUATIONS)
+    messages.append(f"least_squares: {ls.message}")
+    x = ls.x
+    jac = _jacobian(r, x)
+    values = values_at(problem, x)
+    design = problem.design_at(values)
+    after, ok_after = evaluate(problem, design)
+    res = residuals_of(problem, after)
+    dof = res.size - x.size
+    sigma = values * _sigma_log(jac, res, dof)
+    span = upper - lower
+    at_bound = (x - lower < 1e-6 * np.maximum(span, 1)) | (upper - x < 1e-6 * np.maximum(span, 1))
+    return Calibration(problem, values, sigma, at_bound, before, after, jac, dof, count[0],
+                       design, ok_before and ok_after, tuple(messages))
+
+
+def _half_ss(r):
+    return 0.5 * float(r @ r)
+
+
+def _jacobian(r, x):
+    """(n, p) central differences of r at x, step JACOBIAN_STEP in each ln(value)."""
+    columns = []
+    for k in range(x.size):
+        step = np.zeros(x.size)
+        step[k] = JACOBIAN_STEP
+        columns.append((r(x + step) - r(x - step)) / (2.0 * JACOBIAN_STEP))
+    return np.stack(columns, axis=1)
+
+
+def _sigma_log(jac, res, dof):
+    """(p,) 1-sigma of ln(value): sqrt(diag((J^T J)^-1) s^2), inf along directions that J does
+    not see, nan without residual variance (dof <= 0)."""
+    p = jac.shape[1]
+    s2 = float(res @ res) / dof if dof > 0 else float("nan")
+    _, singular, vt = np.linalg.svd(jac, full_matrices=False)
+    largest = singular.max() if singular.size else 0.0
+    seen = singular > max(SINGULAR_RELATIVE * largest, SENSITIVITY_FLOOR)
+    cov = (vt[seen].T / singular[seen] ** 2) @ vt[seen] * s2
+    sigma = np.sqrt(np.abs(np.diag(cov)))
+    blind = np.sum(vt[~seen] ** 2, axis=0) > 1e-6 if np.any(~seen) else np.zeros(p, dtype=bool)
+    return np.where(blind, np.inf, sigma)
+
+
+# -- the calibrated design file --------------------------------------------------------------
+
+def design_text(calibration: Calibration, data_names, sources: dict | None = None,
+                from_design: str = "") -> str:
+    """A complete design TOML of the calibrated design, loadable by `rvte te`: a header saying
+    what was fitted to what, every design key, and the [sources] table (for R_pd)."""
+    cal = calibration
+    lines = [f"Calibrated by rvte calibrate ({cal.problem.target}) from {from_design or cal.problem.design.name}",
+             "against " + ", ".join(str(n) for n in data_names) + ".",
+             "Fitted (1-sigma from the Jacobian at the optimum; inf: not identifiable from the data):"]
+    for p, v, s in zip(cal.problem.parameters, cal.values, cal.sigma):
+        where = p.field if p.series_with is None else \
+            f"{p.field} = series(R_pd, crank bending {p.series_with:.4g} N/m) = {p.field_value(v):.6g}"
+        lines.append(f"  {p.name} = {v:.6g} +- {s:.3g} N/m ({where})")
+    lines.append("Every other value as in the design calibrated.")
+    values = cal.design.file_values()
+    values["name"] = f"{cal.problem.design.name} calibrated"
+    text = toml_text(values, header="\n".join(lines))
+    if sources:
+        text += "\n[sources]\n" + toml_text({k: v for k, v in sources.items()})
+    return text
+
+
+def describe(parameter: Parameter) -> str:
+    """What a fitted name is, for reports."""
+    if parameter.name in SEED003_DOC:
+        return f"{SEED003_DOC[parameter.name]} -> {parameter.field}"
+    return parameter.field
+
+
+__all__ = ["TARGETS", "SEED003_NAMES", "Parameter", "Catalogue", "DataSet", "Problem", "Calibration",
+           "problem", "parameters", "evaluate", "residuals", "calibrate", "design_text",
+           "design_sources", "peaks_datasets", "catalogue_dataset", "is_catalogue", "read_toml"]
