@@ -57,7 +57,9 @@ model has the last word:
    surrogate proved itself (its optimism while it has not); the trust region
    doubles when it proved itself and halves when not.  The search stops when
    an allocation meets the target with a proven surrogate and the noise-level
-   safety, or after MAX_ROUNDS; the cheapest verified allocation wins.  Its
+   safety, after PATIENCE rounds in a row that found nothing cheaper meeting
+   the target (once something has met it), or after MAX_ROUNDS; the cheapest
+   verified allocation wins.  Its
    yield "meets the target" when the low end of the verification's
    confidence interval (Wilson, tolerance/montecarlo.py) is at or above the
    target, not merely its estimate: an allocation that meets a 0.9973 target
@@ -104,6 +106,7 @@ STOP_NOISE = 2.5            # proven: prediction and verification within this ma
 MAX_ROUNDS = 8              # verifications at most (each n reducers)
 MAX_CONFIRMATIONS = 3       # fresh Monte Carlo runs of the cheapest verified allocations, in turn
 REACH_TRIES = 2             # the surrogate's best reachable yield verified short twice: out of reach
+PATIENCE = 2                # rounds in a row that find nothing cheaper meeting the target: stop
 TRUST_START = 0.5           # trust region about the centre, in ln s (x1.65): the surrogate's
 TRUST_MAX = 1.0             # errors differ from place to place, so its calibration only holds
 TRUST_MIN = 0.05            # near where it was made; doubled when proven, halved when not
@@ -301,6 +304,7 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
     # Verified points (the current tolerances first); each round verifies one more.
     points = [Round(float("nan"), float("nan"), current, float(model.cost(ones).sum()))]
     radius, safety, misses = TRUST_START, MARGIN_START, 0
+    stale = 0                                           # rounds since the cheapest met allocation
     surrogate, samples = fit(data)
     for r in range(MAX_ROUNDS):
         yield_at = lambda S, surrogate=surrogate: surrogate_yield(surrogate, S)  # noqa: E731
@@ -349,9 +353,15 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
             f"{predicted:.5f}, verified {verified.estimate:.5f} [{verified.low:.5f}, "
             f"{verified.high:.5f}] of {verified.n}" + ("" if meets else " (below the target)"))
         misses += bool(reaching and not meets)
-        feasible = any(done.verified.meets(target) for done in points)
+        met_before = [done.cost for done in points[:-1] if done.verified.meets(target)]
+        feasible = bool(met_before) or meets
         if misses >= REACH_TRIES and not feasible:
             break                                       # out of reach, as far as can be told
+        stale = 0 if meets and (not met_before or points[-1].cost < min(met_before)) else stale + 1
+        if feasible and stale >= PATIENCE:
+            say(f"allocate: {PATIENCE} rounds without a cheaper allocation that meets the "
+                "target: stop")
+            break                                       # the surrogate finds nothing better here
         if meets and proven and safety < MARGIN_START:
             break                                       # proven, with a margin at the noise level
         radius = min(2 * radius, TRUST_MAX) if proven else max(radius / 2, TRUST_MIN)

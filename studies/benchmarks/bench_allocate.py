@@ -146,7 +146,8 @@ def main(argv=None) -> int:
 
     path = study_at(args.points, folder, f"surrogate_{args.points}")
     clock = time.perf_counter()
-    result = tolerance.allocate(path, args.target, progress=None, processes=args.processes)
+    result = tolerance.allocate(path, args.target, progress=None, processes=args.processes,
+                                log=lambda text: print(text, flush=True))
     seconds = time.perf_counter() - clock
     y = result.yield_allocated
     base_evaluations = result.model_evaluations

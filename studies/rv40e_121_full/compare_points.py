@@ -1,11 +1,13 @@
-"""The Sobol ranking at 720 points per output revolution against 12 480 (8 z_p z_c), same reducers.
+"""The Sobol ranking at a study file's points per output revolution against 12 480 (8 z_p z_c).
 
-720 points do not resolve the pin-passing order z_p * z_c = 1560 of the
-RV-40E-121; 12 480 points do, at 17 times the cost.  This runs the Sobol job
-of both study files of this folder at a small n with `points = 12480` (a copy
-of each file beside its output) and prints, for the same Saltelli rows, the
-indices at both resolutions side by side and how te_pp itself moves.  Stored
-runs are reused (the 720-point ones from the N = 1024 runs' first rows).
+12 480 points resolve the pin-passing order z_p * z_c = 1560 of the
+RV-40E-121 with 8 points per period; a study file may use fewer (720 for the
+rated file, 3200 for the no-load one) to save time.  This runs the Sobol job
+of both study files of this folder at a small n as they are and with
+`points = 12480` (a copy of each file beside its output), and prints, for the
+same Saltelli rows, the indices at both resolutions side by side and how
+te_pp itself moves.  Stored runs are reused (the study's own from the first
+rows of its N = 1024 run).
 
     python studies/rv40e_121_full/compare_points.py [--n-no-load 16] [--n-rated 32] [--processes 2]
 """
@@ -67,19 +69,20 @@ def compare(study: Path, n: int, processes: int) -> str:
         if not column.startswith("te_"):
             continue      # the windup metrics do not use the TE curve's points
         a, b = coarse.Y[:, j], fine.Y[:, j]
-        lines.append(f"`{column}`: at 720 points / at {FINE}: mean ratio {np.mean(a / b):.3f}, "
+        lines.append(f"`{column}`: at {coarse.study.points} points / at {FINE}: mean ratio {np.mean(a / b):.3f}, "
                      f"correlation {np.corrcoef(a, b)[0, 1]:.4f}, largest difference "
                      f"{np.max(np.abs(a - b)):.2f} arcsec (mean te_pp {b.mean():.1f} arcsec)")
         lines.append("")
         ia, ib = coarse.analyses[column].indices, fine.analyses[column].indices
         ra, rb = np.argsort(np.argsort(-ia.ST_reported)), np.argsort(np.argsort(-ib.ST_reported))
-        lines.append(f"| factor | ST at 720 | ST at {FINE} | rank at 720 | rank at {FINE} |")
+        p = coarse.study.points
+        lines.append(f"| factor | ST at {p} | ST at {FINE} | rank at {p} | rank at {FINE} |")
         lines.append("|---|---|---|---|---|")
         for g in np.argsort(-ib.ST_reported):
             lines.append(f"| `{ia.names[g]}` | {ia.ST_reported[g]:.3f} ± {ia.ST_conf[g]:.3f} | "
                          f"{ib.ST_reported[g]:.3f} ± {ib.ST_conf[g]:.3f} | {ra[g] + 1} | {rb[g] + 1} |")
         lines.append("")
-        lines.append(f"largest |ST(720) - ST({FINE})| over the factors: "
+        lines.append(f"largest |ST({p}) - ST({FINE})| over the factors: "
                      f"{np.max(np.abs(ia.ST_reported - ib.ST_reported)):.3f}")
         lines.append("")
     return "\n".join(lines)
