@@ -156,8 +156,9 @@ def allocate(study_path, yield_target: float = 0.9973, output=None, progress: bo
     [tolerances.NAME.cost] tables (tolerance/cost.py).  n: reducers of each
     verification Monte Carlo (default the study's [montecarlo] n, at least
     MIN_HIGH_YIELD_N for a target >= HIGH_YIELD); processes: local worker
-    processes for the training groups and those Monte Carlo runs.  Everything is stored in the output folder
-    (default the study's; it must be this study's or new): the current
+    processes for the training groups and those Monte Carlo runs.  Everything is
+    stored in the output folder (default the study's; it must be this study's
+    or new): the current
     tolerances' Monte Carlo as `rvte mc` would store it, the training and the
     verifications under allocation/, and `<study name>_allocated.toml` (ready
     to run: its `rvte mc` reuses the verification) and allocation.json.
@@ -182,10 +183,7 @@ def allocate(study_path, yield_target: float = 0.9973, output=None, progress: bo
         raise InputError("output", str(folder), f"would overwrite the study file {study.path} with "
                          "its allocation: choose another output folder")
     _warn_load(study, log)
-    factors = [f for f in study.factors if costs.current_um(f) > 0]   # an exact source stays exact
-    if not factors:
-        raise InputError("tolerances", None, "every tolerance is zero: nothing to allocate")
-    wiring = _StudyWiring(study, factors, folder, progress, log, yes, processes)
+    wiring = _StudyWiring(study, _allocated_factors(study), folder, progress, log, yes, processes)
     result = allocate_scales(wiring.model(), target, n, log=log, progress=progress,
                              column_names=study.metric_columns)
     return wiring.report(result, target, allocated_path)
@@ -201,11 +199,17 @@ def study_model(study_path, output=None, processes: int | None = None, log=None)
     from .store import open_output
 
     study = _load(study_path, output)
+    factors = _allocated_factors(study)
+    return _StudyWiring(study, factors, open_output(study, study.output), False, log, True,
+                        processes).model()
+
+
+def _allocated_factors(study) -> list:
+    """The factors an allocation changes: every nonzero tolerance (an exact source stays exact)."""
     factors = [f for f in study.factors if costs.current_um(f) > 0]
     if not factors:
         raise InputError("tolerances", None, "every tolerance is zero: nothing to allocate")
-    folder = open_output(study, study.output)
-    return _StudyWiring(study, factors, folder, False, log, True, processes).model()
+    return factors
 
 
 class _StudyWiring:
@@ -305,38 +309,43 @@ class _StudyWiring:
         folder is ready for `rvte report`.
         """
         from . import montecarlo
-        from .backends import make_backend
-        from .run import compute, run_mc
+        from .run import run_mc
 
         if np.all(scales == 1.0):
             result = run_mc(self.study, n, output=self.folder, processes=self.processes,
                             progress=self.progress, plots=False, log=self.log, yes=self.yes)
             return montecarlo.rows(self.study, 0, n), result.Y
-        study = self.candidate(scales)[1]
-        rows = math.ceil(n / study.batch_size) * study.batch_size
-        computed = compute(study, "mc", rows, lambda a, b: montecarlo.rows(study, a, b),
-                           make_backend(self.processes), self.progress, self.log,
-                           output=study.output, yes=self.yes, size_field=("n", n))
-        return montecarlo.rows(study, 0, n), computed.Y[:n]
+        return self._mc_rows(scales, 0, n)
 
     def confirm(self, scales, n: int):
         """Fresh draws: rows [k, k + n) of the same `rvte mc` sequence, k = n rounded up to
         whole batches (every verification used rows [0, n)); `rvte mc FILE -n k+n` reuses both."""
+        return self._mc_rows(scales, self.whole_batches(n), n)
+
+    def whole_batches(self, n: int) -> int:
+        """n rounded up to whole batches: the rows a Monte Carlo of n reducers computes."""
+        return math.ceil(n / self.study.batch_size) * self.study.batch_size
+
+    def _mc_rows(self, scales, start: int, n: int):
+        """Rows [start, start + n) of the `rvte mc` of the study file at scales: (U, Y).
+
+        The study's own store at the current tolerances, else the allocated
+        file's (allocation/<inputs hash>); finished batches are reused.
+        """
         from . import montecarlo
         from .backends import make_backend
         from .run import compute
 
-        study, output = ((self.study, self.folder) if np.all(scales == 1.0) else
-                         (lambda s: (s, s.output))(self.candidate(scales)[1]))
-        start = self.confirm_start(n)
-        total = start + math.ceil(n / study.batch_size) * study.batch_size
-        computed = compute(study, "mc", total, lambda a, b: montecarlo.rows(study, a, b),
-                           make_backend(self.processes), self.progress, self.log,
-                           output=output, yes=self.yes, size_field=("n", n))
+        if np.all(scales == 1.0):
+            study, output = self.study, self.folder
+        else:
+            study = self.candidate(scales)[1]
+            output = study.output
+        computed = compute(study, "mc", start + self.whole_batches(n),
+                           lambda a, b: montecarlo.rows(study, a, b), make_backend(self.processes),
+                           self.progress, self.log, output=output, yes=self.yes,
+                           size_field=("n", n))
         return montecarlo.rows(study, start, start + n), computed.Y[start:start + n]
-
-    def confirm_start(self, n: int) -> int:
-        return math.ceil(n / self.study.batch_size) * self.study.batch_size
 
     def candidate(self, scales, header: str = ""):
         """(text, Study) of the study file with the allocated tolerances at scales.
@@ -380,12 +389,12 @@ class _StudyWiring:
                      "these tolerances") +
                   f"; total cost {sum(f.cost_allocated for f in factors):.4g} (was "
                   f"{sum(f.cost_current for f in factors):.4g}).\n"
-                  + (f"The yield is that of rows {self.confirm_start(allocated.n)}-"
-                     f"{self.confirm_start(allocated.n) + allocated.n - 1} of this file's Monte "
+                  + (f"The yield is that of rows {self.whole_batches(allocated.n)}-"
+                     f"{self.whole_batches(allocated.n) + allocated.n - 1} of this file's Monte "
                      f"Carlo, fresh draws that no step of the search saw (rows 0-{allocated.n - 1} "
                      "were its verification).\n" if result.confirmations else "") +
                   f"Run: rvte mc {path.name} -n "
-                  f"{self.confirm_start(allocated.n) + allocated.n if result.confirmations else allocated.n}"
+                  f"{self.whole_batches(allocated.n) + allocated.n if result.confirmations else allocated.n}"
                   "   (reuses the search's Monte Carlo runs)")
         text, _ = self.candidate(result.scales, header)
         path.write_text(text)

@@ -385,9 +385,9 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
     # those fall short, the next cheapest, and so on.
     confirmations = []
     for done in meeting[:MAX_CONFIRMATIONS]:
-        U, Y = model.confirm(done.verified.scales, n)
+        _, Y = model.confirm(done.verified.scales, n)
         evaluations += n
-        confirmed = _judge(model, done.verified.scales, Y)
+        confirmed = judge(model, done.verified.scales, Y)
         confirmations.append(confirmed)
         say(f"allocate: confirmation on fresh draws at cost {done.cost:.4g}: yield "
             f"{confirmed.estimate:.5f} [{confirmed.low:.5f}, {confirmed.high:.5f}] of "
@@ -525,10 +525,10 @@ def optimise(model: ScaledModel, yield_at, wanted: float, starts=(), lower=None,
 def _verify(model: ScaledModel, scales, n: int):
     """The true model's Monte Carlo at scales: (Verified, U (n, D), Y (n, M))."""
     U, Y = model.verify(np.asarray(scales, dtype=float), n)
-    return _judge(model, scales, Y), U, Y
+    return judge(model, scales, Y), U, Y
 
 
-def _judge(model: ScaledModel, scales, Y) -> Verified:
+def judge(model: ScaledModel, scales, Y) -> Verified:
     """The yield of metrics Y (n, M) against every limit, with its interval."""
     ok = np.all(np.isfinite(Y), axis=1)
     passes = ok.copy()

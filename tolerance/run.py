@@ -383,6 +383,19 @@ def sobol_job(n: int, second_order: bool) -> str:
     return f"sobol-n{n}" + ("-second-order" if second_order else "")
 
 
+def other_sobol_jobs(problem: dict, n: int, second_order: bool) -> list:
+    """(job, rows) of the study's Sobol' runs at every other n, for `compute`'s prefix_jobs.
+
+    A scrambled Sobol' sequence of n points begins with the one of n/2: a run
+    that raises n (the convergence check asks for it) reuses the smaller runs'
+    reducers, and a run that lowers it (a quick look, a comparison) the larger
+    runs' first rows.
+    """
+    per_base = sobol.rows_per_base_sample(problem, second_order)
+    return [(sobol_job(m, second_order), m * per_base) for m in (1 << k for k in range(31))
+            if m != n]
+
+
 def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = None, output=None,
               processes: int | None = None, workers: int | None = None,
               scheduler: str | None = None, progress: bool | None = False, plots: bool = True,
@@ -405,15 +418,9 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     _check_sample_memory(problem, n, second_order)
     X = sobol.sample(problem, n, second_order, seed=study.seed)
     job = sobol_job(n, second_order)
-    per_base = sobol.rows_per_base_sample(problem, second_order)
-    # A scrambled Sobol' sequence of n points begins with the one of n/2: a run that
-    # raises n (the convergence check asks for it) reuses the smaller runs' reducers, and
-    # a run that lowers it (a quick look, a comparison) the larger runs' first rows.
-    others = [(sobol_job(m, second_order), m * per_base)
-              for m in (1 << k for k in range(31)) if m != n]
     computed = compute(study, job, X.shape[0], lambda s, e: X[s:e],
                        make_backend(processes, workers, scheduler), progress, log, yes=yes,
-                       size_field=("n", n), prefix_jobs=others)
+                       size_field=("n", n), prefix_jobs=other_sobol_jobs(problem, n, second_order))
     bad = np.flatnonzero(~np.all(np.isfinite(computed.Y), axis=1))
     if bad.size:
         raise RuntimeError(f"the model failed on {bad.size} of {X.shape[0]} Sobol rows (first: row "

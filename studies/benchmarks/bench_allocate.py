@@ -48,7 +48,7 @@ import numpy as np  # noqa: E402
 
 import tolerance  # noqa: E402
 from tolerance.allocation import study_model  # noqa: E402
-from tolerance.montecarlo import wilson_interval  # noqa: E402
+from tolerance.least_cost import judge  # noqa: E402
 
 STUDY = Path(__file__).resolve().parents[1] / "rv40e_121_full_rated.toml"
 TARGET_S = 600.0           # the full study's allocation on this 2-core machine
@@ -78,7 +78,7 @@ class PlainLoop:
         self.model, self.target, self.n = model, target, n
         self.budget, self.good_cost = budget, good_cost
         self.evaluations = 0
-        self.best = None                          # (cost, scales, passed) of the best feasible
+        self.best = None                          # (cost, Verified) of the cheapest feasible
         self.cache = {}
 
     def low(self, scales) -> float:
@@ -88,16 +88,11 @@ class PlainLoop:
                 raise Stop("budget")
             _, Y = self.model.verify(np.asarray(scales), self.n)
             self.evaluations += self.n
-            ok = np.all(np.isfinite(Y), axis=1)
-            passes = ok.copy()
-            for limit in self.model.limits:
-                passes[ok] &= limit.passes(Y[ok, limit.column])
-            passed = int(passes.sum())
-            low, _ = wilson_interval(passed, int(ok.sum()), self.model.confidence)
+            verified = judge(self.model, scales, Y)      # the search's own criterion
             cost = float(self.model.cost(scales).sum())
-            if low >= self.target and (self.best is None or cost < self.best[0]):
-                self.best = (cost, np.asarray(scales).copy(), passed)
-            self.cache[key] = low
+            if verified.meets(self.target) and (self.best is None or cost < self.best[0]):
+                self.best = (cost, verified)
+            self.cache[key] = verified.low
             if self.best is not None and self.best[0] <= self.good_cost:
                 raise Stop("matched")
         return self.cache[key]
@@ -167,10 +162,9 @@ def main(argv=None) -> int:
     if loop.best is None:
         cost_text, yield_text = "none met the target", "-"
     else:
-        cost_text = f"{result.total_cost_current:.3f} -> {loop.best[0]:.3f}"
-        estimate = loop.best[2] / y.n
-        low, high = wilson_interval(loop.best[2], y.n, model.confidence)
-        yield_text = f"{estimate:.4f} ({low:.4f}-{high:.4f}) of {y.n}"
+        cost, verified = loop.best
+        cost_text = f"{result.total_cost_current:.3f} -> {cost:.3f}"
+        yield_text = f"{verified.estimate:.4f} ({verified.low:.4f}-{verified.high:.4f}) of {verified.n}"
     ratio = loop.evaluations / base_evaluations
     ratio_text = (f">= {ratio:.1f} (stopped at the cap, not matched)" if why == "budget" else
                   f"{ratio:.1f} ({why})")

@@ -20,7 +20,7 @@ import numpy as np
 
 from tolerance import load_study, sobol
 from tolerance.backends import make_backend
-from tolerance.run import compute, sobol_job
+from tolerance.run import compute, other_sobol_jobs, sobol_job
 
 HERE = Path(__file__).resolve().parent
 STUDIES = HERE.parent
@@ -49,11 +49,9 @@ class Job:
         self.study = load_study(path)
         problem = self.study.problem()
         self.X = sobol.sample(problem, n, False, seed=self.study.seed)
-        per_base = sobol.rows_per_base_sample(problem, False)
-        others = [(sobol_job(m, False), m * per_base) for m in (1 << k for k in range(31)) if m != n]
         self.Y = compute(self.study, sobol_job(n, False), self.X.shape[0],
                          lambda s, e: self.X[s:e], make_backend(processes),
-                         prefix_jobs=others).Y
+                         prefix_jobs=other_sobol_jobs(problem, n, False)).Y
         self.analyses = sobol.analyze(problem, self.Y, self.study.metric_columns, False,
                                       self.study.resamples, self.study.sobol_confidence,
                                       self.study.seed)
