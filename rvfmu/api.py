@@ -17,7 +17,7 @@ import numpy as np
 from .core import metrics
 from .core.checks import InputError
 from .core.limits import check_load
-from .core.design import PRESET_NAMES, RVDesign, load_design, preset
+from .core.design import PRESET_NAMES, RVDesign, in_file_units, load_design, preset
 from .core.errors import ErrorSet, load_errors, zero_errors
 from .core.quasistatic import TECurve, Windup, default_points, te_curve, windup
 from .outputs import figure_file, output_file
@@ -369,6 +369,64 @@ def presets() -> list[PresetInfo]:
     return infos
 
 
+@dataclass(frozen=True)
+class CatalogueReport:
+    """The presets against their frames' catalogue figures (`rvfmu.catalogue`)."""
+
+    rows: list
+
+    def summary(self) -> str:
+        from . import catalogue
+
+        head = (f"{'preset':<11} {'frame':<8} {'rated N*m':>9}  {'torsional rigidity N*m/arcmin':>31}"
+                f"  {'lost motion arcmin':>28}")
+        sub = (f"{'':<11} {'':<8} {'':>9}  {'estimate':>9} {'preset':>9} {'catalogue':>11}  "
+               f"{'estimate':>9} {'preset':>8} {'catalogue':>9}")
+        lines = [head, sub]
+        for r in self.rows:
+            f = r.frame
+            lines.append(
+                f"{r.name:<11} {f.name:<8} {r.rated_torque_Nm:>9.0f}  "
+                f"{r.estimate.torsional_rigidity_Nm_per_arcmin:>9.1f} "
+                f"{r.calibrated.torsional_rigidity_Nm_per_arcmin:>9.1f} "
+                f"{f.torsional_rigidity_Nm_per_arcmin:>7.0f} {'ok' if r.rigidity_within else 'NO':>3}  "
+                f"{r.estimate.lost_motion_arcmin:>9.3f} {r.calibrated.lost_motion_arcmin:>8.3f} "
+                f"{'<= ' + format(f.lost_motion_max_arcmin, 'g'):>6} {'ok' if r.lost_motion_within else 'NO':>2}")
+        lines += [
+            "estimate: the preset before calibration (<name>-estimate); preset: as shipped, "
+            "calibrated to the catalogue",
+            f"ok: rigidity within {100 * catalogue.RIGIDITY_TOLERANCE:g} % of the catalogue's, "
+            "lost motion within its bound (docs/model.md section 5 test, no errors)",
+            f"catalogue: {catalogue.source()}",
+        ]
+        for r in self.rows:
+            c = r.calibration
+            if c:
+                lines.append(f"{r.name}: output_stiffness {c['output_stiffness']:.4g} N*m/arcmin, "
+                             f"modification_scale {c['modification_scale']:.4g} "
+                             f"({c['fit'].split(': ')[-1]})")
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        return _json_safe({"source": self.rows[0].frame.source if self.rows else "", "presets": [
+            {"name": r.name, "frame": r.frame.name, "rated_torque_Nm": r.rated_torque_Nm,
+             "catalogue": {"rated_torque_Nm": r.frame.rated_torque_Nm,
+                           "torsional_rigidity_Nm_per_arcmin": r.frame.torsional_rigidity_Nm_per_arcmin,
+                           "lost_motion_max_arcmin": r.frame.lost_motion_max_arcmin,
+                           "backlash_max_arcmin": r.frame.backlash_max_arcmin},
+             "estimate": vars(r.estimate), "preset": vars(r.calibrated),
+             "rigidity_within": r.rigidity_within, "lost_motion_within": r.lost_motion_within,
+             "calibration": r.calibration} for r in self.rows]})
+
+
+def presets_catalogue() -> CatalogueReport:
+    """Every preset's torsional rigidity and lost motion, before and after its calibration,
+    beside its frame's catalogue figures."""
+    from . import catalogue
+
+    return CatalogueReport(catalogue.against_catalogue())
+
+
 def profile(design, csv_path: str | Path | None = None, dxf_path: str | Path | None = None,
             points: int | None = None):
     """The disc profile of a design; writes CSV (mm) and/or DXF (mm)."""
@@ -387,7 +445,7 @@ def profile(design, csv_path: str | Path | None = None, dxf_path: str | Path | N
     return prof.disc_profile(design, points)
 
 
-__all__ = ["te", "presets", "profile", "errors_template", "simulate", "SimulationReport", "modes",
+__all__ = ["te", "presets", "presets_catalogue", "CatalogueReport", "profile", "errors_template", "simulate", "SimulationReport", "modes",
            "ModesReport", "TEReport", "default_points", "write_te_csv"]
 
 
@@ -747,7 +805,7 @@ class CalibrateReport:
     output: str | None
 
     def summary(self) -> str:
-        from .calibration import describe
+        from .calibration import describe, setting
 
         cal = self.calibration
         prob = cal.problem
@@ -771,8 +829,8 @@ class CalibrateReport:
         lines += [f"fit               least squares on ln(value): differential_evolution, then "
                   f"least_squares; {cal.evaluations} model evaluations"]
         width = max(17, *(len(p.name) + 1 for p in prob.parameters))
-        lines.append(f"{'value [N/m]':<{width}} {'start':>10} {'bounds':>21} {'fitted':>10} "
-                     f"{'1-sigma':>9} {'per +1 %':>9}")
+        lines.append(f"{'value':<{width}} {'start':>10} {'bounds':>21} {'fitted':>10} "
+                     f"{'1-sigma':>9} {'per +1 %':>9}  unit")
         for p, v, s, b, sens in zip(prob.parameters, cal.values, cal.sigma, cal.at_bound,
                                     cal.sensitivity()):
             note = "  at bound" if b else ""
@@ -781,10 +839,10 @@ class CalibrateReport:
             elif s > v:
                 note += "  (sigma > value: not determined by these data)"
             lines.append(f"{p.name:<{width}} {p.value:>10.4g} {p.lower:>10.4g}-{p.upper:<10.4g} "
-                         f"{v:>10.4g} {s:>9.3g} {sens:>9.3g}{note}")
+                         f"{v:>10.4g} {s:>9.3g} {sens:>9.3g}  {p.unit}{note}")
         lines.append(f"{'':<{width}} per +1 %: RMS change of the residuals [{unit}]")
-        lines += [f"{'':<{width}} {p.name}: {describe(p)}" for p in prob.parameters
-                  if p.name != p.field]
+        lines += [f"{'':<{width}} {p.name}: {describe(p)}; fitted: {setting(p, v)}"
+                  for p, v in zip(prob.parameters, cal.values) if p.name != p.field]
         rows = cal.misfit()
         if prob.target == "peaks":
             lines.append(f"{'data set':<17} {'measured':>9} {'before':>9} {'misfit':>8} {'after':>9} "
@@ -820,10 +878,10 @@ class CalibrateReport:
         v0, v1 = cal.v_index
         return _json_safe({"design": prob.design.name, "data": list(self.data), "target": prob.target,
                 "points_per_revolution": prob.points, "evaluations": cal.evaluations,
-                "fitted": [{"name": p.name, "field": p.field, "start_N_per_m": p.value,
-                            "bounds_N_per_m": [p.lower, p.upper], "value_N_per_m": float(v),
-                            "sigma_N_per_m": float(s), "at_bound": bool(b),
-                            "field_value_N_per_m": p.field_value(float(v)),
+                "fitted": [{"name": p.name, "field": p.field, "unit": p.unit, "start": p.value,
+                            "bounds": [p.lower, p.upper], "value": float(v),
+                            "sigma": float(s), "at_bound": bool(b),
+                            "sets": in_file_units(p.field_values(float(v))),
                             "rms_change_per_percent": float(k)}
                            for p, v, s, b, k in zip(prob.parameters, cal.values, cal.sigma,
                                                     cal.at_bound, cal.sensitivity())],

@@ -24,6 +24,14 @@ How it is answered, and why so:
   it gets sigma = inf; a value whose sigma exceeds itself is reported as not
   determined by the data.
   With as many residuals as values (n = p) there is no variance left: sigma = nan.
+- Besides the stiffnesses, two values that the catalogue figures identify:
+  `output_stiffness` [N*m/arcmin], the torsional stiffness of what is in series
+  with the output (flange, carrier body, housing; it sets the design's
+  output_compliance = 1 / it), which moves the torsional rigidity and barely the
+  lost motion; and `modification_scale`, a factor on the disc's modification
+  pair (d_rp, d_rrp) that keeps their ratio, which sets the tip and root
+  clearance and with it the lost motion.  Both are fitted on their logarithms
+  like the stiffnesses.
 - Seed 003's names (its equations of the carrier, planets and discs):
   R_ca, the angular contact bearings of the carrier, is `main_bearing_stiffness`;
   R_b, the tapered roller bearings of the crankshafts in the carrier, is
@@ -64,11 +72,11 @@ import numpy as np
 
 from .compare import as_bench_sees, model_grid, periodic
 from .core.checks import InputError, finite_number, integer, non_negative, positive
-from .core.design import DESIGN_FIELDS, PRESET_NAMES, RVDesign
+from .core.design import DESIGN_FIELDS, ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign
 from .core.errors import ErrorSet, load_errors, stack, toml_text, zero_errors
 from .core.quasistatic import windup
 from .core.stiffness import series, simply_supported_beam_stiffness
-from .core.units import MM
+from .core.units import ARCMIN, ARCSEC, MM
 from .measured import MeasuredTE
 
 TARGETS = ("peaks", "curve", "catalogue")
@@ -112,13 +120,31 @@ SENSITIVITY_FLOOR = 1e-6
 FAILED_RESIDUAL = 1e6
 
 
+# Values that are not a stiffness field (module docstring): name -> (design fields, unit, doc).
+OUTPUT_STIFFNESS = "output_stiffness"
+MODIFICATION_SCALE = "modification_scale"
+OTHER_NAMES = {
+    OUTPUT_STIFFNESS: ("output_compliance", "N*m/arcmin",
+                       "torsional stiffness in series with the output (sets output_compliance)"),
+    MODIFICATION_SCALE: ("d_rp,d_rrp", "x",
+                         "factor on the modification pair d_rp, d_rrp (their ratio kept)"),
+}
+# Without a series compliance in the design, output_stiffness starts at the rated torque per
+# arcmin (a catalogue frame's rigidity is about 0.3 of that, the model's without it about 1)
+# and is bounded by this factor either way: a wide search, since the start is a guess.
+OUTPUT_STIFFNESS_BOUND_FACTOR = 30.0
+MODIFICATION_SCALE_BOUNDS = (0.05, 4.0)
+
+
 @dataclass(frozen=True)
 class Parameter:
     """One fitted value.
 
-    name: as reported (R_ca, R_b, R_pd or a design field); field: the design field it
-    sets; value: the starting value [N/m] (of R_pd itself for R_pd); lower, upper:
-    bounds [N/m]; series_with: for R_pd, the crank's bending stiffness [N/m] in series.
+    name: as reported (R_ca, R_b, R_pd, a design field, output_stiffness or
+    modification_scale); field: the design field(s) it sets; value: the starting value
+    (of R_pd itself for R_pd); lower, upper: bounds; series_with: for R_pd, the crank's
+    bending stiffness [N/m] in series; unit: of value and bounds; base: for
+    modification_scale, the design's (d_rp, d_rrp) [m] that it scales.
     """
 
     name: str
@@ -127,10 +153,16 @@ class Parameter:
     lower: float
     upper: float
     series_with: float | None = None
+    unit: str = "N/m"
+    base: tuple[float, float] | None = None
 
-    def field_value(self, value: float) -> float:
-        """The design field's value [N/m] for the fitted `value` [N/m]."""
-        return value if self.series_with is None else series(value, self.series_with)
+    def field_values(self, value: float) -> dict:
+        """The design fields (SI) that the fitted `value` sets."""
+        if self.name == OUTPUT_STIFFNESS:
+            return {"output_compliance": ARCMIN / value}
+        if self.name == MODIFICATION_SCALE:
+            return {"d_rp": self.base[0] * value, "d_rrp": self.base[1] * value}
+        return {self.field: value if self.series_with is None else series(value, self.series_with)}
 
 
 @dataclass(frozen=True)
@@ -198,8 +230,10 @@ class Problem:
 
     def design_at(self, values) -> RVDesign:
         """The design with the fitted fields set from `values` (p,) [N/m]."""
-        return self.design.with_fields(**{p.field: p.field_value(float(v))
-                                          for p, v in zip(self.parameters, values)})
+        fields = {}
+        for p, v in zip(self.parameters, values):
+            fields.update(p.field_values(float(v)))
+        return self.design.with_fields(**fields)
 
     def measured(self) -> list[np.ndarray]:
         return [d.target_value(self.target) for d in self.datasets]
@@ -207,14 +241,17 @@ class Problem:
 
 def resolve_name(name: str) -> tuple[str, str]:
     """(reported name, design field) of a --fit name: R_ca, R_b, R_pd, a stiffness field or
-    its file key; an InputError naming what is allowed otherwise."""
+    its file key, output_stiffness or modification_scale; an InputError naming what is
+    allowed otherwise."""
     text = str(name).strip()
     if text in SEED003_NAMES:
         return text, SEED003_NAMES[text]
+    if text in OTHER_NAMES:
+        return text, OTHER_NAMES[text][0]
     if text in _BY_NAME:
         return _BY_NAME[text].field, _BY_NAME[text].field
-    allowed = ", ".join(list(SEED003_NAMES) + [s.field for s in STIFFNESS_FIELDS])
-    raise InputError("fit", text, f"is not a stiffness of the design; fit one or more of {allowed} "
+    allowed = ", ".join(list(SEED003_NAMES) + [s.field for s in STIFFNESS_FIELDS] + list(OTHER_NAMES))
+    raise InputError("fit", text, f"is not a value the calibration fits; fit one or more of {allowed} "
                      "(or their file keys, e.g. pin_disc_stiffness_N_per_m)")
 
 
@@ -234,8 +271,10 @@ def crank_bending_stiffness(design: RVDesign, sources: dict | None) -> float:
 
 def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dict | None = None,
                factor: float = DEFAULT_BOUND_FACTOR) -> tuple[Parameter, ...]:
-    """The values to fit: names (--fit), bounds {name: (lower, upper)} [N/m] for some of them
-    (default: start / factor to start x factor), sources: the design's [sources] (for R_pd)."""
+    """The values to fit: names (--fit), bounds {name: (lower, upper)} (in each value's unit)
+    for some of them (default: start / factor to start x factor; OUTPUT_STIFFNESS_BOUND_FACTOR
+    and MODIFICATION_SCALE_BOUNDS for the two that are not stiffnesses), sources: the
+    design's [sources] (for R_pd)."""
     names = [n for n in (str(x).strip() for x in names) if n]
     if not names:
         raise InputError("fit", "", "name at least one stiffness to fit, e.g. --fit R_ca,R_b,R_pd")
@@ -253,6 +292,9 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
         given[name] = _bound_pair(name, pair)
     out = []
     for name, field in resolved:
+        if name in OTHER_NAMES:
+            out.append(_other_parameter(design, name, given.get(name)))
+            continue
         current = getattr(design, field)
         bending = None
         if name == "R_pd":
@@ -267,16 +309,36 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
     return tuple(out)
 
 
+def _other_parameter(design: RVDesign, name: str, bounds) -> Parameter:
+    """output_stiffness or modification_scale of `design` (module docstring)."""
+    field, unit, _ = OTHER_NAMES[name]
+    if name == OUTPUT_STIFFNESS:
+        if design.output_compliance > 0.0:
+            start, factor = ARCMIN / design.output_compliance, DEFAULT_BOUND_FACTOR
+        else:
+            start, factor = design.rated_torque, OUTPUT_STIFFNESS_BOUND_FACTOR
+        lower, upper = bounds or (start / factor, start * factor)
+        return Parameter(name, field, start, lower, upper, unit=unit)
+    base = (design.d_rp, design.d_rrp)
+    if design.tip_root_clearance <= 0.0:
+        raise InputError("fit", name, f"scales the modification pair, which leaves no tip and root "
+                         f"clearance here (d_rrp - d_rp = {design.tip_root_clearance / MM:.4g} mm): "
+                         "give the design a clearance to scale first")
+    lower, upper = bounds or MODIFICATION_SCALE_BOUNDS
+    return Parameter(name, field, 1.0, lower, upper, unit=unit, base=base)
+
+
 def _bound_pair(name, pair):
     field = f"bounds.{name}"
+    unit = OTHER_NAMES[name][1] if name in OTHER_NAMES else "N/m"
     try:
         lower, upper = pair
     except (TypeError, ValueError):
-        raise InputError(field, pair, "give two numbers LOWER:UPPER in N/m") from None
+        raise InputError(field, pair, f"give two numbers LOWER:UPPER in {unit}") from None
     lower, upper = finite_number(field, lower), finite_number(field, upper)
     for value in (lower, upper):
         if value <= 0.0:
-            raise InputError(field, value, "must be > 0 N/m: a stiffness, fitted on its logarithm")
+            raise InputError(field, value, f"must be > 0 {unit}: fitted on its logarithm")
     if upper <= lower:
         raise InputError(field, [lower, upper], "the upper bound must be above the lower one")
     return lower, upper
@@ -375,7 +437,7 @@ def peaks_datasets(path, values: dict, design: RVDesign, load: float = 0.0,
 def design_sources(spec) -> dict | None:
     """The [sources] table of a design: a preset name's, a design file's own, or (a file
     that names a preset and has none) its preset's; None when there is none."""
-    text = str(spec)
+    text = str(spec).removesuffix(ESTIMATE_SUFFIX)
     if text in PRESET_NAMES:
         return _preset_sources(text)
     path = Path(spec)
@@ -387,7 +449,8 @@ def design_sources(spec) -> dict | None:
         return None
     if isinstance(values.get("sources"), dict):
         return values["sources"]
-    return _preset_sources(values["preset"]) if values.get("preset") in PRESET_NAMES else None
+    name = str(values.get("preset", "")).removesuffix(ESTIMATE_SUFFIX)
+    return _preset_sources(name) if name in PRESET_NAMES else None
 
 
 def _preset_sources(name):
@@ -493,7 +556,7 @@ def residuals_of(problem: Problem, model: list[np.ndarray]) -> np.ndarray:
 
 
 def values_at(problem: Problem, x) -> np.ndarray:
-    """(p,) values [N/m] at x = ln(value / start)."""
+    """(p,) values (each in its unit) at x = ln(value / start)."""
     return problem.start * np.exp(np.asarray(x, dtype=float))
 
 
@@ -666,9 +729,7 @@ def design_text(calibration: Calibration, data_names, sources: dict | None = Non
              "against " + ", ".join(str(n) for n in data_names) + ".",
              "Fitted (1-sigma from the Jacobian at the optimum; inf: not identifiable from the data):"]
     for p, v, s in zip(cal.problem.parameters, cal.values, cal.sigma):
-        where = p.field if p.series_with is None else \
-            f"{p.field} = series(R_pd, crank bending {p.series_with:.4g} N/m) = {p.field_value(v):.6g}"
-        lines.append(f"  {p.name} = {v:.6g} +- {s:.3g} N/m ({where})")
+        lines.append(f"  {p.name} = {v:.6g} +- {s:.3g} {p.unit} ({setting(p, v)})")
     lines.append("Every other value as in the design calibrated.")
     values = cal.design.file_values()
     values["name"] = f"{cal.problem.design.name} calibrated"
@@ -678,10 +739,26 @@ def design_text(calibration: Calibration, data_names, sources: dict | None = Non
     return text
 
 
+def setting(parameter: Parameter, value: float) -> str:
+    """What the fitted `value` sets in the design, in file units, for reports."""
+    p = parameter
+    if p.series_with is not None:
+        return (f"{p.field} = series(R_pd, crank bending {p.series_with:.4g} N/m) = "
+                f"{p.field_values(value)[p.field]:.6g}")
+    if p.name == OUTPUT_STIFFNESS:
+        return f"output_compliance_arcsec_per_Nm = {p.field_values(value)['output_compliance'] / ARCSEC:.6g}"
+    if p.name == MODIFICATION_SCALE:
+        pair = p.field_values(value)
+        return f"d_rp_mm = {pair['d_rp'] / MM:.6g}, d_rrp_mm = {pair['d_rrp'] / MM:.6g}"
+    return p.field
+
+
 def describe(parameter: Parameter) -> str:
     """What a fitted name is, for reports."""
     if parameter.name in SEED003_DOC:
         return f"{SEED003_DOC[parameter.name]} -> {parameter.field}"
+    if parameter.name in OTHER_NAMES:
+        return f"{OTHER_NAMES[parameter.name][2]} -> {parameter.field}"
     return parameter.field
 
 

@@ -44,6 +44,9 @@ def _show(report, as_json: bool, files) -> None:
 
 
 def _presets(args):
+    if args.catalogue:
+        _show(api.presets_catalogue(), args.json, ())
+        return
     print(f"{'preset':<12} {'ratio':>6}  source")
     for info in api.presets():
         print(f"{info.name:<12} {info.ratio:>6g}  {info.source}")
@@ -145,6 +148,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(run=_te)
 
     p = sub.add_parser("presets", help="list the shipped reducer presets")
+    p.add_argument("--catalogue", action="store_true",
+                   help="torsional rigidity and lost motion of each preset (before and after its "
+                        "calibration) beside its frame's catalogue figures")
+    p.add_argument("--json", action="store_true", help="with --catalogue: print it as JSON")
     p.set_defaults(run=_presets)
 
     p = sub.add_parser("simulate", help="dynamic TE in time at a constant input speed "

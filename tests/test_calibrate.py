@@ -127,8 +127,8 @@ def test_seed003_names_map_onto_the_design_and_r_pd_sits_in_series_with_the_cran
     # the preset's crank-disc value is seed 003's needle formula (5.971e9) with the crank's bending
     assert pd.value == pytest.approx(5.971e9, rel=0.005)
     assert pd.series_with == pytest.approx(3.613e8, rel=1e-3)
-    assert pd.field_value(1.1e10) == pytest.approx(series(1.1e10, pd.series_with))
-    assert pd.field_value(pd.value) == pytest.approx(rv20.crank_disc_bearing_stiffness)
+    assert pd.field_values(1.1e10)[pd.field] == pytest.approx(series(1.1e10, pd.series_with))
+    assert pd.field_values(pd.value)[pd.field] == pytest.approx(rv20.crank_disc_bearing_stiffness)
 
 
 @pytest.mark.parametrize("args, field", [

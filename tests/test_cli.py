@@ -7,6 +7,8 @@ import sys
 import numpy as np
 
 from conftest import ROOT
+from rvfmu.core.design import preset
+from rvfmu.core.units import MM
 
 
 def rvte(*args, cwd=None):
@@ -49,8 +51,9 @@ def test_profile_writes_csv_and_dxf(tmp_path):
     xy = np.loadtxt(tmp_path / "disc.csv", delimiter=",", skiprows=1)
     radius = np.hypot(xy[:, 0], xy[:, 1])
     # valley and tip radii of docs/model.md section 3 with the preset's modifications, in mm
-    assert abs(radius.min() - (66.0 - 0.01 - 1.5 - 3.0 - 0.01)) < 2e-3
-    assert abs(radius.max() - (66.0 - 0.01 + 1.5 - 3.0 - 0.01)) < 2e-3
+    d = {k: v / MM for k, v in vars(preset("RV-40E-81")).items() if k in ("d_rp", "d_rrp")}
+    assert abs(radius.min() - (66.0 + d["d_rp"] - 1.5 - 3.0 - d["d_rrp"])) < 2e-3
+    assert abs(radius.max() - (66.0 + d["d_rp"] + 1.5 - 3.0 - d["d_rrp"])) < 2e-3
     assert (tmp_path / "disc.dxf").read_text().count("LWPOLYLINE") >= 1
 
 

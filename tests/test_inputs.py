@@ -174,7 +174,7 @@ def test_preset_override_gives_overridden_value_in_si(tmp_path):
     path = tmp_path / "override.toml"
     path.write_text('preset = "RV-40E-121"\nd_rp_mm = 0.0\nd_rrp_mm = 0.02\n')
     design, base = load_design(path), preset(BASE)
-    assert base.d_rp == pytest.approx(-0.01 * MM)  # so the override really changes it
+    assert base.d_rp < 0.0  # so the override really changes it
     assert design.d_rp == 0.0
     assert design.d_rrp == pytest.approx(0.02 * MM, rel=1e-12)  # 2e-5 m
     assert design.tip_root_clearance == pytest.approx(0.02 * MM, rel=1e-12)

@@ -56,7 +56,7 @@ from importlib import metadata
 from pathlib import Path
 
 from rvfmu.core.checks import InputError, finite_number, integer
-from rvfmu.core.design import PRESET_NAMES, RVDesign, load_design
+from rvfmu.core.design import ESTIMATE_NAMES, PRESET_NAMES, RVDesign, load_design
 from rvfmu.core.errors import ERROR_NAMES, ErrorSet, error_file_values, load_errors
 from rvfmu.core.limits import check_load
 from rvfmu.core.quasistatic import default_points
@@ -342,7 +342,7 @@ def study_from_values(values: dict, path: Path, text: str = "", output=None) -> 
         raise InputError("study.design", None, f"is missing: a preset ({', '.join(PRESET_NAMES)}) "
                          "or a design file", where)
     design_source = _text("study.design", head["design"], where)
-    if design_source not in PRESET_NAMES:
+    if design_source not in PRESET_NAMES + ESTIMATE_NAMES:
         design_source = str(_beside(path, design_source))   # so that reports can name the file
     design = load_design(design_source)
     errors_source = head.get("errors")

@@ -5,7 +5,9 @@ Files speak the units of docs/model.md section 1 and carry the unit in the key
 (`R_p_mm`, `mesh_stiffness_N_per_m`); `DESIGN_FIELDS` is the one table that
 maps a file key to a field and its scale.  A design file is either complete
 or names a shipped preset (`preset = "RV-40E-121"`) and overrides any field by
-its file key.  The masses, inertias and damping ratio are checked and kept for
+its file key.  A preset by its name is calibrated against its frame's catalogue
+(the `[calibration]` table of its file); `<name>-estimate` is the same preset
+before calibration.  The masses, inertias and damping ratio are checked and kept for
 the dynamic model (rvfmu/core/dynamic.py); the quasi-static model does not use them.
 """
 
@@ -21,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .checks import InputError, finite_number, integer, non_negative, positive
-from .units import DEG, GPA, MM
+from .units import ARCSEC, DEG, GPA, MM
 
 
 @dataclass(frozen=True)
@@ -33,6 +35,7 @@ class FieldSpec:
     scale: float  # file value * scale = SI value
     kind: str  # "int", "positive", "signed", "non_negative", "fraction"
     doc: str
+    default: float | None = None  # the value when a file leaves it out; None: required
 
 
 DESIGN_FIELDS = (
@@ -77,10 +80,18 @@ DESIGN_FIELDS = (
     FieldSpec("rated_torque", "rated_torque_Nm", 1.0, "positive", "catalogue rated output torque"),
     FieldSpec("youngs_modulus", "youngs_modulus_GPa", GPA, "positive", "steel of the parts"),
     FieldSpec("poisson_ratio", "poisson_ratio", 1.0, "fraction", "steel of the parts"),
+    FieldSpec("output_compliance", "output_compliance_arcsec_per_Nm", ARCSEC, "non_negative",
+              "torsional compliance in series with the output (output flange, carrier "
+              "body, housing and its fixing): windup per output torque; 0 = rigid", 0.0),
 )
 
 _BY_KEY = {spec.file_key: spec for spec in DESIGN_FIELDS}
 PRESET_NAMES = ("RV-40E-121", "RV-40E-81", "RV-20E", "RV-110E")
+# A preset by its name is calibrated against its frame's catalogue figures (the [calibration]
+# table of its file); the same name with this suffix is the estimate from the seeds and the
+# formulas alone, before calibration.
+ESTIMATE_SUFFIX = "-estimate"
+ESTIMATE_NAMES = tuple(name + ESTIMATE_SUFFIX for name in PRESET_NAMES)
 
 
 @dataclass(frozen=True)
@@ -124,6 +135,7 @@ class RVDesign:
     rated_torque: float
     youngs_modulus: float
     poisson_ratio: float
+    output_compliance: float = 0.0
 
     def __post_init__(self):
         for spec in DESIGN_FIELDS:
@@ -165,6 +177,13 @@ class RVDesign:
             value = getattr(self, spec.field)
             values[spec.file_key] = value if spec.kind == "int" else value / spec.scale
         return values
+
+
+def in_file_units(fields: dict) -> dict:
+    """{file key: value in file units} of some SI design fields {field: value}."""
+    specs = {spec.field: spec for spec in DESIGN_FIELDS}
+    return {specs[k].file_key: v if specs[k].kind == "int" else v / specs[k].scale
+            for k, v in fields.items()}
 
 
 def _checked(spec: FieldSpec, value, where: str):
@@ -249,6 +268,7 @@ def design_from_file_values(values: dict, where: str = "design") -> RVDesign:
     """Build a design from file keys; `preset` (optional) supplies the missing ones."""
     values = dict(values)
     values.pop("sources", None)  # inputs of engineering estimates, for the reader and the tests
+    values.pop("calibration", None)  # how a calibrated design was made (rvte calibrate)
     base = {}
     preset_name = values.pop("preset", None)
     if preset_name is not None:
@@ -261,12 +281,13 @@ def design_from_file_values(values: dict, where: str = "design") -> RVDesign:
     name = merged.get("name", preset_name or where)
     if "name" not in values and preset_name is not None and len(values) > 0:
         name = f"{preset_name} (modified)"
-    missing = [spec.file_key for spec in DESIGN_FIELDS if spec.file_key not in merged]
+    missing = [spec.file_key for spec in DESIGN_FIELDS
+               if spec.file_key not in merged and spec.default is None]
     if missing:
         raise InputError(missing[0], None, "is missing (give it, or name a preset to take it from)", where)
     fields = {}
     for spec in DESIGN_FIELDS:
-        raw = merged[spec.file_key]
+        raw = merged.get(spec.file_key, spec.default)
         if spec.kind == "int":
             fields[spec.field] = integer(spec.file_key, raw, 1, where=where)
         else:
@@ -274,30 +295,41 @@ def design_from_file_values(values: dict, where: str = "design") -> RVDesign:
     return RVDesign(name=str(name), **fields)
 
 
-def _preset_values(name, where):
-    if name not in PRESET_NAMES:
-        raise InputError("preset", name, f"must be one of {', '.join(PRESET_NAMES)}", where)
+def preset_file(name: str) -> dict:
+    """The whole file of preset `name` (one of PRESET_NAMES), tables included."""
     text = resources.files("rvfmu.core.presets").joinpath(f"{name}.toml").read_text()
-    values = tomllib.loads(text)
+    return tomllib.loads(text)
+
+
+def _preset_values(name, where):
+    if name not in PRESET_NAMES + ESTIMATE_NAMES:
+        raise InputError("preset", name, f"must be one of {', '.join(PRESET_NAMES)} (calibrated "
+                         f"against the catalogue) or the same with {ESTIMATE_SUFFIX} (before "
+                         "calibration)", where)
+    estimate = name.endswith(ESTIMATE_SUFFIX)
+    values = preset_file(name.removesuffix(ESTIMATE_SUFFIX))
     values.pop("sources", None)
-    values.setdefault("name", name)
+    calibration = values.pop("calibration", None)
+    if not estimate and calibration is not None:
+        values.update(calibration["fields"])
+    values["name"] = name
     return values
 
 
 def preset(name: str) -> RVDesign:
-    """The shipped preset `name` (one of PRESET_NAMES)."""
+    """The shipped preset `name`: one of PRESET_NAMES (calibrated), or ESTIMATE_NAMES."""
     return design_from_file_values({"preset": name}, where=f"preset {name}")
 
 
 def load_design(spec: str | Path) -> RVDesign:
     """A preset name or the path of a design TOML file."""
     text = str(spec)
-    if text in PRESET_NAMES:
+    if text in PRESET_NAMES + ESTIMATE_NAMES:
         return preset(text)
     path = Path(spec)
     if not path.is_file():
-        raise InputError("design", text, f"is neither a preset ({', '.join(PRESET_NAMES)}) "
-                         "nor a readable TOML file")
+        raise InputError("design", text, f"is neither a preset ({', '.join(PRESET_NAMES)}, or "
+                         f"one of them with {ESTIMATE_SUFFIX}) nor a readable TOML file")
     try:
         values = tomllib.loads(path.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

@@ -39,7 +39,7 @@ class DynamicReducer:
         self.internal_step = internal_step
         self.contact, self.mesh = contact, mesh
         self.model = None
-        self.time = self.theta_in = 0.0
+        self.time = self.theta_in = self.omega_in = self.tau_load = 0.0
         self.state = None
 
     def _model(self, tau_load: float) -> DynamicModel:
@@ -48,10 +48,13 @@ class DynamicReducer:
             self.model = DynamicModel(self.design, self.errors, self.contact, self.mesh, flank)
         return self.model
 
-    def _outputs(self, omega_in: float, tau_in: float) -> Outputs:
-        model, s = self.model, self.state
-        te = s.q[model.carrier_rot] / model.scale
-        omega_out = omega_in / self.design.ratio + s.v[model.carrier_rot] / model.scale
+    def _outputs(self, omega_in: float, tau_in: float, tau_load: float,
+                 torque_rate: float = 0.0) -> Outputs:
+        """Outputs of the flange: the carrier plus the windup of the massless series compliance
+        under tau_load [N*m], changing at torque_rate [N*m/s]."""
+        model, s, c = self.model, self.state, self.design.output_compliance
+        te = s.q[model.carrier_rot] / model.scale + c * tau_load
+        omega_out = omega_in / self.design.ratio + s.v[model.carrier_rot] / model.scale + c * torque_rate
         return Outputs(self.theta_in / self.design.ratio + te, omega_out, te, tau_in)
 
     def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:
@@ -61,8 +64,8 @@ class DynamicReducer:
         q = static_start(model, tau_load, theta_in)
         self.time, self.theta_in = float(time), float(theta_in)
         self.state = State(q, np.zeros(model.n), np.zeros(model.n))
-        self.omega_in = 0.0
-        return self._outputs(0.0, model.input_torque(q, np.zeros(model.n)))
+        self.omega_in, self.tau_load = 0.0, float(tau_load)
+        return self._outputs(0.0, model.input_torque(q, np.zeros(model.n)), self.tau_load)
 
     def step(self, time: float, step_size: float, theta_in: float, tau_load: float) -> Outputs:
         """Outputs at time + step_size for the inputs there."""
@@ -84,22 +87,23 @@ class DynamicReducer:
         tau_in = float(np.sum(0.5 * np.diff(t) * (torque[1:] + torque[:-1])) / step_size)
         self.state = stepper.state
         self.time, self.theta_in, self.omega_in = time + step_size, float(theta_in), omega
-        return self._outputs(omega, tau_in)
+        rate, self.tau_load = (float(tau_load) - self.tau_load) / step_size, float(tau_load)
+        return self._outputs(omega, tau_in, self.tau_load, rate)
 
     def get_state(self) -> dict:
         s = self.state
         return {"time": self.time, "theta_in": self.theta_in, "omega_in": self.omega_in,
-                "q": s.q.tolist(), "v": s.v.tolist(), "a": s.a.tolist()}
+                "tau_load": self.tau_load, "q": s.q.tolist(), "v": s.v.tolist(), "a": s.a.tolist()}
 
     def set_state(self, state: dict) -> None:
         try:
             arrays = [np.asarray(state[k], dtype=float) for k in ("q", "v", "a")]
-            scalars = [float(state[k]) for k in ("time", "theta_in", "omega_in")]
+            scalars = [float(state[k]) for k in ("time", "theta_in", "omega_in", "tau_load")]
         except (KeyError, TypeError, ValueError):
             raise ValueError(f"not a state of this model: {sorted(state)}") from None
         n = self.model.n if self.model is not None else arrays[0].size
         if any(a.shape != (n,) or not np.all(np.isfinite(a)) for a in arrays) or \
                 not all(math.isfinite(x) for x in scalars):
             raise ValueError("not a state of this model: wrong sizes or non-finite values")
-        self.time, self.theta_in, self.omega_in = scalars
+        self.time, self.theta_in, self.omega_in, self.tau_load = scalars
         self.state = State(*[a.copy() for a in arrays])

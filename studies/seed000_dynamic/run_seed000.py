@@ -59,7 +59,7 @@ def main():
     for contact in args.contact:
         with ProgressBar(f"simulate ({contact})", unit="step") as bar:
             runs[contact] = api.simulate(
-                "RV-110E", errors_path, speed_rpm=1600.0, load=args.load,
+                study.design.name, errors_path, speed_rpm=1600.0, load=args.load,
                 revolutions=args.revolutions, contact=contact, progress=bar,
                 plot_path=args.output / f"rv110e_te_{contact}.png",
                 csv_path=args.output / f"rv110e_te_{contact}.csv")
