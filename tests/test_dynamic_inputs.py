@@ -127,7 +127,7 @@ def test_the_compiled_kernel_and_plain_numpy_give_the_same_run(rv40, seed002):
               "from rvfmu.core.errors import load_errors\n"
               "from rvfmu.core.simulation import simulate\n"
               "assert not kernels.COMPILED\n"
-              "d = preset('RV-40E-121')\n"
+              f"d = preset({rv40.name!r})\n"
               "e = load_errors(sys.argv[1], d)\n"
               "s = simulate(d, e, speed_rpm=1600.0, load=206.0, duration=0.005, ramp=0.005,"
               " contact='impact')\n"

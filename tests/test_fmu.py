@@ -188,11 +188,11 @@ def test_a_bad_design_parameter_is_reported_at_initialisation(fmu_path, descript
     assert expected in capfd.readouterr().out
 
 
-def test_info_names_the_bundled_design_and_errors(fmu_path):
+def test_info_names_the_bundled_design_and_errors(fmu_path, rv40):
     from rvfmu.fmu.api import fmu_info
 
     text = fmu_info(fmu_path)
-    assert "design   RV-40E-121 (z_s 12, z_pl 36, z_p 40, rated torque 412.0 N*m)" in text
+    assert f"design   {rv40.name} (z_s 12, z_pl 36, z_p 40, rated torque 412.0 N*m)" in text
     assert "errors   8 nonzero: crank_cam_eccentricity, disc_crank_hole" in text
     assert "a preset name or a design TOML path" in text      # design_file, as the README says
 

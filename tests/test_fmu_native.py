@@ -128,7 +128,7 @@ def test_interpolation_is_te_map_evaluate_one_to_the_bit(native, unzipped, rv40)
         assert (te, tau_in) == te_map.evaluate_one(float(a), float(b)), (a, b)
 
 
-def test_validates_declares_its_sources_and_carries_its_binaries(native, python_fmu):
+def test_validates_declares_its_sources_and_carries_its_binaries(native, python_fmu, rv40):
     path, md = native
     assert validate_fmu(str(path)) == []
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
@@ -150,7 +150,7 @@ def test_validates_declares_its_sources_and_carries_its_binaries(native, python_
             "resources/errors.toml"} <= names
     assert not any("python" in n.lower() or n.endswith(".py") for n in names)
     text = fmu_info(path)                                     # reads the XML and resources only
-    assert "design   RV-40E-121 (z_s 12, z_pl 36, z_p 40, rated torque 412.0 N*m)" in text
+    assert f"design   {rv40.name} (z_s 12, z_pl 36, z_p 40, rated torque 412.0 N*m)" in text
     assert "errors   8 nonzero" in text and "design_file" not in text
 
 
