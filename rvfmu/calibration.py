@@ -65,14 +65,13 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
 from .compare import as_bench_sees, model_grid, periodic
 from .core.checks import InputError, finite_number, integer, non_negative, positive
-from .core.design import DESIGN_FIELDS, ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign
+from .core.design import DESIGN_FIELDS, ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, preset_file
 from .core.errors import ErrorSet, load_errors, stack, toml_text, zero_errors
 from .core.quasistatic import windup
 from .core.stiffness import series, simply_supported_beam_stiffness
@@ -439,7 +438,7 @@ def design_sources(spec) -> dict | None:
     that names a preset and has none) its preset's; None when there is none."""
     text = str(spec).removesuffix(ESTIMATE_SUFFIX)
     if text in PRESET_NAMES:
-        return _preset_sources(text)
+        return preset_file(text).get("sources")
     path = Path(spec)
     if not path.is_file():
         return None
@@ -450,12 +449,7 @@ def design_sources(spec) -> dict | None:
     if isinstance(values.get("sources"), dict):
         return values["sources"]
     name = str(values.get("preset", "")).removesuffix(ESTIMATE_SUFFIX)
-    return _preset_sources(name) if name in PRESET_NAMES else None
-
-
-def _preset_sources(name):
-    text = resources.files("rvfmu.core.presets").joinpath(f"{name}.toml").read_text()
-    return tomllib.loads(text).get("sources")
+    return preset_file(name).get("sources") if name in PRESET_NAMES else None
 
 
 def check_target(datasets, target: str | None) -> str:
