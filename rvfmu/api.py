@@ -419,12 +419,18 @@ class CatalogueReport:
              "calibration": r.calibration} for r in self.rows]})
 
 
-def presets_catalogue() -> CatalogueReport:
+def presets_catalogue(plot_path: str | Path | None = None) -> CatalogueReport:
     """Every preset's torsional rigidity and lost motion, before and after its calibration,
-    beside its frame's catalogue figures."""
+    beside its frame's catalogue figures; plot_path: a figure of the windup curves."""
     from . import catalogue
 
-    return CatalogueReport(catalogue.against_catalogue())
+    plot_path = None if plot_path is None else figure_file("plot", plot_path)
+    report = CatalogueReport(catalogue.against_catalogue())
+    if plot_path is not None:
+        from .plots import plot_catalogue
+
+        plot_catalogue(report.rows, plot_path)
+    return report
 
 
 def profile(design, csv_path: str | Path | None = None, dxf_path: str | Path | None = None,

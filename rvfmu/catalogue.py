@@ -40,7 +40,7 @@ from .calibration import (MODIFICATION_SCALE, OUTPUT_STIFFNESS, Calibration, Cat
                           calibrate, problem)
 from .core.checks import InputError
 from .core.design import ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, in_file_units, preset, preset_file
-from .core.quasistatic import windup
+from .core.quasistatic import Windup, windup
 
 CATALOGUE_FILE = "catalogue.toml"
 # A calibrated preset matches its frame's rigidity when within this share of it.
@@ -107,7 +107,11 @@ class Figures:
 
 def figures(design: RVDesign) -> Figures:
     """Torsional rigidity and lost motion of `design` without errors (`quasistatic.windup`)."""
-    w = windup(design)
+    return figures_of(windup(design))
+
+
+def figures_of(w: Windup) -> Figures:
+    """The catalogue figures of a windup test (its first sample)."""
     return Figures(float(w.torsional_rigidity_Nm_per_arcmin()[0]), float(w.lost_motion_arcmin()[0]),
                    bool(w.converged[0]))
 
@@ -115,7 +119,8 @@ def figures(design: RVDesign) -> Figures:
 @dataclass(frozen=True)
 class PresetAgainstCatalogue:
     """One preset: its frame, its figures before (estimate) and after calibration, and
-    whether the calibrated ones fall within the catalogue's."""
+    whether the calibrated ones fall within the catalogue's; windups: the two windup tests
+    (estimate, calibrated) they come from."""
 
     name: str
     frame: Frame
@@ -123,6 +128,7 @@ class PresetAgainstCatalogue:
     estimate: Figures
     calibrated: Figures
     calibration: dict | None
+    windups: tuple = ()
 
     @property
     def rigidity_within(self) -> bool:
@@ -138,10 +144,10 @@ def against_catalogue(names=PRESET_NAMES) -> list[PresetAgainstCatalogue]:
     """Every preset in `names` (base names) against its frame."""
     rows = []
     for name in names:
-        calibrated = preset(name)
+        tests = (windup(preset(name + ESTIMATE_SUFFIX)), windup(preset(name)))
         rows.append(PresetAgainstCatalogue(
-            name, frame_of(name), calibrated.rated_torque, figures(preset(name + ESTIMATE_SUFFIX)),
-            figures(calibrated), preset_file(name).get("calibration")))
+            name, frame_of(name), tests[1].design.rated_torque, figures_of(tests[0]),
+            figures_of(tests[1]), preset_file(name).get("calibration"), tests))
     return rows
 
 
@@ -208,6 +214,6 @@ def write_calibration(path: str | Path, table: str) -> None:
     path.write_text(new)
 
 
-__all__ = ["Frame", "Figures", "PresetAgainstCatalogue", "frame_of", "target", "figures",
+__all__ = ["Frame", "Figures", "PresetAgainstCatalogue", "frame_of", "target", "figures", "figures_of",
            "against_catalogue", "calibrate_preset", "calibration_table", "write_calibration",
            "lost_motion_aim", "source", "RIGIDITY_TOLERANCE", "CALIBRATION_FIT"]

@@ -45,7 +45,7 @@ def _show(report, as_json: bool, files) -> None:
 
 def _presets(args):
     if args.catalogue:
-        _show(api.presets_catalogue(), args.json, ())
+        _show(api.presets_catalogue(plot_path=args.plot), args.json, (("plot", args.plot),))
         return
     print(f"{'preset':<12} {'ratio':>6}  source")
     for info in api.presets():
@@ -152,6 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="torsional rigidity and lost motion of each preset (before and after its "
                         "calibration) beside its frame's catalogue figures")
     p.add_argument("--json", action="store_true", help="with --catalogue: print it as JSON")
+    p.add_argument("--plot", help="with --catalogue: write a figure of the windup curves (PNG, SVG, PDF)")
     p.set_defaults(run=_presets)
 
     p = sub.add_parser("simulate", help="dynamic TE in time at a constant input speed "

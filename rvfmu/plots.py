@@ -131,7 +131,44 @@ def plot_windup(windup: Windup, path: str | Path, sample: int = 0) -> Path:
     return path
 
 
-__all__ = ["figure_te", "marker_orders", "plot_te", "plot_windup", "rad_to_arcsec"]
+def plot_catalogue(rows, path: str | Path) -> Path:
+    """One panel per preset: output windup [arcmin] against output torque [N*m] (input
+    locked, mean over the positions) before and after calibration, and the catalogue's
+    torsional rigidity as a line through the calibrated curve at half the rated torque.
+    rows: `rvfmu.catalogue.PresetAgainstCatalogue` records with their windups."""
+    plt = _pyplot()
+    columns = 2
+    lines = (len(rows) + columns - 1) // columns
+    fig, axes = plt.subplots(lines, columns, figsize=(10, 4 * lines), constrained_layout=True,
+                             squeeze=False)
+    for ax, row in zip(axes.ravel(), rows):
+        for w, label, style in ((row.windups[0], f"estimate ({row.estimate.torsional_rigidity_Nm_per_arcmin:.0f} N·m/arcmin)", "o--"),
+                                (row.windups[1], f"preset ({row.calibrated.torsional_rigidity_Nm_per_arcmin:.0f} N·m/arcmin)", "o-")):
+            ax.plot(w.tau_load, w.windup[0].mean(axis=-1) / ARCMIN, style, ms=3, lw=1.0, label=label)
+        w = row.windups[1]
+        rated = w.design.rated_torque
+        half = int(np.argmin(np.abs(w.tau_load - 0.5 * rated)))
+        anchor = w.windup[0, half].mean() / ARCMIN
+        torque = np.array([0.5, 1.0]) * rated
+        k = row.frame.torsional_rigidity_Nm_per_arcmin
+        ax.plot(torque, anchor + (torque - 0.5 * rated) / k, "k:", lw=2,
+                label=f"catalogue {row.frame.name} ({k:g} N·m/arcmin)")
+        ax.plot(-torque, -anchor - (torque - 0.5 * rated) / k, "k:", lw=2)
+        ax.set_title(f"{row.name}: lost motion {row.estimate.lost_motion_arcmin:.2f} → "
+                     f"{row.calibrated.lost_motion_arcmin:.2f} arcmin (≤ {row.frame.lost_motion_max_arcmin:g})")
+        ax.set_xlabel("output torque τ_load [N·m]")
+        ax.set_ylabel("output windup [arcmin]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left")
+    for ax in axes.ravel()[len(rows):]:
+        ax.set_visible(False)
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+__all__ = ["figure_te", "marker_orders", "plot_te", "plot_windup", "plot_catalogue", "rad_to_arcsec"]
 
 
 def plot_simulation(sim, path: str | Path) -> Path:

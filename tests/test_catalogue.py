@@ -172,9 +172,12 @@ def test_the_two_catalogue_values_refuse_what_they_cannot_fit():
     assert parameters(flat, ["output_stiffness"])[0].value == pytest.approx(flat.rated_torque)
 
 
-def test_rvte_presets_catalogue_prints_model_beside_catalogue(capsys):
-    main(["presets", "--catalogue", "--json"])
-    rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)["presets"]}
+def test_rvte_presets_catalogue_prints_model_beside_catalogue(tmp_path, capsys):
+    png = tmp_path / "catalogue.png"
+    main(["presets", "--catalogue", "--json", "--plot", str(png)])
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    out = capsys.readouterr().out
+    rows = {r["name"]: r for r in json.loads(out[:out.rindex("}") + 1])["presets"]}
     assert set(rows) == set(PRESET_NAMES)
     for name, row in rows.items():
         frame = catalogue.frame_of(name)
@@ -186,3 +189,10 @@ def test_rvte_presets_catalogue_prints_model_beside_catalogue(capsys):
     text = capsys.readouterr().out
     assert "RV-40E-121  RV-40E" in text and "Nabtesco" in text
     assert text.count(" ok") == 2 * len(PRESET_NAMES)
+
+
+def test_a_figure_of_an_unknown_format_is_refused_before_any_work(tmp_path, capsys):
+    code = main(["presets", "--catalogue", "--plot", str(tmp_path / "catalogue.txt")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and "error: plot = " in err
+    assert not (tmp_path / "catalogue.txt").exists()
