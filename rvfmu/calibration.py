@@ -227,12 +227,16 @@ class Problem:
         return (np.log([p.lower / p.value for p in self.parameters]),
                 np.log([p.upper / p.value for p in self.parameters]))
 
-    def design_at(self, values) -> RVDesign:
-        """The design with the fitted fields set from `values` (p,) [N/m]."""
+    def fields_at(self, values) -> dict:
+        """The design fields (SI) that the fitted `values` (p,), each in its unit, set."""
         fields = {}
         for p, v in zip(self.parameters, values):
             fields.update(p.field_values(float(v)))
-        return self.design.with_fields(**fields)
+        return fields
+
+    def design_at(self, values) -> RVDesign:
+        """The design with the fitted fields set from `values` (p,), each in its unit."""
+        return self.design.with_fields(**self.fields_at(values))
 
     def measured(self) -> list[np.ndarray]:
         return [d.target_value(self.target) for d in self.datasets]

@@ -169,9 +169,7 @@ def calibration_table(cal: Calibration, frame: Frame, command: str) -> str:
     before and after, and `[calibration.fields]`, the design keys that the preset's name sets
     over the estimate's."""
     before, after = cal.before[0], cal.after[0]
-    fields = {}
-    for p, v in zip(cal.problem.parameters, cal.values):
-        fields.update(p.field_values(float(v)))
+    fields = cal.problem.fields_at(cal.values)
     try:
         version = metadata.version("rvte")
     except metadata.PackageNotFoundError:

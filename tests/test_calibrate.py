@@ -12,30 +12,17 @@ import json
 import numpy as np
 import pytest
 
-from conftest import ROOT
 from rvfmu import api
 from rvfmu.calibration import design_sources, parameters
 from rvfmu.cli import main
 from rvfmu.compare import model_grid
-from rvfmu.core.design import load_design, preset
-from rvfmu.core.errors import load_errors
+from rvfmu.core.design import load_design
 from rvfmu.core.quasistatic import windup
 from rvfmu.core.stiffness import series
-from test_compare import POINTS, record
+from test_compare import ERRORS, POINTS, errors, record, rv20  # noqa: F401 (errors, rv20: fixtures)
 
-ERRORS = ROOT / "studies" / "seed002_errors.toml"
 BUDGET = dict(points=POINTS, maxiter=4, popsize=5)
 TRUTH = {"pin_disc_stiffness": 1.3, "crank_disc_bearing_stiffness": 0.75}   # x the preset's
-
-
-@pytest.fixture(scope="module")
-def rv20():
-    return preset("RV-20E")
-
-
-@pytest.fixture(scope="module")
-def errors(rv20):
-    return load_errors(ERRORS, rv20)
 
 
 @pytest.fixture(scope="module")
