@@ -119,9 +119,9 @@ def test_linear_stack_up_recovers_the_closed_form_least_cost_allocation():
 
     verifications = []
 
-    def verify(s, n):                   # a fresh Monte Carlo every time
-        U = np.random.default_rng([11, len(verifications)]).random((n, 3))
-        verifications.append(s)
+    def verify(s, n, draw):             # draws number `draw`: independent of every other number
+        U = np.random.default_rng([11, draw]).random((n, 3))
+        verifications.append(draw)
         return U, evaluate(s, U, "verify")
 
     model = ScaledModel(("x0", "x1", "x2"), current, models, (Limit(0, L, "max"), Limit(0, -L, "min")),
@@ -138,7 +138,8 @@ def test_linear_stack_up_recovers_the_closed_form_least_cost_allocation():
     np.testing.assert_allclose(result.scales * current, best, rtol=0.05)
     assert result.allocated.n == 1_000_000
     assert result.allocated.low <= result.allocated.estimate <= result.allocated.high
-    assert len(verifications) == 1 + len(result.rounds)
+    # the current tolerances, every round and every confirmation, each on draws of its own
+    assert verifications == list(range(1 + len(result.rounds) + len(result.confirmations)))
 
 
 # -- a small reducer study -----------------------------------------------------------------------------
@@ -174,12 +175,14 @@ def test_allocation_meets_its_target_in_the_verification_monte_carlo(allocated):
     # more than the pin band
     cam, band = result.factors
     assert cam.allocated / cam.current < band.allocated / band.current
-    # the allocated study file is ready to run: its Monte Carlo reuses the search's rows 0-511
-    # (the verification) and 512-1023 (the confirmation on fresh draws, the yield reported)
-    assert "rows 512-1023 of this file's Monte Carlo" in Path(result.allocated_study_file).read_text()
-    mc = run_mc(result.allocated_study_file, 1024, plots=False)
+    # the allocated study file is ready to run: its Monte Carlo is the confirmation on fresh
+    # draws (its own seed), whose yield is the one reported, and is reused
+    text = Path(result.allocated_study_file).read_text()
+    assert "reducers that no step of the search saw" in text and "rvte mc" in text
+    mc = run_mc(result.allocated_study_file, 512, plots=False)
     assert mc.computed.computed == 0
-    assert np.mean(mc.Y[512:, 0] <= 25.0) == pytest.approx(result.yield_allocated.estimate)
+    assert np.mean(mc.Y[:, 0] <= 25.0) == pytest.approx(result.yield_allocated.estimate)
+    assert load_study(result.allocated_study_file).seed != load_study(path).seed
     allocated_study = load_study(result.allocated_study_file)
     for factor, record in zip(allocated_study.factors, result.factors):
         assert costs.current_um(factor) == pytest.approx(record.allocated, abs=1e-9)

@@ -231,8 +231,7 @@ class _StudyWiring:
             current=self.current, costs=self.models, limits=limits,
             columns=len(study.columns), magnitudes=self.magnitudes, evaluate=self.evaluate,
             verify=self.verify, log_inputs=True, snap=self.snap, seed=study.seed,
-            confidence=study.mc_confidence, evaluate_groups=self.evaluate_groups,
-            confirm=self.confirm)
+            confidence=study.mc_confidence, evaluate_groups=self.evaluate_groups)
 
     def magnitudes(self, U: np.ndarray) -> np.ndarray:
         """RMS of each allocated factor's error values [um] at the current tolerances: (n, F)."""
@@ -301,54 +300,38 @@ class _StudyWiring:
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
 
-    def verify(self, scales, n: int):
-        """The Monte Carlo of the study file with these tolerances: its `rvte mc` rows and store.
+    def verify(self, scales, n: int, draw: int = 0):
+        """The Monte Carlo of n reducers of the study file with these tolerances, on draws
+        number `draw`: rows 0 to n - 1 of that file's `rvte mc`, its seed `seed_of(draw)`.
 
-        At the current tolerances it is `rvte mc` of the study itself (summary,
-        samples and worst reducer written, no figures), so that the output
-        folder is ready for `rvte report`.
-        """
-        from . import montecarlo
-        from .run import run_mc
-
-        if np.all(scales == 1.0):
-            result = run_mc(self.study, n, output=self.folder, processes=self.processes,
-                            progress=self.progress, plots=False, log=self.log, yes=self.yes)
-            return montecarlo.rows(self.study, 0, n), result.Y
-        return self._mc_rows(scales, 0, n)
-
-    def confirm(self, scales, n: int):
-        """Fresh draws: rows [k, k + n) of the same `rvte mc` sequence, k = n rounded up to
-        whole batches (every verification used rows [0, n)); `rvte mc FILE -n k+n` reuses both."""
-        return self._mc_rows(scales, self.whole_batches(n), n)
-
-    def whole_batches(self, n: int) -> int:
-        """n rounded up to whole batches: the rows a Monte Carlo of n reducers computes."""
-        return math.ceil(n / self.study.batch_size) * self.study.batch_size
-
-    def _mc_rows(self, scales, start: int, n: int):
-        """Rows [start, start + n) of the `rvte mc` of the study file at scales: (U, Y).
-
-        The study's own store at the current tolerances, else the allocated
-        file's (allocation/<inputs hash>); finished batches are reused.
+        Draws 0 are the study's own seed: at the current tolerances this is
+        `rvte mc` of the study itself (summary, samples and worst reducer
+        written, no figures), so that the output folder is ready for `rvte report`.
         """
         from . import montecarlo
         from .backends import make_backend
-        from .run import compute
+        from .run import compute, run_mc
 
-        if np.all(scales == 1.0):
-            study, output = self.study, self.folder
-        else:
-            study = self.candidate(scales)[1]
-            output = study.output
-        computed = compute(study, "mc", start + self.whole_batches(n),
-                           lambda a, b: montecarlo.rows(study, a, b), make_backend(self.processes),
-                           self.progress, self.log, output=output, yes=self.yes,
-                           size_field=("n", n))
-        return montecarlo.rows(study, start, start + n), computed.Y[start:start + n]
+        if draw == 0 and np.all(scales == 1.0):
+            result = run_mc(self.study, n, output=self.folder, processes=self.processes,
+                            progress=self.progress, plots=False, log=self.log, yes=self.yes)
+            return montecarlo.rows(self.study, 0, n), result.Y
+        study = self.candidate(scales, draw=draw)[1]
+        computed = compute(study, "mc", n, lambda a, b: montecarlo.rows(study, a, b),
+                           make_backend(self.processes), self.progress, self.log,
+                           output=study.output, yes=self.yes, size_field=("n", n))
+        return montecarlo.rows(study, 0, n), computed.Y[:n]
 
-    def candidate(self, scales, header: str = ""):
-        """(text, Study) of the study file with the allocated tolerances at scales.
+    def seed_of(self, draw: int) -> int:
+        """The seed of draws number `draw`: the study's for 0, else one derived from it."""
+        if draw == 0:
+            return self.study.seed
+        return int(np.random.SeedSequence([self.study.seed, 0x616C6C6F, draw]).generate_state(
+            2, np.uint64)[0] >> 1)
+
+    def candidate(self, scales, header: str = "", draw: int = 0):
+        """(text, Study) of the study file with the allocated tolerances at scales, and the
+        seed of draws number `draw`.
 
         The file is written beside allocation.json; its output folder is the
         verification's (allocation/<inputs hash>), so its `rvte mc` reuses it.
@@ -357,9 +340,10 @@ class _StudyWiring:
 
         path = self.folder / f"{_file_name(self.study.name)}_allocated.toml"
         factors = self.scaled_factors(scales, True)
-        probe = replace(self.study, factors=factors)
+        seeded = replace(self.study, seed=self.seed_of(draw))
+        probe = replace(seeded, factors=factors)
         same = probe.inputs_hash == self.study.inputs_hash
-        text = allocated_text(self.study, factors, "." if same else
+        text = allocated_text(seeded, factors, "." if same else
                               f"allocation/{probe.inputs_hash[:12]}", header)
         study = study_from_values(tomllib.loads(text), path, text)
         assert study.inputs_hash == probe.inputs_hash, "the allocated file must be what was verified"
@@ -389,14 +373,10 @@ class _StudyWiring:
                      "these tolerances") +
                   f"; total cost {sum(f.cost_allocated for f in factors):.4g} (was "
                   f"{sum(f.cost_current for f in factors):.4g}).\n"
-                  + (f"The yield is that of rows {self.whole_batches(allocated.n)}-"
-                     f"{self.whole_batches(allocated.n) + allocated.n - 1} of this file's Monte "
-                     f"Carlo, fresh draws that no step of the search saw (rows 0-{allocated.n - 1} "
-                     "were its verification).\n" if result.confirmations else "") +
-                  f"Run: rvte mc {path.name} -n "
-                  f"{self.whole_batches(allocated.n) + allocated.n if result.confirmations else allocated.n}"
-                  "   (reuses the search's Monte Carlo runs)")
-        text, _ = self.candidate(result.scales, header)
+                  + ("The yield is that of this file's Monte Carlo (its seed), reducers that no "
+                     "step of the search saw.\n" if result.confirmations else "") +
+                  f"Run: rvte mc {path.name} -n {allocated.n}   (reuses that Monte Carlo)")
+        text, _ = self.candidate(result.scales, header, allocated.draw)
         path.write_text(text)
         record = AllocationResult(
             study=study.name, study_file=str(study.path or ""), allocated_study_file=str(path),

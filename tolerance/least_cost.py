@@ -36,42 +36,41 @@ model has the last word:
    spec line, Phi(margin / sigma) per line with sigma the modelled residual
    (never below SIGMA_FLOOR of the metric's spread): a smooth function of s
    that SLSQP can differentiate.
-4. Optimiser (scipy), about a centre: the cheapest verified allocation that
-   met the target, else the verified one of highest yield (at first the
-   current tolerances).  The surrogate is calibrated there (its probit error
-   at the centre removed) and trusted within a trust region about it (TRUST_*
-   in ln s): SLSQP minimises the total cost subject to Phi^-1(yield) >=
-   Phi^-1(target) + z_conf e(target, n) + safety (e: the standard error of a
-   verification of n reducers, z_conf 1.96 at 95 %); if the region holds no such point, its best
-   yield is verified (the search climbs); if even the best yield the
-   surrogate finds in the whole box (L-BFGS-B) is below the target, that
-   point is verified instead.
-5. Verification.  The answer is always checked by a fresh Monte Carlo of the
-   true model at the allocated tolerances: the allocated study file's own
-   `rvte mc` rows (so that running it again reuses them), n reducers (the
-   study's [montecarlo] n, at least MIN_HIGH_YIELD_N for a target >= 0.99).
-   It joins the training set and the surrogate is refitted.  The surrogate
-   has proven itself where its calibrated prediction and the verification
-   agree within STOP_NOISE standard errors (probit units).  The safety starts
-   at MARGIN_START and becomes the verification's standard error once the
-   surrogate proved itself (its optimism while it has not); the trust region
-   doubles when it proved itself and halves when not.  The search stops when
-   an allocation meets the target with a proven surrogate and the noise-level
-   safety, after PATIENCE rounds in a row that found nothing cheaper meeting
-   the target (once something has met it), or after MAX_ROUNDS; the cheapest
-   verified allocation wins.  Its
-   yield "meets the target" when the low end of the verification's
+4. Correction.  The surrogate is fitted once, to the training alone, and
+   each verified allocation tells how far off it is there: delta(s) =
+   Phi^-1(surrogate yield) - Phi^-1(verified yield).  A Gaussian process over
+   ln s with a fixed kernel (`Correction`: a constant, a share of the drop in
+   yield the surrogate predicts, a local part) and each verification's
+   binomial noise gives the mean and standard deviation of delta anywhere.
+   The standard deviation grows away from the verified points: that is the
+   search's trust region, with no radius to tune.
+5. Optimiser (scipy).  SLSQP over ln s minimises the total cost subject to
+       Phi^-1(yield) - mean(delta) - KAPPA sqrt(var(delta) + e^2) >= z_need,
+   z_need = Phi^-1(target) + z_conf e (e: the probit standard error of a
+   verification of n reducers at the target, z_conf 1.96 at 95 %): a plan
+   that the verification will find meeting the target five times in six, if
+   the correction is right.  If no allocation satisfies that, the one of
+   highest such yield (L-BFGS-B) is verified instead: the search climbs, and
+   learns the surrogate's error on the way.
+6. Verification.  The allocation is checked by a Monte Carlo of the true
+   model: the allocated study file's own `rvte mc`, n reducers (the study's
+   [montecarlo] n, at least MIN_HIGH_YIELD_N for a target >= 0.99), on draws
+   of its own (every verification its own seed: the search never compares
+   allocations on the same reducers, so it cannot pick one whose reducers
+   happen to flatter it, and the verifications are independent, as the
+   correction assumes).  Its yield "meets the target" when the low end of its
    confidence interval (Wilson, tolerance/montecarlo.py) is at or above the
    target, not merely its estimate: an allocation that meets a 0.9973 target
-   does so with 97.5 % confidence, and a second Monte Carlo of the allocated
-   study agrees.
-   Confirmation: the verifications share their draws (common random numbers:
-   differences between allocations are not noise), so the search chooses
-   among them with those draws and the chosen one's yield is flattered.  The
-   answer's yield is therefore a last, fresh Monte Carlo of n reducers with
-   other draws (`confirm`); if that falls short of the target, the next
-   cheapest verified allocation is confirmed, up to MAX_CONFIRMATIONS.
-6. Out of reach: the surrogate's best point verified short REACH_TRIES times
+   does so with 97.5 % confidence.  The search stops when the next plan would
+   save less than IMPROVEMENT of the cheapest allocation that met the target,
+   after PATIENCE rounds in a row without a cheaper one, or after MAX_ROUNDS.
+   Confirmation: the cheapest allocation that met the target was chosen
+   because its Monte Carlo met it, which flatters it a little, so the
+   answer's yield is one more Monte Carlo of n reducers on fresh draws; if
+   that falls short of the target, the next cheapest verified allocation is
+   confirmed, up to MAX_CONFIRMATIONS.
+7. Out of reach: the best point verified short REACH_TRIES times, the
+   hopeful surrogate (KAPPA deviations above) short of the target there too
    (nothing having met the target): the answer is the best verified yield,
    with the bounds that bind.  Often every tolerance at its tightest, but not
    always: opening a band of tooth errors closes the designed backlash, and
@@ -101,16 +100,16 @@ TRAIN_GROUPS_PER_FACTOR = 16
 MIN_TRAIN_GROUPS = 32       # a degree-2 chaos in F scales needs (F+1)(F+2)/2 well-spread points
 YIELD_DRAWS = 2 ** 14       # unit draws of the surrogate yield (scrambled Sobol', a power of 2)
 LOG_FLOOR = 0.05            # of the mean error size: log inputs stay finite for a zero draw
-MARGIN_START = 0.25         # probit units, before any verification (0.9973 -> 0.9985)
-STOP_NOISE = 2.5            # proven: prediction and verification within this many standard errors
 MAX_ROUNDS = 8              # verifications at most (each n reducers)
 MAX_CONFIRMATIONS = 3       # fresh Monte Carlo runs of the cheapest verified allocations, in turn
-REACH_TRIES = 2             # the surrogate's best reachable yield verified short twice: out of reach
+REACH_TRIES = 2             # the best reachable yield verified short twice: out of reach
 PATIENCE = 2                # rounds in a row that find nothing cheaper meeting the target: stop
-TRUST_START = 0.5           # trust region about the centre, in ln s (x1.65): the surrogate's
-TRUST_MAX = 1.0             # errors differ from place to place, so its calibration only holds
-TRUST_MIN = 0.05            # near where it was made; doubled when proven, halved when not
-DATA_PER_POINT = 4096       # verification reducers kept for the fit (it grows with each round)
+IMPROVEMENT = 0.01          # stop when the next allocation would save less than this share
+KAPPA = 1.0                 # standard deviations of margin the search plans with (84 %)
+CORRECTION_CONSTANT = 0.1   # the surrogate's error (Correction), probit units: a constant,
+CORRECTION_SLOPE = 0.3      # a share of the drop in yield it predicts,
+CORRECTION_LOCAL = 0.1      # and a local part,
+CORRECTION_LENGTH = 0.5     # correlated over this change of ln s per factor (x1.65)
 HIGH_YIELD = 0.99           # from this target on, verify with at least MIN_HIGH_YIELD_N reducers
 MIN_HIGH_YIELD_N = 10000    # 27 expected failures at 0.9973: the estimate means something
 
@@ -138,12 +137,12 @@ class ScaledModel:
     each factor's error size in each draw at s = 1 (>= 0 if log_inputs).
     evaluate(s (F,), U (n, D), job) -> Y (n, M), NaN for a failed reducer;
     evaluate_groups(tasks), optional: the same for a list of (s, U, job), Y in
-    order as an iterator (e.g. on worker processes).  confirm(s, n), optional:
-    as verify, but other draws than every verify's: the fresh Monte Carlo whose
-    yield is the answer's (the search chose among the verified points with
-    verify's draws, so their yields flatter the one it chose).
-    verify(s, n) -> (U (n, D), Y (n, M)): the Monte Carlo that judges an
-    allocation.  snap(s) -> the scales that will be written (rounding).
+    order as an iterator (e.g. on worker processes).
+    verify(s, n, draw) -> (U (n, D), Y (n, M)): the Monte Carlo that judges an
+    allocation, on the draw-th set of unit draws (0: the study's own; each
+    other number independent of every other: the search never judges two
+    allocations on the same reducers, so it cannot pick one whose draws
+    happen to flatter it).  snap(s) -> the scales that will be written (rounding).
     """
 
     names: tuple[str, ...]
@@ -159,7 +158,6 @@ class ScaledModel:
     seed: int = 0
     confidence: float = 0.95
     evaluate_groups: Callable | None = None
-    confirm: Callable | None = None
 
     @property
     def lower(self) -> np.ndarray:
@@ -180,13 +178,15 @@ class ScaledModel:
 
 @dataclass(frozen=True)
 class Verified:
-    """A Monte Carlo of the true model at scales s: passed of n reducers (finite metrics)."""
+    """A Monte Carlo of the true model at scales s, on draws number `draw`: passed of n reducers
+    (finite metrics)."""
 
     scales: np.ndarray
     passed: int
     n: int
     low: float
     high: float
+    draw: int = 0
 
     @property
     def estimate(self) -> float:
@@ -246,10 +246,8 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
     evaluations = 0
     data = []                       # (scales (k, F), R (k, F), Y (k, M), training group or -1)
 
-    current, U, Y = _verify(model, ones, n)
+    current, _, _ = _verify(model, ones, n, 0)
     evaluations += n
-    data.append((np.tile(ones, (min(n, DATA_PER_POINT), 1)), model.magnitudes(U[:DATA_PER_POINT]),
-                 Y[:DATA_PER_POINT], -1))
     say(f"allocate: current tolerances: yield {current.estimate:.5f} "
         f"[{current.low:.5f}, {current.high:.5f}] of {current.n}")
 
@@ -301,93 +299,89 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
         scales = np.atleast_2d(scales)
         return np.array([surrogate.probability(inputs(s, R_yield)).mean() for s in scales])
 
-    # Verified points (the current tolerances first); each round verifies one more.
-    points = [Round(float("nan"), float("nan"), current, float(model.cost(ones).sum()))]
-    radius, safety, misses = TRUST_START, MARGIN_START, 0
-    stale = 0                                           # rounds since the cheapest met allocation
     surrogate, samples = fit(data)
+    z_now = float(_probit(surrogate_yield(surrogate, ones)[0]))
+
+    def surrogate_probit(S):
+        """The uncorrected surrogate's Phi^-1(yield) at each row of scales S (m, F)."""
+        return _probit(surrogate_yield(surrogate, S))
+
+    # The verified points (the current tolerances first); each round verifies one more, each
+    # on draws of its own.  e: the probit standard error of a verification at the target.
+    points = [Round(float("nan"), float("nan"), current, float(model.cost(ones).sum()))]
+    e = _binomial_probit_noise(target, n)
+    draw, misses, stale = 1, 0, 0
     for r in range(MAX_ROUNDS):
-        yield_at = lambda S, surrogate=surrogate: surrogate_yield(surrogate, S)  # noqa: E731
-        centre = _centre(points, target)
-        c = centre.verified.scales
-        z_centre = float(_probit(yield_at(c)[0]))
-        bias = z_centre - _observed(centre.verified)    # calibrate the surrogate at the centre
-        met = centre.verified.meets(target)
-        # never ask more of a cheaper allocation than the centre that met the target verified
-        margin = bias + (min(safety, _observed(centre.verified) - z_need) if met else safety)
-        goal = min(z_need + margin, z_centre) if met else z_need + margin
-        low = np.maximum(lower, c * np.exp(-radius))    # the trust region about the centre
-        high = np.minimum(upper, c * np.exp(radius))
-        reaching = False
-        if z_centre >= goal:                            # the centre is a feasible start
-            scales = optimise(model, yield_at, goal, [c], low, high)
+        correction = Correction([done.verified for done in points], surrogate_probit, z_now)
+
+        def cautious(S, correction=correction):
+            """The yield the search plans with: KAPPA standard deviations below the corrected
+            surrogate (its own uncertainty and that of the verification that will judge it)."""
+            z, mean, var = correction.at(S)
+            return ndtr(z - mean - KAPPA * np.sqrt(var + e * e))
+
+        def hopeful(S, correction=correction):
+            z, mean, var = correction.at(S)
+            return ndtr(z - mean + KAPPA * np.sqrt(var))
+
+        verified_scales = [done.verified.scales for done in points]
+        met = [done for done in points if done.verified.meets(target)]
+        reach, z_reach = best_reachable(model, cautious, [lower, ones, upper] + verified_scales)
+        reaching = z_reach < z_need
+        if reaching:
+            # nothing meets the target for sure yet: verify the best the search can count on
+            # (climbing); out of reach when even the hopeful surrogate misses the target there
+            scales = reach
+            hope = float(_probit(hopeful(best_reachable(model, hopeful, [reach])[0][None])[0]))
         else:
-            # the best the surrogate can reach in the box: often all at the tightest, but not
-            # always (opening a band of tooth errors closes the backlash: lost motion falls)
-            reach, z_reach = best_reachable(model, yield_at, [lower, ones, upper, c])
-            reaching = z_reach < z_target + bias        # even the target itself is out of reach
-            if reaching:                                # out of reach? check the best point
-                scales = reach
-            else:                                       # climb, or the least cost, in the region
-                local, z_local = best_reachable(model, yield_at, [c, np.clip(reach, low, high)],
-                                                low, high)
-                scales = local if z_local < goal else optimise(model, yield_at, goal, [local, c],
-                                                               low, high)
+            scales = optimise(model, cautious, z_need,
+                              [reach] + [done.verified.scales for done in met])
         scales = model.snap(scales)
-        predicted = float(ndtr(_probit(yield_at(scales)[0]) - bias))
+        cost = float(model.cost(scales).sum())
+        z, mean, var = (float(v[0]) for v in correction.at(scales[None]))
+        predicted = float(ndtr(z - mean))
+        if met and cost >= (1.0 - IMPROVEMENT) * min(done.cost for done in met):
+            say(f"allocate: round {r + 1}: the cheapest allocation the search can count on costs "
+                f"{cost:.4g}, no less than the cheapest verified one: stop")
+            break
         if any(np.array_equal(scales, done.verified.scales) for done in points):
             say(f"allocate: round {r + 1} gives an allocation already verified: stop")
             break
-        verified, U, Y = _verify(model, scales, n)
+        verified, U, Y = _verify(model, scales, n, draw)
+        draw += 1
         evaluations += n
-        data.append((np.tile(scales, (min(n, DATA_PER_POINT), 1)),
-                     model.magnitudes(U[:DATA_PER_POINT]), Y[:DATA_PER_POINT], -1))
-        points.append(Round(margin, predicted, verified, float(model.cost(scales).sum())))
+        points.append(Round(float(KAPPA * math.sqrt(var + e * e)), predicted, verified, cost))
         meets = verified.meets(target)
-        noise = verified.probit_noise()
-        optimism = float(_probit(predicted)) - _observed(verified)   # the calibrated error
-        proven = abs(optimism) <= STOP_NOISE * noise
-        say(f"allocate: round {r + 1}" + (" (the surrogate's best reachable yield)" if reaching
-                                          else f" (trust region x{math.exp(radius):.2f})") +
-            f": margin {margin:+.3f} -> cost {points[-1].cost:.4g}, predicted "
-            f"{predicted:.5f}, verified {verified.estimate:.5f} [{verified.low:.5f}, "
-            f"{verified.high:.5f}] of {verified.n}" + ("" if meets else " (below the target)"))
-        misses += bool(reaching and not meets)
-        met_before = [done.cost for done in points[:-1] if done.verified.meets(target)]
-        feasible = bool(met_before) or meets
+        say(f"allocate: round {r + 1}" + (" (the best yield the search can count on)" if reaching
+                                          else "") +
+            f": cost {cost:.4g}, predicted {predicted:.5f} (+/- {math.sqrt(var):.3f} probit), "
+            f"verified {verified.estimate:.5f} [{verified.low:.5f}, {verified.high:.5f}] of "
+            f"{verified.n}" + ("" if meets else " (below the target)"))
+        feasible = bool(met) or meets
+        misses += bool(reaching and not meets and hope < z_target)
         if misses >= REACH_TRIES and not feasible:
             break                                       # out of reach, as far as can be told
-        stale = 0 if meets and (not met_before or points[-1].cost < min(met_before)) else stale + 1
+        stale = 0 if meets and (not met or cost < min(done.cost for done in met)) else stale + 1
         if feasible and stale >= PATIENCE:
             say(f"allocate: {PATIENCE} rounds without a cheaper allocation that meets the "
                 "target: stop")
-            break                                       # the surrogate finds nothing better here
-        if meets and proven and safety < MARGIN_START:
-            break                                       # proven, with a margin at the noise level
-        radius = min(2 * radius, TRUST_MAX) if proven else max(radius / 2, TRUST_MIN)
-        safety = noise if proven else max(noise, min(optimism, MARGIN_START))
-        surrogate, samples = fit(data)
+            break
     rounds = tuple(points[1:])
     meeting = [done for done in points if done.verified.meets(target)]   # current included
     if not meeting:                                     # the best verified yield is the answer
-        reached = _centre(points, target)
+        reached = max(reversed(points), key=lambda done: done.verified.estimate)
         return ScaleAllocation(reached.verified.scales, False, current, reached.verified,
                                rounds, samples, validation, evaluations)
     meeting.sort(key=lambda done: done.cost)
-    if model.confirm is None:
-        best = meeting[0]
-        if best is not points[0]:
-            validation += (f"; at the allocation: predicted {best.predicted:.5f}, verified "
-                           f"{best.verified.estimate:.5f}")
-        return ScaleAllocation(best.verified.scales, True, current, best.verified, rounds,
-                               samples, validation, evaluations)
-    # Confirmation: the cheapest verified point that met the target, on fresh draws; if
-    # those fall short, the next cheapest, and so on.
+    # Confirmation: the cheapest verified point that met the target, on fresh draws (it was
+    # chosen because its verification met the target, which flatters it a little); if those
+    # fall short, the next cheapest, and so on.
     confirmations = []
     for done in meeting[:MAX_CONFIRMATIONS]:
-        _, Y = model.confirm(done.verified.scales, n)
+        _, Y = model.verify(done.verified.scales, n, draw)
+        confirmed = judge(model, done.verified.scales, Y, draw)
+        draw += 1
         evaluations += n
-        confirmed = judge(model, done.verified.scales, Y)
         confirmations.append(confirmed)
         say(f"allocate: confirmation on fresh draws at cost {done.cost:.4g}: yield "
             f"{confirmed.estimate:.5f} [{confirmed.low:.5f}, {confirmed.high:.5f}] of "
@@ -395,7 +389,8 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
         if confirmed.meets(target):
             validation += (f"; at the allocation: predicted {done.predicted:.5f}, verified "
                            f"{done.verified.estimate:.5f}, confirmed on fresh draws "
-                           f"{confirmed.estimate:.5f}")
+                           f"{confirmed.estimate:.5f}" if done is not points[0] else
+                           "; the current tolerances are the cheapest that met the target")
             return ScaleAllocation(done.verified.scales, True, current, confirmed, rounds,
                                    samples, validation, evaluations, tuple(confirmations))
     best = max(confirmations, key=lambda c: c.estimate)
@@ -404,13 +399,53 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
                            evaluations, tuple(confirmations))
 
 
-def _centre(points, target: float) -> Round:
-    """The verified point to search about: the cheapest that meets the target, else the one
-    of highest yield (the latest of equals)."""
-    meeting = [done for done in points if done.verified.meets(target)]
-    if meeting:
-        return min(meeting, key=lambda done: done.cost)
-    return max(reversed(points), key=lambda done: done.verified.estimate)
+class Correction:
+    """The surrogate's error in probit units, learnt from the verified points.
+
+    delta(s) = z_S(s) - Phi^-1(verified yield at s), a Gaussian process over
+    x = ln s with a fixed kernel (no hyperparameters are fitted to a handful of
+    points) and each verification's binomial noise:
+        k(x, x') = A^2 + B^2 d(x) d(x') + C^2 exp(-|x - x'|^2 / (2 F L^2)),
+    d(x) = z_S(current) - z_S(x), the drop in yield the surrogate predicts.  A:
+    a constant error; B: the surrogate's sensitivity off by a fraction (its
+    drop too small or too large, the commonest error of a smoothed model); C, L:
+    what is left, local (L in ln s per factor).  Away from every verified point
+    the standard deviation grows, so the search asks for more margin there:
+    that is its trust region.  A handful of points: a Cholesky solve of
+    scipy's does it.
+    """
+
+    def __init__(self, verified, surrogate_probit, z_now: float):
+        from scipy.linalg import cho_factor
+
+        self.surrogate_probit, self.z_now = surrogate_probit, z_now
+        S = np.array([v.scales for v in verified])
+        self.X = np.log(S)
+        z = surrogate_probit(S)
+        self.d = z_now - z
+        delta = z - np.array([_observed(v) for v in verified])
+        noise = np.array([v.probit_noise() for v in verified]) ** 2
+        self.factor = cho_factor(self._kernel(self.X, self.d, self.X, self.d) + np.diag(noise))
+        from scipy.linalg import cho_solve
+
+        self._solve = lambda b: cho_solve(self.factor, b)
+        self.weights = self._solve(delta)
+
+    def _kernel(self, X1, d1, X2, d2):
+        F = X1.shape[1]
+        squared = ((X1[:, None, :] - X2[None, :, :]) ** 2).sum(axis=2)
+        return (CORRECTION_CONSTANT ** 2 + CORRECTION_SLOPE ** 2 * np.outer(d1, d2)
+                + CORRECTION_LOCAL ** 2 * np.exp(-squared / (2.0 * F * CORRECTION_LENGTH ** 2)))
+
+    def at(self, S):
+        """(z_S, mean of delta, variance of delta) at each row of scales S (m, F)."""
+        S = np.atleast_2d(S)
+        z = self.surrogate_probit(S)
+        d = self.z_now - z
+        k = self._kernel(np.log(S), d, self.X, self.d)            # (m, k)
+        prior = CORRECTION_CONSTANT ** 2 + CORRECTION_SLOPE ** 2 * d * d + CORRECTION_LOCAL ** 2
+        var = prior - np.einsum("ij,ji->i", k, self._solve(k.T))
+        return z, k @ self.weights, np.maximum(var, 0.0)
 
 
 def _observed(verified: Verified) -> float:
@@ -522,13 +557,13 @@ def optimise(model: ScaledModel, yield_at, wanted: float, starts=(), lower=None,
     return best
 
 
-def _verify(model: ScaledModel, scales, n: int):
-    """The true model's Monte Carlo at scales: (Verified, U (n, D), Y (n, M))."""
-    U, Y = model.verify(np.asarray(scales, dtype=float), n)
-    return judge(model, scales, Y), U, Y
+def _verify(model: ScaledModel, scales, n: int, draw: int):
+    """The true model's Monte Carlo at scales on draws number `draw`: (Verified, U (n, D), Y (n, M))."""
+    U, Y = model.verify(np.asarray(scales, dtype=float), n, draw)
+    return judge(model, scales, Y, draw), U, Y
 
 
-def judge(model: ScaledModel, scales, Y) -> Verified:
+def judge(model: ScaledModel, scales, Y, draw: int = 0) -> Verified:
     """The yield of metrics Y (n, M) against every limit, with its interval."""
     ok = np.all(np.isfinite(Y), axis=1)
     passes = ok.copy()
@@ -536,7 +571,7 @@ def judge(model: ScaledModel, scales, Y) -> Verified:
         passes[ok] &= limit.passes(Y[ok, limit.column])
     evaluated, passed = int(ok.sum()), int(passes.sum())
     low, high = wilson_interval(passed, evaluated, model.confidence)
-    return Verified(np.asarray(scales, dtype=float).copy(), passed, evaluated, low, high)
+    return Verified(np.asarray(scales, dtype=float).copy(), passed, evaluated, low, high, draw)
 
 
 def _binomial_probit_noise(p: float, n: int) -> float:

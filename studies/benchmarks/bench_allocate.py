@@ -20,7 +20,10 @@ on --processes worker processes (default 2), each in its own output folder:
    when it first found an allocation that meets the target for no more than
    the surrogate search's cost (a loop that knew when to stop: the least a
    plain loop can spend), and its whole run with the cheapest allocation it
-   found (what a plain loop, which cannot know, spends).
+   found (what a plain loop, which cannot know, spends).  The loop judges every
+   point on the same reducers and keeps the cheapest that met the target on
+   them, which flatters it: its row also gives that allocation's yield on
+   fresh reducers (a Monte Carlo not counted in its evaluations).
 
 Both arms run at --points per output revolution (default 90, where a reducer
 costs about 15 ms and the plain loop finishes in minutes; the study's own 720
@@ -180,6 +183,13 @@ def main(argv=None) -> int:
                          f"{matched_ratio:.1f}"))
     ratio = loop.evaluations / base_evaluations
     cost_text, yield_text = ("none met the target", "-") if loop.best is None else outcome(*loop.best)
+    if loop.best is not None:
+        # the loop judged every point on the same reducers and kept the cheapest that met the
+        # target on them: its yield on fresh reducers (draws the allocation never uses, not counted)
+        _, Y = model.verify(loop.best[1].scales, y.n, 1000)
+        fresh = judge(model, loop.best[1].scales, Y)
+        yield_text += (f"; fresh draws {fresh.estimate:.4f} ({fresh.low:.4f}-{fresh.high:.4f})"
+                       + ("" if fresh.meets(args.target) else ", below the target"))
     ratio_text = (f">= {ratio:.1f} (stopped at the cap)" if why == "budget" else
                   f"{ratio:.1f} ({why})")
     lines.append(row("plain loop, its whole run (COBYLA)", size, seconds, loop.evaluations, cost_text,
@@ -202,9 +212,12 @@ def main(argv=None) -> int:
                      f"2 cores: {verdict} ({seconds / 60:.1f} min)")
     print("\n".join(lines))
     print("(the wall time of the first plain-loop row is its share of the whole run's, by evaluations)")
+    # the ratio that counts: what the plain loop spends to find an allocation as cheap
+    met = loop.matched is None or matched_ratio >= TARGET_RATIO
     print(f"target: at least {TARGET_RATIO:g}x fewer model evaluations than the plain loop: "
-          f"{'met' if ratio >= TARGET_RATIO else 'NOT met'} ({ratio:.1f}x its whole run, "
-          f"{matched_ratio:.1f}x until as cheap)")
+          f"{'met' if met else 'NOT met'} (" +
+          (f"the plain loop never found an allocation as cheap in {ratio:.1f}x the evaluations"
+           if loop.matched is None else f"{matched_ratio:.1f}x until as cheap") + ")")
     print(f"# load average after: {os.getloadavg()[0]:.2f}")
     return 0
 
