@@ -105,7 +105,7 @@ MAX_CONFIRMATIONS = 3       # fresh Monte Carlo runs of the cheapest verified al
 REACH_TRIES = 2             # the best reachable yield verified short twice: out of reach
 PATIENCE = 2                # rounds in a row that find nothing cheaper meeting the target: stop
 IMPROVEMENT = 0.01          # stop when the next allocation would save less than this share
-KAPPA = 1.0                 # standard deviations of margin the search plans with (84 %)
+KAPPA = 1.65                # standard deviations of margin the search plans with (95 %)
 CORRECTION_CONSTANT = 0.1   # the surrogate's error (Correction), probit units: a constant,
 CORRECTION_SLOPE = 0.3      # a share of the drop in yield it predicts,
 CORRECTION_LOCAL = 0.1      # and a local part,
@@ -306,17 +306,20 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
         """The uncorrected surrogate's Phi^-1(yield) at each row of scales S (m, F)."""
         return _probit(surrogate_yield(surrogate, S))
 
-    # The verified points (the current tolerances first); each round verifies one more, each
-    # on draws of its own.  e: the probit standard error of a verification at the target.
+    # Every Monte Carlo of the true model, each on draws of its own: the current tolerances,
+    # one per round (`points`, as Rounds), and the confirmations; all of them teach the
+    # correction.  e: the probit standard error of a Monte Carlo of n reducers at the target.
     points = [Round(float("nan"), float("nan"), current, float(model.cost(ones).sum()))]
+    every = [current]
+    confirmations, refuted = [], set()
     e = _binomial_probit_noise(target, n)
     draw, misses, stale = 1, 0, 0
-    for r in range(MAX_ROUNDS):
-        correction = Correction([done.verified for done in points], surrogate_probit, z_now)
+    while True:
+        correction = Correction(every, surrogate_probit, z_now)
 
         def cautious(S, correction=correction):
             """The yield the search plans with: KAPPA standard deviations below the corrected
-            surrogate (its own uncertainty and that of the verification that will judge it)."""
+            surrogate (its own uncertainty and that of the Monte Carlo that will judge it)."""
             z, mean, var = correction.at(S)
             return ndtr(z - mean - KAPPA * np.sqrt(var + e * e))
 
@@ -324,79 +327,88 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
             z, mean, var = correction.at(S)
             return ndtr(z - mean + KAPPA * np.sqrt(var))
 
-        verified_scales = [done.verified.scales for done in points]
-        met = [done for done in points if done.verified.meets(target)]
-        reach, z_reach = best_reachable(model, cautious, [lower, ones, upper] + verified_scales)
-        reaching = z_reach < z_need
-        if reaching:
-            # nothing meets the target for sure yet: verify the best the search can count on
-            # (climbing); out of reach when even the hopeful surrogate misses the target there
-            scales = reach
-            hope = float(_probit(hopeful(best_reachable(model, hopeful, [reach])[0][None])[0]))
-        else:
-            scales = optimise(model, cautious, z_need,
-                              [reach] + [done.verified.scales for done in met])
-        scales = model.snap(scales)
-        cost = float(model.cost(scales).sum())
+        candidates = [k for k, done in enumerate(points)
+                      if done.verified.meets(target) and k not in refuted]
+        rounds_left = len(points) - 1 < MAX_ROUNDS
+        cost, again, reaching, stuck = math.inf, False, False, stale >= PATIENCE
+        if rounds_left:
+            verified_scales = [done.verified.scales for done in points]
+            reach, z_reach = best_reachable(model, cautious, [lower, ones, upper] + verified_scales)
+            reaching = z_reach < z_need
+            if reaching:
+                # nothing meets the target for sure yet: verify the best the search can count
+                # on (it climbs); out of reach when even the hopeful surrogate misses there
+                scales = reach
+                hope = float(_probit(hopeful(best_reachable(model, hopeful, [reach])[0][None])[0]))
+            else:
+                scales = optimise(model, cautious, z_need,
+                                  [reach] + [points[k].verified.scales for k in candidates])
+            scales = model.snap(scales)
+            cost = float(model.cost(scales).sum())
+            again = any(np.array_equal(scales, done.verified.scales) for done in points)
+        best = min(candidates, key=lambda k: points[k].cost, default=None)
+        search_over = (not rounds_left or again or stuck
+                       or (best is not None and cost >= (1.0 - IMPROVEMENT) * points[best].cost))
+        if search_over:
+            if best is None or len(confirmations) >= MAX_CONFIRMATIONS:
+                break
+            if rounds_left:
+                say(f"allocate: the next allocation would cost {cost:.4g}" +
+                    (", one already verified" if again else
+                     f": {PATIENCE} rounds without a cheaper one that meets the target"
+                     if stuck else
+                     f", no less than the cheapest verified one ({points[best].cost:.4g})"))
+            # Confirmation: that allocation was chosen because its Monte Carlo met the target,
+            # which flatters it a little: the answer's yield is a fresh one
+            done = points[best]
+            _, Y = model.verify(done.verified.scales, n, draw)
+            confirmed = judge(model, done.verified.scales, Y, draw)
+            draw += 1
+            evaluations += n
+            confirmations.append(confirmed)
+            every.append(confirmed)
+            say(f"allocate: confirmation on fresh draws at cost {done.cost:.4g}: yield "
+                f"{confirmed.estimate:.5f} [{confirmed.low:.5f}, {confirmed.high:.5f}] of "
+                f"{confirmed.n}" + ("" if confirmed.meets(target) else
+                                    " (below the target: the search goes on)"))
+            if confirmed.meets(target):
+                validation += (f"; at the allocation: predicted {done.predicted:.5f}, verified "
+                               f"{done.verified.estimate:.5f}, confirmed on fresh draws "
+                               f"{confirmed.estimate:.5f}" if best else
+                               "; the current tolerances are the cheapest that met the target")
+                return ScaleAllocation(done.verified.scales, True, current, confirmed,
+                                       tuple(points[1:]), samples, validation, evaluations,
+                                       tuple(confirmations))
+            refuted.add(best)
+            stale = 0
+            continue
         z, mean, var = (float(v[0]) for v in correction.at(scales[None]))
         predicted = float(ndtr(z - mean))
-        if met and cost >= (1.0 - IMPROVEMENT) * min(done.cost for done in met):
-            say(f"allocate: round {r + 1}: the cheapest allocation the search can count on costs "
-                f"{cost:.4g}, no less than the cheapest verified one: stop")
-            break
-        if any(np.array_equal(scales, done.verified.scales) for done in points):
-            say(f"allocate: round {r + 1} gives an allocation already verified: stop")
-            break
-        verified, U, Y = _verify(model, scales, n, draw)
+        verified, _, _ = _verify(model, scales, n, draw)
         draw += 1
         evaluations += n
+        every.append(verified)
         points.append(Round(float(KAPPA * math.sqrt(var + e * e)), predicted, verified, cost))
         meets = verified.meets(target)
-        say(f"allocate: round {r + 1}" + (" (the best yield the search can count on)" if reaching
-                                          else "") +
+        say(f"allocate: round {len(points) - 1}" +
+            (" (the best yield the search can count on)" if reaching else "") +
             f": cost {cost:.4g}, predicted {predicted:.5f} (+/- {math.sqrt(var):.3f} probit), "
             f"verified {verified.estimate:.5f} [{verified.low:.5f}, {verified.high:.5f}] of "
             f"{verified.n}" + ("" if meets else " (below the target)"))
-        feasible = bool(met) or meets
         misses += bool(reaching and not meets and hope < z_target)
-        if misses >= REACH_TRIES and not feasible:
+        if misses >= REACH_TRIES and not candidates and not meets:
             break                                       # out of reach, as far as can be told
-        stale = 0 if meets and (not met or cost < min(done.cost for done in met)) else stale + 1
-        if feasible and stale >= PATIENCE:
-            say(f"allocate: {PATIENCE} rounds without a cheaper allocation that meets the "
-                "target: stop")
-            break
+        cheaper = meets and all(cost < points[k].cost for k in candidates)
+        stale = 0 if cheaper else stale + bool(candidates or meets)
     rounds = tuple(points[1:])
-    meeting = [done for done in points if done.verified.meets(target)]   # current included
-    if not meeting:                                     # the best verified yield is the answer
-        reached = max(reversed(points), key=lambda done: done.verified.estimate)
-        return ScaleAllocation(reached.verified.scales, False, current, reached.verified,
-                               rounds, samples, validation, evaluations)
-    meeting.sort(key=lambda done: done.cost)
-    # Confirmation: the cheapest verified point that met the target, on fresh draws (it was
-    # chosen because its verification met the target, which flatters it a little); if those
-    # fall short, the next cheapest, and so on.
-    confirmations = []
-    for done in meeting[:MAX_CONFIRMATIONS]:
-        _, Y = model.verify(done.verified.scales, n, draw)
-        confirmed = judge(model, done.verified.scales, Y, draw)
-        draw += 1
-        evaluations += n
-        confirmations.append(confirmed)
-        say(f"allocate: confirmation on fresh draws at cost {done.cost:.4g}: yield "
-            f"{confirmed.estimate:.5f} [{confirmed.low:.5f}, {confirmed.high:.5f}] of "
-            f"{confirmed.n}" + ("" if confirmed.meets(target) else " (below the target)"))
-        if confirmed.meets(target):
-            validation += (f"; at the allocation: predicted {done.predicted:.5f}, verified "
-                           f"{done.verified.estimate:.5f}, confirmed on fresh draws "
-                           f"{confirmed.estimate:.5f}" if done is not points[0] else
-                           "; the current tolerances are the cheapest that met the target")
-            return ScaleAllocation(done.verified.scales, True, current, confirmed, rounds,
-                                   samples, validation, evaluations, tuple(confirmations))
-    best = max(confirmations, key=lambda c: c.estimate)
-    validation += "; no verified allocation was confirmed on fresh draws"
-    return ScaleAllocation(best.scales, False, current, best, rounds, samples, validation,
-                           evaluations, tuple(confirmations))
+    if confirmations:
+        best = max(confirmations, key=lambda c: c.estimate)
+        validation += "; no verified allocation was confirmed on fresh draws"
+        return ScaleAllocation(best.scales, False, current, best, rounds, samples, validation,
+                               evaluations, tuple(confirmations))
+    reached = max(reversed(points), key=lambda done: done.verified.estimate)
+    return ScaleAllocation(reached.verified.scales, False, current, reached.verified, rounds,
+                           samples, validation, evaluations)
 
 
 class Correction:
