@@ -106,9 +106,9 @@ REACH_TRIES = 2             # the best reachable yield verified short twice: out
 PATIENCE = 2                # rounds in a row that find nothing cheaper meeting the target: stop
 IMPROVEMENT = 0.01          # stop when the next allocation would save less than this share
 KAPPA = 1.65                # standard deviations of margin the search plans with (95 %)
-CORRECTION_CONSTANT = 0.1   # the surrogate's error (Correction), probit units: a constant,
+CORRECTION_CONSTANT = 0.2   # the surrogate's error (Correction), probit units: a constant,
 CORRECTION_SLOPE = 0.3      # a share of the drop in yield it predicts,
-CORRECTION_LOCAL = 0.1      # and a local part,
+CORRECTION_LOCAL = 0.2      # and a local part,
 CORRECTION_LENGTH = 0.5     # correlated over this change of ln s per factor (x1.65)
 HIGH_YIELD = 0.99           # from this target on, verify with at least MIN_HIGH_YIELD_N reducers
 MIN_HIGH_YIELD_N = 10000    # 27 expected failures at 0.9973: the estimate means something
@@ -330,7 +330,9 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
         candidates = [k for k, done in enumerate(points)
                       if done.verified.meets(target) and k not in refuted]
         rounds_left = len(points) - 1 < MAX_ROUNDS
-        cost, again, reaching, stuck = math.inf, False, False, stale >= PATIENCE
+        # patience runs out only with a candidate better than the current tolerances
+        cost, again, reaching = math.inf, False, False
+        stuck = stale >= PATIENCE and any(k > 0 for k in candidates)
         if rounds_left:
             verified_scales = [done.verified.scales for done in points]
             reach, z_reach = best_reachable(model, cautious, [lower, ones, upper] + verified_scales)
