@@ -13,7 +13,8 @@ from scipy.special import ndtr, ndtri
 import tolerance
 from rvfmu.core.checks import InputError
 from tolerance import cost as costs
-from tolerance.least_cost import Limit, ScaledModel, allocate_scales
+from tolerance.least_cost import (CORRECTION_CONSTANT, CORRECTION_LOCAL, CORRECTION_SLOPE, KAPPA,
+                                  Correction, Limit, ScaledModel, Verified, allocate_scales)
 from tolerance.surrogate import Chaos
 from tolerance.run import run_mc
 from tolerance.study import load_study
@@ -99,6 +100,42 @@ def test_chaos_evaluates_as_openturns_does():
     np.testing.assert_allclose(chaos(test), np.asarray(chaos.metamodel(test))[:, 0], atol=1e-12)
     np.testing.assert_allclose(chaos(test), 1.0 + test[:, 0] - 2.0 * test[:, 1] * test[:, 2]
                                + 0.5 * test[:, 2] ** 2, atol=1e-9)
+
+
+def _verified_at(scales, z, n=10 ** 7):
+    """A Monte Carlo of n reducers whose yield is Phi(z) (to a reducer)."""
+    passed = int(round(ndtr(z) * n))
+    return Verified(np.asarray(scales, dtype=float), passed, n, 0.0, 1.0)
+
+
+def test_the_correction_learns_the_surrogates_error_from_the_verified_points():
+    """A surrogate that predicts 70 % of the true drop in yield (probit units): its error is
+    0.3 x its predicted drop.  From four nearly noise-free Monte Carlo runs the correction
+    reproduces the truth at and beside them; at twice their largest drop it has learnt most
+    of the error, its spread has grown again, and the search's margin covers the rest."""
+    def surrogate_probit(S):                # predicted drop 0.7 x the true one, 2 factors
+        return 3.0 - 0.7 * np.log(np.atleast_2d(S)).sum(axis=1)
+
+    def true_probit(S):
+        return 3.0 - np.log(np.atleast_2d(S)).sum(axis=1)
+
+    runs = np.array([[1.0, 1.0], [1.3, 1.1], [1.1, 1.4], [1.5, 1.5]])
+    verified = [_verified_at(s, true_probit(s)[0]) for s in runs]
+    correction = Correction(verified, surrogate_probit, 3.0)
+    z, mean, var = correction.at(runs)
+    np.testing.assert_allclose(z - mean, true_probit(runs), atol=0.01)   # the runs, corrected
+    assert np.all(np.sqrt(var) < 0.01)
+    between = np.array([[2.0, 1.2]])               # beside the runs: corrected to 0.02 probit
+    z, mean, _ = correction.at(between)
+    assert z[0] - mean[0] == pytest.approx(true_probit(between)[0], abs=0.02)
+    far = np.array([[2.5, 2.5]])                   # predicted drop 1.28, the runs' largest 0.57
+    z, mean, var = correction.at(far)
+    truth = true_probit(far)[0]
+    assert z[0] - truth == pytest.approx(0.3 * 2 * np.log(2.5), rel=1e-9)   # 0.55 optimistic
+    assert abs(z[0] - mean[0] - truth) < 0.25 * (z[0] - truth)   # most of it learnt
+    assert z[0] - mean[0] - KAPPA * np.sqrt(var[0]) < truth      # the search's margin covers the rest
+    prior = CORRECTION_CONSTANT ** 2 + CORRECTION_SLOPE ** 2 * (3.0 - z[0]) ** 2 + CORRECTION_LOCAL ** 2
+    assert 0.05 ** 2 < var[0] < prior                           # unsure again, less than knowing nothing
 
 
 def test_linear_stack_up_recovers_the_closed_form_least_cost_allocation():

@@ -430,7 +430,7 @@ class Correction:
     """
 
     def __init__(self, verified, surrogate_probit, z_now: float):
-        from scipy.linalg import cho_factor
+        from scipy.linalg import cho_factor, cho_solve
 
         self.surrogate_probit, self.z_now = surrogate_probit, z_now
         S = np.array([v.scales for v in verified])
@@ -440,8 +440,6 @@ class Correction:
         delta = z - np.array([_observed(v) for v in verified])
         noise = np.array([v.probit_noise() for v in verified]) ** 2
         self.factor = cho_factor(self._kernel(self.X, self.d, self.X, self.d) + np.diag(noise))
-        from scipy.linalg import cho_solve
-
         self._solve = lambda b: cho_solve(self.factor, b)
         self.weights = self._solve(delta)
 
