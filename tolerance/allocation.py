@@ -161,7 +161,7 @@ def allocate(study_path, yield_target: float = 0.9973, output=None, progress: bo
     or new): the current
     tolerances' Monte Carlo as `rvte mc` would store it, the training and the
     verifications under allocation/, and `<study name>_allocated.toml` (ready
-    to run: its `rvte mc` reuses the verification) and allocation.json.
+    to run, with the seed of its confirmation: its `rvte mc` reuses that) and allocation.json.
     log(str) gets the progress of the search; `yes` as for `run_mc`.
     """
     from .run import _load, _warn_load
