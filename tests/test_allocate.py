@@ -159,7 +159,7 @@ def test_linear_stack_up_recovers_the_closed_form_least_cost_allocation():
     def verify(s, n, draw):             # draws number `draw`: independent of every other number
         U = np.random.default_rng([11, draw]).random((n, 3))
         verifications.append(draw)
-        return U, evaluate(s, U, "verify")
+        return evaluate(s, U, "verify")
 
     model = ScaledModel(("x0", "x1", "x2"), current, models, (Limit(0, L, "max"), Limit(0, -L, "min")),
                         3, values, evaluate, verify, log_inputs=False, seed=3)

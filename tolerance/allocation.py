@@ -313,14 +313,13 @@ class _StudyWiring:
         from .run import compute, run_mc
 
         if draw == 0 and np.all(scales == 1.0):
-            result = run_mc(self.study, n, output=self.folder, processes=self.processes,
-                            progress=self.progress, plots=False, log=self.log, yes=self.yes)
-            return montecarlo.rows(self.study, 0, n), result.Y
+            return run_mc(self.study, n, output=self.folder, processes=self.processes,
+                          progress=self.progress, plots=False, log=self.log, yes=self.yes).Y
         study = self.candidate(scales, draw=draw)[1]
         computed = compute(study, "mc", n, lambda a, b: montecarlo.rows(study, a, b),
                            make_backend(self.processes), self.progress, self.log,
                            output=study.output, yes=self.yes, size_field=("n", n))
-        return montecarlo.rows(study, 0, n), computed.Y[:n]
+        return computed.Y[:n]
 
     def seed_of(self, draw: int) -> int:
         """The seed of draws number `draw`: the study's for 0, else one derived from it."""

@@ -138,7 +138,7 @@ class ScaledModel:
     evaluate(s (F,), U (n, D), job) -> Y (n, M), NaN for a failed reducer;
     evaluate_groups(tasks), optional: the same for a list of (s, U, job), Y in
     order as an iterator (e.g. on worker processes).
-    verify(s, n, draw) -> (U (n, D), Y (n, M)): the Monte Carlo that judges an
+    verify(s, n, draw) -> Y (n, M): the Monte Carlo that judges an
     allocation, on the draw-th set of unit draws (0: the study's own; each
     other number independent of every other: the search never judges two
     allocations on the same reducers, so it cannot pick one whose draws
@@ -230,7 +230,7 @@ class ScaleAllocation:
 def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | None = None,
                     draws: int = YIELD_DRAWS, log=None, progress: bool | None = False,
                     column_names: tuple[str, ...] | None = None) -> ScaleAllocation:
-    """The least-cost scales with a verified yield >= target (module docstring, steps 1-6).
+    """The least-cost scales with a verified yield >= target (module docstring, steps 1-7).
 
     n: reducers of each verification Monte Carlo; groups: training groups of
     TRAIN_GROUP reducers (default max(MIN_TRAIN_GROUPS, TRAIN_GROUPS_PER_FACTOR * F)).
@@ -244,9 +244,9 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
     # the target: the target plus z_conf binomial standard errors, in probit units
     z_need = z_target + float(ndtri(0.5 + 0.5 * model.confidence)) * _binomial_probit_noise(target, n)
     evaluations = 0
-    data = []                       # (scales (k, F), R (k, F), Y (k, M), training group or -1)
+    data = []                       # (scales (k, F), R (k, F), Y (k, M), training group)
 
-    current, _, _ = _verify(model, ones, n, 0)
+    current = _verify(model, ones, n, 0)
     evaluations += n
     say(f"allocate: current tolerances: yield {current.estimate:.5f} "
         f"[{current.low:.5f}, {current.high:.5f}] of {current.n}")
@@ -283,8 +283,8 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
         ok = np.all(np.isfinite(Yall), axis=1)
         return Surrogate(Z[ok], Yall[ok], model.limits), int(ok.sum())
 
-    held = [row for row in data if row[3] >= 0 and row[3] % 5 == 0]
-    surrogate, _ = fit([row for row in data if not (row[3] >= 0 and row[3] % 5 == 0)])
+    held = [row for row in data if row[3] % 5 == 0]
+    surrogate, _ = fit([row for row in data if row[3] % 5 != 0])
     Zh = np.concatenate([inputs(s, R) for s, R, _, _ in held])
     Yh = np.concatenate([Y for _, _, Y, _ in held])
     ok = np.all(np.isfinite(Yh), axis=1)
@@ -314,6 +314,16 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
     confirmations, refuted = [], set()
     e = _binomial_probit_noise(target, n)
     draw, misses, stale = 1, 0, 0
+
+    def monte_carlo(scales) -> Verified:
+        """The true model's Monte Carlo of n reducers at scales, on the next draws of its own."""
+        nonlocal draw, evaluations
+        verified = _verify(model, scales, n, draw)
+        draw += 1
+        evaluations += n
+        every.append(verified)
+        return verified
+
     while True:
         correction = Correction(every, surrogate_probit, z_now)
 
@@ -363,12 +373,8 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
             # Confirmation: that allocation was chosen because its Monte Carlo met the target,
             # which flatters it a little: the answer's yield is a fresh one
             done = points[best]
-            _, Y = model.verify(done.verified.scales, n, draw)
-            confirmed = judge(model, done.verified.scales, Y, draw)
-            draw += 1
-            evaluations += n
+            confirmed = monte_carlo(done.verified.scales)
             confirmations.append(confirmed)
-            every.append(confirmed)
             say(f"allocate: confirmation on fresh draws at cost {done.cost:.4g}: yield "
                 f"{confirmed.estimate:.5f} [{confirmed.low:.5f}, {confirmed.high:.5f}] of "
                 f"{confirmed.n}" + ("" if confirmed.meets(target) else
@@ -386,10 +392,7 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
             continue
         z, mean, var = (float(v[0]) for v in correction.at(scales[None]))
         predicted = float(ndtr(z - mean))
-        verified, _, _ = _verify(model, scales, n, draw)
-        draw += 1
-        evaluations += n
-        every.append(verified)
+        verified = monte_carlo(scales)
         points.append(Round(float(KAPPA * math.sqrt(var + e * e)), predicted, verified, cost))
         meets = verified.meets(target)
         say(f"allocate: round {len(points) - 1}" +
@@ -569,10 +572,9 @@ def optimise(model: ScaledModel, yield_at, wanted: float, starts=(), lower=None,
     return best
 
 
-def _verify(model: ScaledModel, scales, n: int, draw: int):
-    """The true model's Monte Carlo at scales on draws number `draw`: (Verified, U (n, D), Y (n, M))."""
-    U, Y = model.verify(np.asarray(scales, dtype=float), n, draw)
-    return judge(model, scales, Y, draw), U, Y
+def _verify(model: ScaledModel, scales, n: int, draw: int) -> Verified:
+    """The true model's Monte Carlo at scales on draws number `draw`, judged."""
+    return judge(model, scales, model.verify(np.asarray(scales, dtype=float), n, draw), draw)
 
 
 def judge(model: ScaledModel, scales, Y, draw: int = 0) -> Verified:

@@ -93,7 +93,7 @@ class PlainLoop:
         if key not in self.cache:
             if self.evaluations + self.n > self.budget:
                 raise Stop("budget")
-            _, Y = self.model.verify(np.asarray(scales), self.n)
+            Y = self.model.verify(np.asarray(scales), self.n)
             self.evaluations += self.n
             verified = judge(self.model, scales, Y)      # the search's own criterion
             cost = float(self.model.cost(scales).sum())
@@ -186,7 +186,7 @@ def main(argv=None) -> int:
     if loop.best is not None:
         # the loop judged every point on the same reducers and kept the cheapest that met the
         # target on them: its yield on fresh reducers (draws the allocation never uses, not counted)
-        _, Y = model.verify(loop.best[1].scales, y.n, 1000)
+        Y = model.verify(loop.best[1].scales, y.n, 1000)
         fresh = judge(model, loop.best[1].scales, Y)
         yield_text += (f"; fresh draws {fresh.estimate:.4f} ({fresh.low:.4f}-{fresh.high:.4f})"
                        + ("" if fresh.meets(args.target) else ", below the target"))
