@@ -77,6 +77,8 @@ def test_a_reducer_whose_solve_fails_costs_itself_not_its_batch(tmp_path, monkey
     monkeypatch.setattr(evaluation, "te_curve", singular_for_large_offsets)
     Y, converged = evaluate(study, X)
     assert np.all(np.isnan(Y[doomed])) and not converged[doomed].any()
-    np.testing.assert_array_equal(Y[~doomed], good_Y[~doomed])
+    # the same reducers, to the solver's convergence (1e-14 m): alone, a reducer's Newton
+    # iteration starts elsewhere (the error-free start needs NOMINAL_GUESS_MIN_SAMPLES)
+    np.testing.assert_allclose(Y[~doomed], good_Y[~doomed], rtol=1e-8, atol=0.0)
     analysis = analyze_mc(study, Y, converged)
     assert analysis.failed == doomed.sum() and analysis.yields[0].n == 8 - doomed.sum()

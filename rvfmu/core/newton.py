@@ -78,9 +78,12 @@ class Work:
 
     rows (B, 2, K, 3) and pin_b (B, 2, K) are those of the K pins per disc taken
     into the iteration (all of them, or the candidates that the load can close).
+    bearing_direction (B, p, 2), optional: the unit direction in which each
+    bearing with clearance is probably loaded (zero where unknown), for the first step.
     """
 
-    def __init__(self, system, angle, f, rows, pin_b, brg_off, c_half, products=None):
+    def __init__(self, system, angle, f, rows, pin_b, brg_off, c_half, products=None,
+                 bearing_direction=None):
         self.system = system
         self.angle = angle
         self.rows = rows
@@ -88,6 +91,7 @@ class Work:
         self.K = system.K_red[angle]                          # (B, nN, nN)
         self.f, self.pin_b, self.brg_off, self.c_half = f, pin_b, brg_off, c_half
         self.brg_rows = system.brg_rows[angle] if system.brg_k.size else None
+        self.toward = bearing_direction if self.brg_rows is not None else None
 
     def subset(self, keep):
         new = object.__new__(Work)
@@ -95,6 +99,7 @@ class Work:
         for name in ("rows", "products", "K", "f", "pin_b", "brg_off", "c_half"):
             setattr(new, name, getattr(self, name)[keep])
         new.brg_rows = None if self.brg_rows is None else self.brg_rows[keep]
+        new.toward = None if self.toward is None else self.toward[keep]
         return new
 
     def load_direction(self):
@@ -128,7 +133,11 @@ class Work:
 
         With `active` (B, 2, K) the gradient and Hessian are those of the energy
         with exactly those pins bonded (a primal-dual active-set step); the true
-        gradient is always that of the real energy.
+        gradient is always that of the real energy.  With `bearings_engaged` every
+        bearing with clearance is taken as engaged: a spring of its stiffness
+        pulling it across its clearance in its `bearing_direction` where that is
+        known (the bearings' own primal-dual step: from inside the clearance, one
+        step lands where the loaded bearings bear), centred where it stands elsewhere.
         """
         sys = self.system
         kp = sys.model.pin_k
@@ -165,15 +174,20 @@ class Work:
             norm = np.linalg.norm(d, axis=-1)
             scale = np.where(norm > self.c_half, 1.0 - self.c_half / np.maximum(norm, 1e-300), 0.0)
             bforce = np.einsum("bpxn,bpx->bn", self.brg_rows, d * (scale * sys.brg_k)[..., None])
-            grad += bforce
             true_grad += bforce
+            if bearings_engaged and self.toward is not None:
+                pull = (d - self.c_half[..., None] * self.toward) * sys.brg_k[:, None]
+                bforce = np.einsum("bpxn,bpx->bn", self.brg_rows, pull)
+            grad += bforce
             if bearings_engaged:
                 tangent = np.broadcast_to(np.eye(2) * sys.brg_k[:, None, None],
                                           self.brg_off.shape[:2] + (2, 2))
             else:
                 tangent = bearing_tangent(d, self.c_half, sys.brg_k)
-            hess = hess + np.einsum("bpxi,bpxy,bpyj->bij", self.brg_rows, tangent, self.brg_rows,
-                                    optimize=True)
+            # sum over bearings and directions of row^T tangent row: one (B, nN, 2p) @ (B, 2p, nN)
+            B, p, _, n = self.brg_rows.shape
+            pulled = np.matmul(tangent, self.brg_rows).reshape(B, 2 * p, n)
+            hess = hess + np.matmul(self.brg_rows.transpose(0, 3, 1, 2).reshape(B, n, 2 * p), pulled)
         return grad, hess, true_grad, active
 
     def hessian(self, q, active):

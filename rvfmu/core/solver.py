@@ -146,7 +146,7 @@ class ReducedSystem:
 
     # -- one chunk -------------------------------------------------------------------------
     def solve(self, errors: ErrorSet, sample, angle, tau_load, half_clearance, probe,
-              first_count=None) -> Equilibrium:
+              first_count=None, bearing_direction=None) -> Equilibrium:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
         tau_load == 0 gives the no-load limit from the side of the signed probe
@@ -156,8 +156,12 @@ class ReducedSystem:
         by continuation over CONTINUATION x probe) is taken back to zero load
         along its tangent.
         first_count: (B, 2) int, optional: how many pins of each disc probably touch
-        (from the error-free reducer); the first guess takes that many, those the
-        load closes first.
+        (from the error-free reducer, at the load of the pair's first elastic solve:
+        its own, or the first probe torque); the first guess takes that many, those
+        the load closes first.  bearing_direction: (B, p, 2), optional: the unit
+        direction in which each bearing with clearance is loaded there in the
+        error-free reducer (zero where it carries nothing); the first step takes
+        those bearings across their clearance that way (`Work.gradient_hessian`).
         """
         model = self.model
         B = len(angle)
@@ -194,7 +198,8 @@ class ReducedSystem:
                 for scale in steps:
                     loads = np.full(group.size, probe * scale)
                     q_start, conv, its = self._solve_group(
-                        group, angle, f0, pin_b, brg_off, c_half, loads, first_count, q_start)
+                        group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
+                        bearing_direction if q_start is None else None, q_start)
                     iterations += its
                 # From tau = probe back to tau = 0 along the tangent at that contact state.
                 a = angle[group]
@@ -204,7 +209,8 @@ class ReducedSystem:
                 qn[group] = q_start - probe * dq[..., 0]
             else:
                 qn[group], conv, its = self._solve_group(
-                    group, angle, f0, pin_b, brg_off, c_half, loads, first_count, None)
+                    group, angle, f0, pin_b, brg_off, c_half, loads, first_count, bearing_direction,
+                    None)
                 iterations += its
             converged[group] = conv
         q = np.empty((B, model.n_dof))
@@ -217,20 +223,25 @@ class ReducedSystem:
         return Equilibrium(q, model.pin_k * np.maximum(delta, 0.0), model.linear_k[:n_c] * mesh,
                            converged, iterations)
 
-    def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count, q0):
+    def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
+                     bearing_direction, q0):
         a = angle[group]
         f = f0[group] - loads[:, None] * self.g_red[a]
         direction = np.where(loads > 0, 1.0, -1.0)
         count = None if first_count is None else first_count[group]
+        toward = None if bearing_direction is None else bearing_direction[group]
         return self._elastic(a, f, pin_b[group], brg_off[group], c_half[group], direction, count, q0,
-                             f_errors=f0[group])
+                             f_errors=f0[group], bearing_direction=toward)
 
-    def _elastic(self, angle, f, pin_b, brg_off, c_half, direction, count, q0=None, f_errors=None):
+    def _elastic(self, angle, f, pin_b, brg_off, c_half, direction, count, q0=None, f_errors=None,
+                 bearing_direction=None):
         """Newton solve of the pairs on their candidate pins, then on all pins where needed.
 
         The first guess of the touching pins: the `count` pins of each disc that the
         turning carrier reaches first, their gaps measured once the linear parts have
-        taken the shape the errors force on them (when that shape is known).
+        taken the shape the errors force on them (when that shape is known); the
+        bearings with clearance, across it in the direction the error-free reducer
+        loads them (`bearing_direction`, when known).
         """
         model = self.model
         forward = direction > 0
@@ -256,7 +267,7 @@ class ReducedSystem:
             ordered = np.sort(travel, axis=-1)
             take = np.clip(count, 1, travel.shape[-1])[..., None] - 1
             guess = travel <= np.take_along_axis(ordered, take, axis=-1)
-        work = Work(self, angle, f, rows, pb, brg_off, c_half, products)
+        work = Work(self, angle, f, rows, pb, brg_off, c_half, products, bearing_direction)
         q, converged, iterations = newton(work, guess, q0)
         # Any pin left out that touches at the solution: solve those pairs on all pins.
         outside = np.ones(pin_b.shape, dtype=bool)
@@ -265,7 +276,9 @@ class ReducedSystem:
         redo = np.flatnonzero(np.any(outside & (delta > GAP_TOLERANCE), axis=(1, 2)))
         if redo.size:
             full = Work(self, angle[redo], f[redo], model.pin_rows[angle[redo]], pin_b[redo],
-                         brg_off[redo], c_half[redo])
+                        brg_off[redo], c_half[redo],
+                        bearing_direction=None if bearing_direction is None else
+                        bearing_direction[redo])
             first = (self.pin_rate[angle[redo]] * direction[redo, None, None]) > 0
             q[redo], converged[redo], more = newton(full, first, None if q0 is None else q0[redo])
             iterations = max(iterations, more)
@@ -317,11 +330,12 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     mesh_force = np.empty((B, model.design.n_c))
     converged = np.empty(B, dtype=bool)
     iterations = 0
-    count = _nominal_counts(system, errors, sample, angle, tau_load, probe)
+    count, toward = _nominal_guess(system, errors, sample, angle, tau_load, probe)
     for start in range(0, B, CHUNK):
         part = slice(start, min(start + CHUNK, B))
         eq = system.solve(errors, sample[part], angle[part], tau_load[part], half, probe,
-                          None if count is None else count[part])
+                          None if count is None else count[part],
+                          None if toward is None else toward[part])
         q[part], pin_force[part], converged[part] = eq.q, eq.pin_force, eq.converged
         mesh_force[part] = eq.mesh_force
         iterations = max(iterations, eq.iterations)
@@ -333,18 +347,29 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
 NOMINAL_GUESS_MIN_SAMPLES = 4  # below this, solving the error-free reducer first costs more than it saves
 
 
-def _nominal_counts(system, errors, sample, angle, tau_load, probe):
-    """(B, 2) pins per disc touching in the error-free reducer at each pair's angle and load."""
-    if errors.samples < NOMINAL_GUESS_MIN_SAMPLES or np.all(tau_load == 0.0):
-        return None
+def _nominal_guess(system, errors, sample, angle, tau_load, probe):
+    """What the error-free reducer (no clearance) does at each pair's angle and the load
+    of the pair's first elastic solve (its own, or at zero load the first probe torque):
+    (pins per disc touching (B, 2), unit direction of each bearing with clearance's
+    deflection (B, p, 2), zero where it carries nothing), or (None, None)."""
+    if errors.samples < NOMINAL_GUESS_MIN_SAMPLES:
+        return None, None
+    first_probe = probe * (CONTINUATION[0] if system.nl_bearings.size else 1.0)
+    tau_load = np.where(tau_load == 0.0, first_probe, tau_load)
     keys, inverse = np.unique(np.stack([angle, tau_load]), axis=1, return_inverse=True)
     a_u, t_u = keys[0].astype(int), keys[1]
     nominal = zero_errors(system.model.design, 1)
     half = np.zeros((1, system.model.bearing_k.size))
     counts = np.empty((a_u.size, 2), dtype=int)
+    toward = np.zeros((a_u.size, system.nl_bearings.size, 2))
     for start in range(0, a_u.size, CHUNK):
         part = slice(start, min(start + CHUNK, a_u.size))
         eq = system.solve(nominal, np.zeros(part.stop - part.start, dtype=int), a_u[part], t_u[part],
                           half, probe)
         counts[part] = (eq.pin_force > 0).sum(axis=2)
-    return counts[inverse.ravel()]
+        if system.nl_bearings.size:
+            d = np.einsum("bpxn,bn->bpx", system.brg_rows[a_u[part]], eq.q[:, system.N])
+            norm = np.linalg.norm(d, axis=-1, keepdims=True)
+            toward[part] = np.where(norm > 0.0, d / np.maximum(norm, 1e-300), 0.0)
+    inverse = inverse.ravel()
+    return counts[inverse], (toward[inverse] if system.nl_bearings.size else None)
