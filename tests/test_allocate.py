@@ -102,6 +102,55 @@ def test_chaos_evaluates_as_openturns_does():
                                + 0.5 * test[:, 2] ** 2, atol=1e-9)
 
 
+def _central_differences(function, X, h=1e-6):
+    """d function / d X by central differences: function (m, F) -> (m,), X (m, F): (m, F)."""
+    return np.stack([(function(X + h * e) - function(X - h * e)) / (2 * h)
+                     for e in np.eye(X.shape[1])], axis=1)
+
+
+def test_the_gradients_the_optimisers_use_are_those_of_the_functions():
+    """The chain rule through the chaos, the surrogate's probability of passing two spec
+    lines, and the correction's mean, variance and planned probit equals central differences."""
+    from tolerance.surrogate import Surrogate
+
+    rng = np.random.default_rng(5)
+    X = rng.uniform(-1, 1, (400, 3))
+    chaos = Chaos(X, 1.0 + X[:, 0] - 2.0 * X[:, 1] * X[:, 2] + 0.5 * X[:, 2] ** 2
+                  + 0.05 * rng.standard_normal(400))
+    inside = rng.uniform(-0.9, 0.9, (6, 3))
+    value, gradient = chaos.value_gradient(inside)
+    np.testing.assert_allclose(value, chaos(inside), atol=1e-12)
+    np.testing.assert_allclose(gradient, _central_differences(chaos, inside), atol=1e-7)
+
+    Z = rng.uniform(0.0, 2.0, (3000, 3))            # a metric whose spread grows with Z
+    Y = np.exp(0.3 * Z[:, :1] + 0.2 * Z[:, 1:2] * Z[:, 2:3]
+               + 0.1 * (1 + Z[:, :1]) * rng.standard_normal((3000, 1)))
+    surrogate = Surrogate(Z, Y, (Limit(0, 3.0, "max"), Limit(0, 1.2, "min")))
+    at = rng.uniform(0.1, 1.9, (6, 3))
+    p, dp = surrogate.probability(at, gradient=True)
+    np.testing.assert_allclose(p, surrogate.probability(at), rtol=1e-12)
+    assert np.abs(dp).max() > 0.05                  # not trivially flat
+    np.testing.assert_allclose(dp, _central_differences(surrogate.probability, at), atol=1e-7)
+
+    def surrogate_probit(S, gradient=False):        # a curved surrogate, 2 factors
+        x = np.log(np.atleast_2d(S))
+        z = 3.0 - 0.7 * x.sum(axis=1) - 0.2 * x[:, 0] * x[:, 1]
+        return (z, np.stack([-0.7 - 0.2 * x[:, 1], -0.7 - 0.2 * x[:, 0]], axis=1)) if gradient else z
+
+    runs = np.array([[1.0, 1.0], [1.3, 1.1], [1.1, 1.4]])
+    correction = Correction([_verified_at(s, surrogate_probit(s)[0] - 0.1, n=20000) for s in runs],
+                            surrogate_probit, 3.0)
+    log_s = np.log(rng.uniform(0.8, 2.0, (5, 2)))
+    z, mean, var, dz, d_mean, d_var = correction.at(np.exp(log_s), gradient=True)
+    for value, gradient, k in ((mean, d_mean, 1), (var, d_var, 2)):
+        np.testing.assert_allclose(value, correction.at(np.exp(log_s))[k], rtol=1e-12)
+        numeric = _central_differences(lambda x: correction.at(np.exp(x))[k], log_s)
+        np.testing.assert_allclose(gradient, numeric, atol=1e-7)
+    planned, d_planned = correction.planned(np.exp(log_s), -KAPPA, 0.01, gradient=True)
+    numeric = _central_differences(lambda x: correction.planned(np.exp(x), -KAPPA, 0.01), log_s)
+    np.testing.assert_allclose(d_planned, numeric, atol=1e-7)
+
+
 def _verified_at(scales, z, n=10 ** 7):
     """A Monte Carlo of n reducers whose yield is Phi(z) (to a reducer)."""
     passed = int(round(ndtr(z) * n))

@@ -35,7 +35,9 @@ model has the last word:
    YIELD_DRAWS unit draws, of the probability that a reducer passes every
    spec line, Phi(margin / sigma) per line with sigma the modelled residual
    (never below SIGMA_FLOOR of the metric's spread): a smooth function of s
-   that SLSQP can differentiate.
+   whose gradient in ln s the chain rule gives exactly (a factor's scale moves
+   its own input column only; `Surrogate.probability`), so the optimisers
+   never difference it.
 4. Correction.  The surrogate is fitted once, to the training alone, and
    each verified allocation tells how far off it is there: delta(s) =
    Phi^-1(surrogate yield) - Phi^-1(verified yield).  A Gaussian process over
@@ -100,6 +102,7 @@ TRAIN_GROUPS_PER_FACTOR = 16
 MIN_TRAIN_GROUPS = 32       # a degree-2 chaos in F scales needs (F+1)(F+2)/2 well-spread points
 YIELD_DRAWS = 2 ** 14       # unit draws of the surrogate yield (scrambled Sobol', a power of 2)
 LOG_FLOOR = 0.05            # of the mean error size: log inputs stay finite for a zero draw
+YIELD_CLIP = 1e-15          # a yield is kept this far off 0 and 1 before its probit
 MAX_ROUNDS = 8              # verifications at most (each n reducers)
 MAX_CONFIRMATIONS = 3       # fresh Monte Carlo runs of the cheapest verified allocations, in turn
 REACH_TRIES = 2             # the best reachable yield verified short twice: out of reach
@@ -294,17 +297,29 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
             validation = validation.replace(f"column {j}:", f"{name}:")
     say(f"allocate: surrogate validation, {validation}")
 
-    def surrogate_yield(surrogate, scales):
-        """Surrogate yield at each row of scales (m, F): (m,)."""
-        scales = np.atleast_2d(scales)
-        return np.array([surrogate.probability(inputs(s, R_yield)).mean() for s in scales])
-
     surrogate, samples = fit(data)
-    z_now = float(_probit(surrogate_yield(surrogate, ones)[0]))
 
-    def surrogate_probit(S):
-        """The uncorrected surrogate's Phi^-1(yield) at each row of scales S (m, F)."""
-        return _probit(surrogate_yield(surrogate, S))
+    def surrogate_probit(S, gradient=False):
+        """The uncorrected surrogate's Phi^-1(yield) at each row of scales S (m, F), and with
+        `gradient` its gradient with respect to ln s (m, F), by the chain rule: a factor's
+        scale moves its own input column only."""
+        S = np.atleast_2d(S)
+        z, dz = np.empty(len(S)), np.zeros(S.shape)
+        for k, s in enumerate(S):
+            Z = inputs(s, R_yield)
+            if not gradient:
+                z[k] = _probit(surrogate.probability(Z).mean())
+                continue
+            p, dp = surrogate.probability(Z, gradient=True)
+            size = s * R_yield
+            dZ = size / (size + floor) if model.log_inputs else Z        # dZ / d ln s
+            y = p.mean()
+            z[k] = _probit(y)
+            if YIELD_CLIP < y < 1.0 - YIELD_CLIP:
+                dz[k] = (dp * dZ).mean(axis=0) / _phi(z[k])
+        return (z, dz) if gradient else z
+
+    z_now = float(surrogate_probit(ones)[0])
 
     # Every Monte Carlo of the true model, each on draws of its own: the current tolerances,
     # one per round (`points`, as Rounds), and the confirmations; all of them teach the
@@ -327,15 +342,14 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
     while True:
         correction = Correction(every, surrogate_probit, z_now)
 
-        def cautious(S, correction=correction):
-            """The yield the search plans with: KAPPA standard deviations below the corrected
-            surrogate (its own uncertainty and that of the Monte Carlo that will judge it)."""
-            z, mean, var = correction.at(S)
-            return ndtr(z - mean - KAPPA * np.sqrt(var + e * e))
+        def cautious(S, gradient=False, correction=correction):
+            """Phi^-1 of the yield the search plans with: KAPPA standard deviations below the
+            corrected surrogate (its own uncertainty and that of the Monte Carlo that will
+            judge it); with `gradient`, also its gradient in ln s."""
+            return correction.planned(S, -KAPPA, e * e, gradient)
 
-        def hopeful(S, correction=correction):
-            z, mean, var = correction.at(S)
-            return ndtr(z - mean + KAPPA * np.sqrt(var))
+        def hopeful(S, gradient=False, correction=correction):
+            return correction.planned(S, KAPPA, 0.0, gradient)
 
         candidates = [k for k, done in enumerate(points)
                       if done.verified.meets(target) and k not in refuted]
@@ -351,7 +365,7 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
                 # nothing meets the target for sure yet: verify the best the search can count
                 # on (it climbs); out of reach when even the hopeful surrogate misses there
                 scales = reach
-                hope = float(_probit(hopeful(best_reachable(model, hopeful, [reach])[0][None])[0]))
+                hope = best_reachable(model, hopeful, [reach])[1]
             else:
                 scales = optimise(model, cautious, z_need,
                                   [reach] + [points[k].verified.scales for k in candidates])
@@ -452,15 +466,46 @@ class Correction:
         return (CORRECTION_CONSTANT ** 2 + CORRECTION_SLOPE ** 2 * np.outer(d1, d2)
                 + CORRECTION_LOCAL ** 2 * np.exp(-squared / (2.0 * F * CORRECTION_LENGTH ** 2)))
 
-    def at(self, S):
-        """(z_S, mean of delta, variance of delta) at each row of scales S (m, F)."""
+    def at(self, S, gradient=False):
+        """(z_S, mean of delta, variance of delta) at each row of scales S (m, F); with
+        `gradient`, followed by their gradients with respect to ln s (each (m, F))."""
         S = np.atleast_2d(S)
-        z = self.surrogate_probit(S)
+        x = np.log(S)
+        if gradient:
+            z, dz = self.surrogate_probit(S, gradient=True)
+        else:
+            z = self.surrogate_probit(S)
         d = self.z_now - z
-        k = self._kernel(np.log(S), d, self.X, self.d)            # (m, k)
+        k = self._kernel(x, d, self.X, self.d)                    # (m, k)
         prior = CORRECTION_CONSTANT ** 2 + CORRECTION_SLOPE ** 2 * d * d + CORRECTION_LOCAL ** 2
-        var = prior - np.einsum("ij,ji->i", k, self._solve(k.T))
-        return z, k @ self.weights, np.maximum(var, 0.0)
+        solved = self._solve(k.T)                                  # (k, m)
+        var = prior - np.einsum("ij,ji->i", k, solved)
+        if not gradient:
+            return z, k @ self.weights, np.maximum(var, 0.0)
+        F = x.shape[1]
+        local = np.exp(-((x[:, None, :] - self.X[None]) ** 2).sum(axis=2)
+                       / (2.0 * F * CORRECTION_LENGTH ** 2))      # (m, k)
+        # dk / dx: the slope part through d = z_now - z_S, the local part through x
+        dk = (-CORRECTION_SLOPE ** 2 * self.d[None, :, None] * dz[:, None, :]
+              - CORRECTION_LOCAL ** 2 * local[..., None] * (x[:, None, :] - self.X[None])
+              / (F * CORRECTION_LENGTH ** 2))                      # (m, k, F)
+        d_mean = np.einsum("mkf,k->mf", dk, self.weights)
+        d_var = -2.0 * CORRECTION_SLOPE ** 2 * d[:, None] * dz - 2.0 * np.einsum(
+            "mkf,km->mf", dk, solved)
+        d_var[var <= 0.0] = 0.0
+        return z, k @ self.weights, np.maximum(var, 0.0), dz, d_mean, d_var
+
+    def planned(self, S, kappa: float, extra: float, gradient=False):
+        """z_S - mean(delta) + kappa sqrt(var(delta) + extra) at each row of S (m,), the
+        corrected surrogate's Phi^-1(yield) shifted by kappa standard deviations; with
+        `gradient`, also its gradient with respect to ln s (m, F)."""
+        if not gradient:
+            z, mean, var = self.at(S)
+            return z - mean + kappa * np.sqrt(var + extra)
+        z, mean, var, dz, d_mean, d_var = self.at(S, gradient=True)
+        spread = np.sqrt(var + extra)
+        d_spread = np.where(spread > 0.0, 0.5 / np.maximum(spread, 1e-300), 0.0)[:, None] * d_var
+        return z - mean + kappa * spread, dz - d_mean + kappa * d_spread
 
 
 def _observed(verified: Verified) -> float:
@@ -470,8 +515,6 @@ def _observed(verified: Verified) -> float:
 
 class _Box:
     """A box of scales in ln s, within the bounds; factors whose bounds coincide are held there."""
-
-    STEP = 1e-4                                         # finite difference in ln s
 
     def __init__(self, model: ScaledModel, lower=None, upper=None):
         self.lower = model.lower if lower is None else np.asarray(lower, dtype=float)
@@ -490,40 +533,42 @@ class _Box:
     def bounds(self):
         return list(zip(self.lo[self.free], self.hi[self.free]))
 
-    def probit(self, yield_at, v) -> tuple[float, np.ndarray]:
-        """Phi^-1 of the yield at v and its gradient (forward differences, one call)."""
-        V = np.vstack([v, v + self.STEP * np.eye(v.size)])
-        z = _probit(yield_at(np.array([self.scales(row) for row in V])))
-        return float(z[0]), (z[1:] - z[0]) / self.STEP
+    def probit(self, probit_at, v) -> tuple[float, np.ndarray]:
+        """Phi^-1 of the yield at v and its gradient in v."""
+        z, dz = probit_at(self.scales(v)[None], gradient=True)
+        return float(z[0]), dz[0, self.free]
 
 
-def best_reachable(model: ScaledModel, yield_at, starts, lower=None,
+def best_reachable(model: ScaledModel, probit_at, starts, lower=None,
                    upper=None) -> tuple[np.ndarray, float]:
-    """The scales (F,) of the highest yield_at within [lower, upper] (default the bounds), and
-    its probit: scipy's L-BFGS-B over ln s from each start (scales (F,)), the best kept."""
+    """The scales (F,) of the highest yield within [lower, upper] (default the bounds), and
+    its probit: scipy's L-BFGS-B over ln s from each start (scales (F,)), the best kept.
+
+    probit_at(S (m, F), gradient=False) -> Phi^-1 of the yield (m,), and with
+    `gradient` also its gradient with respect to ln s (m, F)."""
     from scipy.optimize import minimize
 
     box = _Box(model, lower, upper)
     if not box.free.any():
-        return box.lower.copy(), float(_probit(yield_at(box.lower[None])[0]))
+        return box.lower.copy(), float(probit_at(box.lower[None])[0])
     best, best_z = None, -math.inf
     for start in starts:
-        result = minimize(lambda v: tuple(-x for x in box.probit(yield_at, v)),
+        result = minimize(lambda v: tuple(-x for x in box.probit(probit_at, v)),
                           box.variables(start), jac=True, method="L-BFGS-B", bounds=box.bounds(),
                           options={"maxiter": 50})
         for v in (box.variables(start), np.clip(result.x, box.lo[box.free], box.hi[box.free])):
-            z = float(_probit(yield_at(box.scales(v)[None])[0]))
+            z = float(probit_at(box.scales(v)[None])[0])
             if z > best_z:
                 best, best_z = box.scales(v), z
     return best, best_z
 
 
-def optimise(model: ScaledModel, yield_at, wanted: float, starts=(), lower=None,
+def optimise(model: ScaledModel, probit_at, wanted: float, starts=(), lower=None,
              upper=None) -> np.ndarray:
     """Least-cost scales (F,) in [lower, upper] (default the bounds) with
-    Phi^-1(yield_at(s)) >= wanted, by SLSQP over ln s.
+    probit_at(s) >= wanted, by SLSQP over ln s.
 
-    yield_at(S (m, F)) -> (m,); starts: scales (F,) to start from besides the
+    probit_at: Phi^-1 of the yield, as for `best_reachable`; starts: scales (F,) to start from besides the
     current tolerances (clipped) and the uniform scaling that just meets
     `wanted`.  The cheapest feasible result is kept; a feasible start is needed
     (e.g. `best_reachable`'s).  Costs never rise as a tolerance opens, so if
@@ -541,13 +586,13 @@ def optimise(model: ScaledModel, yield_at, wanted: float, starts=(), lower=None,
         return float(model.cost(s).sum()) / base, model.cost_slope(s)[box.free] / base
 
     def constraint(v):
-        return float(_probit(yield_at(box.scales(v)[None])[0]) - wanted)
+        return float(probit_at(box.scales(v)[None])[0] - wanted)
 
     def uniform(log_scale):
         return np.clip(np.full(box.lo.size, log_scale), box.lo, box.hi)
 
     def gap(log_scale):
-        return float(_probit(yield_at(np.exp(uniform(log_scale))[None])[0]) - wanted)
+        return float(probit_at(np.exp(uniform(log_scale))[None])[0] - wanted)
 
     if constraint(box.variables(box.upper)) >= 0:
         return box.upper.copy()
@@ -562,7 +607,7 @@ def optimise(model: ScaledModel, yield_at, wanted: float, starts=(), lower=None,
     for x0 in points:
         result = minimize(objective, x0, jac=True, method="SLSQP", bounds=box.bounds(),
                           constraints=[{"type": "ineq", "fun": constraint,
-                                        "jac": lambda v: box.probit(yield_at, v)[1]}],
+                                        "jac": lambda v: box.probit(probit_at, v)[1]}],
                           options={"maxiter": 100, "ftol": 1e-8})
         v = np.clip(result.x, box.lo[box.free], box.hi[box.free])
         if constraint(v) >= -1e-6 and objective(v)[0] < best_cost:
@@ -601,7 +646,7 @@ def _clip_yield(p: float, n: int) -> float:
 
 
 def _probit(p):
-    return ndtri(np.clip(p, 1e-15, 1.0 - 1e-15))
+    return ndtri(np.clip(p, YIELD_CLIP, 1.0 - YIELD_CLIP))
 
 
 def _phi(z: float) -> float:

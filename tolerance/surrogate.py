@@ -15,7 +15,7 @@ chaos; numpy evaluates it (the optimiser calls it millions of times).
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import ndtr
+from scipy.special import log_ndtr, ndtr
 
 DEGREE = 2                  # total degree of the chaos; 3 fitted no better on the RV-40E studies
 SIGMA_FLOOR = 0.02          # residual sigma >= this x the metric's spread: keeps the yield smooth
@@ -56,15 +56,8 @@ class Chaos:
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         """Values at X (n, d) in [-1, 1]: (n,)."""
-        X = np.ascontiguousarray(X.T)                   # (d, n): each polynomial row contiguous
-        P = np.empty((self.degree + 1,) + X.shape)
-        P[0] = 1.0
-        if self.degree:
-            P[1] = X
-        for n in range(1, self.degree):                 # Bonnet's recursion
-            P[n + 1] = ((2 * n + 1) * X * P[n] - n * P[n - 1]) / (n + 1)
-        P *= np.sqrt(2.0 * np.arange(self.degree + 1) + 1.0)[:, None, None]
-        out = np.zeros(X.shape[1])
+        P, _ = self._legendre(X, derivatives=False)
+        out = np.zeros(P.shape[2])
         for alpha, c in zip(self.alpha, self.coefficients):
             nonzero = np.flatnonzero(alpha)
             if nonzero.size == 0:
@@ -75,6 +68,42 @@ class Chaos:
                 term *= P[alpha[i], i]
             out += term
         return out
+
+    def value_gradient(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Values (n,) and gradient (n, d) with respect to X at X (n, d) in [-1, 1]."""
+        P, D = self._legendre(X, derivatives=True)
+        value, gradient = np.zeros(P.shape[2]), np.zeros(P.shape[1:])      # (n,), (d, n)
+        for alpha, c in zip(self.alpha, self.coefficients):
+            nonzero = np.flatnonzero(alpha)
+            if nonzero.size == 0:
+                value += c
+                continue
+            factors = [P[alpha[i], i] for i in nonzero]
+            value += c * np.prod(factors, axis=0)
+            for j, i in enumerate(nonzero):             # product rule: one factor differentiated
+                others = factors[:j] + factors[j + 1:]
+                gradient[i] += c * D[alpha[i], i] * (np.prod(others, axis=0) if others else 1.0)
+        return value, gradient.T
+
+    def _legendre(self, X, derivatives: bool):
+        """Orthonormal Legendre values P (degree + 1, d, n) at X (n, d), and their derivatives."""
+        X = np.ascontiguousarray(X.T)                   # (d, n): each polynomial row contiguous
+        P = np.empty((self.degree + 1,) + X.shape)
+        D = np.zeros_like(P) if derivatives else None
+        P[0] = 1.0
+        if self.degree:
+            P[1] = X
+            if derivatives:
+                D[1] = 1.0
+        for n in range(1, self.degree):                 # Bonnet's recursion
+            P[n + 1] = ((2 * n + 1) * X * P[n] - n * P[n - 1]) / (n + 1)
+            if derivatives:                             # P'_{n+1} = P'_{n-1} + (2n + 1) P_n
+                D[n + 1] = D[n - 1] + (2 * n + 1) * P[n]
+        norm = np.sqrt(2.0 * np.arange(self.degree + 1) + 1.0)[:, None, None]
+        P *= norm
+        if derivatives:
+            D *= norm
+        return P, D
 
 
 class Surrogate:
@@ -120,18 +149,43 @@ class Surrogate:
         variance = np.exp(np.clip(log_variance(X), lo, hi) + 1.2704) * inflate
         return mean(X), np.maximum(np.sqrt(variance), floor)
 
-    def probability(self, Z: np.ndarray) -> np.ndarray:
-        """P(pass every limit) of each input row (n,)."""
+    def mean_sigma_gradient(self, column: int, X: np.ndarray):
+        """mean (n,), sigma (n,) and their gradients (n, F) with respect to X."""
+        log, mean, log_variance, inflate, floor, (lo, hi) = self.fits[column]
+        mu, d_mu = mean.value_gradient(X)
+        lv, d_lv = log_variance.value_gradient(X)
+        sigma = np.sqrt(np.exp(np.clip(lv, lo, hi) + 1.2704) * inflate)
+        free = (lv > lo) & (lv < hi) & (sigma > floor)  # where neither clip nor floor binds
+        d_sigma = np.where(free, 0.5 * sigma, 0.0)[:, None] * d_lv
+        return mu, np.maximum(sigma, floor), d_mu, d_sigma
+
+    def probability(self, Z: np.ndarray, gradient: bool = False):
+        """P(pass every limit) of each input row (n,); with `gradient`, also its gradient
+        with respect to Z (n, F) (zero along an input clipped to the training range)."""
         X = self.unit(Z)
         p = np.ones(Z.shape[0])
+        d_log_p = np.zeros(Z.shape) if gradient else None   # d ln p / dX
         cache = {}
         for limit in self.limits:
             if limit.column not in cache:
-                cache[limit.column] = self.mean_sigma(limit.column, X)
-            mu, sigma = cache[limit.column]
+                cache[limit.column] = (self.mean_sigma_gradient(limit.column, X) if gradient else
+                                       self.mean_sigma(limit.column, X))
+            mu, sigma = cache[limit.column][:2]
             bound = self.transform(limit.column, limit.limit)
-            p *= ndtr(((bound - mu) if limit.sense == "max" else (mu - bound)) / sigma)
-        return p
+            sign = 1.0 if limit.sense == "max" else -1.0
+            a = sign * (bound - mu) / sigma
+            p_line = ndtr(a)
+            p *= p_line
+            if gradient:
+                d_mu, d_sigma = cache[limit.column][2:]
+                d_a = (-sign * d_mu - a[:, None] * d_sigma) / sigma[:, None]
+                # d ln Phi(a) = phi(a) / Phi(a) da, written stably (Mills ratio) far in the tail
+                ratio = np.exp(-0.5 * a * a - log_ndtr(a)) / np.sqrt(2.0 * np.pi)
+                d_log_p += ratio[:, None] * d_a
+        if not gradient:
+            return p
+        inside = (Z > self.low) & (Z < self.high)
+        return p, p[:, None] * d_log_p * np.where(inside, 2.0 / (self.high - self.low), 0.0)
 
     def check(self, Z: np.ndarray, Y: np.ndarray) -> str:
         """Held-out quality: per column Q2 of the mean and mean/sd of the standardised residual."""
