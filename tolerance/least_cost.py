@@ -51,8 +51,13 @@ model has the last word:
    z_need = Phi^-1(target) + z_conf e (e: the probit standard error of a
    verification of n reducers at the target, z_conf 1.96 at 95 %): a plan
    that the verification will find meeting the target five times in six, if
-   the correction is right.  If no allocation satisfies that, the one of
-   highest such yield (L-BFGS-B) is verified instead: the search climbs, and
+   the correction is right.  If no allocation satisfies that (nothing is
+   known to meet the target yet), the cheapest one whose corrected surrogate,
+   without the margin, meets z_need is verified: it passes about half the
+   time, and either way the correction learns where the answer lies; the
+   allocation of highest yield would pass more often, but costs far more
+   than the answer.  Where not even that exists, the allocation of highest
+   yield with the margin (L-BFGS-B) is verified: the search climbs, and
    learns the surrogate's error on the way.
 6. Verification.  The allocation is checked by a Monte Carlo of the true
    model: the allocated study file's own `rvte mc`, n reducers (the study's
@@ -348,6 +353,9 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
             judge it); with `gradient`, also its gradient in ln s."""
             return correction.planned(S, -KAPPA, e * e, gradient)
 
+        def expected(S, gradient=False, correction=correction):
+            return correction.planned(S, 0.0, 0.0, gradient)
+
         def hopeful(S, gradient=False, correction=correction):
             return correction.planned(S, KAPPA, 0.0, gradient)
 
@@ -355,17 +363,23 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
                       if done.verified.meets(target) and k not in refuted]
         rounds_left = len(points) - 1 < MAX_ROUNDS
         # patience runs out only with a candidate better than the current tolerances
-        cost, again, reaching = math.inf, False, False
+        cost, again, reaching, expecting = math.inf, False, False, False
         stuck = stale >= PATIENCE and any(k > 0 for k in candidates)
         if rounds_left:
             verified_scales = [done.verified.scales for done in points]
             reach, z_reach = best_reachable(model, cautious, [lower, ones, upper] + verified_scales)
             reaching = z_reach < z_need
             if reaching:
-                # nothing meets the target for sure yet: verify the best the search can count
-                # on (it climbs); out of reach when even the hopeful surrogate misses there
-                scales = reach
-                hope = best_reachable(model, hopeful, [reach])[1]
+                # nothing meets the target for sure yet: the cheapest allocation the corrected
+                # surrogate expects to meet it, or else the best the search can count on (it
+                # climbs); out of reach when even the hopeful surrogate misses there
+                likely, z_likely = best_reachable(model, expected, [reach])
+                expecting = z_likely >= z_need
+                if expecting:
+                    scales = optimise(model, expected, z_need, [likely])
+                else:
+                    scales = reach
+                    hope = best_reachable(model, hopeful, [reach])[1]
             else:
                 scales = optimise(model, cautious, z_need,
                                   [reach] + [points[k].verified.scales for k in candidates])
@@ -410,11 +424,12 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
         points.append(Round(float(KAPPA * math.sqrt(var + e * e)), predicted, verified, cost))
         meets = verified.meets(target)
         say(f"allocate: round {len(points) - 1}" +
-            (" (the best yield the search can count on)" if reaching else "") +
+            (" (the cheapest the corrected surrogate expects to meet the target)" if expecting
+             else " (the best yield the search can count on)" if reaching else "") +
             f": cost {cost:.4g}, predicted {predicted:.5f} (+/- {math.sqrt(var):.3f} probit), "
             f"verified {verified.estimate:.5f} [{verified.low:.5f}, {verified.high:.5f}] of "
             f"{verified.n}" + ("" if meets else " (below the target)"))
-        misses += bool(reaching and not meets and hope < z_target)
+        misses += bool(reaching and not expecting and not meets and hope < z_target)
         if misses >= REACH_TRIES and not candidates and not meets:
             break                                       # out of reach, as far as can be told
         cheaper = meets and all(cost < points[k].cost for k in candidates)
