@@ -7,11 +7,18 @@ touch at their real gaps (a primal-dual active-set step) and whose later steps
 are semismooth Newton steps; a full step is kept where it lowers the energy,
 otherwise an exact line search along it chooses the length.  Arrays are
 shaped (pairs, ...) and shrink as pairs converge.
+
+The iteration runs compiled, one pair after another (`newton_kernel`), where
+numba is installed; the numpy iteration of a whole chunk here
+(`newton_batched`) is the same algorithm, the reference the compiled one is
+tested against, and what runs without numba.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from . import kernels
 
 MAX_ITERATIONS = 400
 STEP_TOLERANCE = 1e-14   # m: converged when a Newton step moves less (1e-8 um)
@@ -21,6 +28,46 @@ SHRINK_FRACTION = 0.25   # drop converged pairs from the work arrays once a quar
 
 def newton(work, first_active, q0=None):
     """Active-set Newton on the reduced energy; returns (q (B, nN), converged (B,), iterations).
+
+    Compiled one pair at a time (`newton_kernel`) when numba is there, otherwise
+    the numpy iteration of the whole chunk at once (`newton_batched`): the same
+    algorithm, the same results to round-off.
+    """
+    if kernels.COMPILED:
+        return newton_compiled(work, first_active, q0)
+    return newton_batched(work, first_active, q0)
+
+
+def newton_compiled(work, first_active, q0=None):
+    """`newton` by the compiled kernel (`newton_kernel.newton_pairs`)."""
+    from .newton_kernel import newton_pairs
+
+    sys = work.system
+    B, nN = work.f.shape
+    c = np.ascontiguousarray
+    if work.brg_rows is None:
+        p = 0
+        brg_rows, brg_off, c_half = np.zeros((B, 0, 2, nN)), np.zeros((B, 0, 2)), np.zeros((B, 0))
+    else:
+        p = work.brg_rows.shape[1]
+        brg_rows, brg_off, c_half = work.brg_rows, work.brg_off, work.c_half
+    toward = np.zeros((B, p, 2)) if work.toward is None else work.toward
+    guess = np.zeros(work.pin_b.shape, dtype=bool) if first_active is None else first_active
+    q = np.zeros((B, nN)) if q0 is None else np.array(q0, dtype=float)
+    converged = np.zeros(B, dtype=bool)
+    iterations = np.zeros(B, dtype=np.int64)
+    newton_pairs(
+        c(work.K, dtype=float), c(sys.mode_stiffness[work.angle], dtype=float), c(work.f, dtype=float),
+        c(work.rows, dtype=float), c(work.pin_b, dtype=float), c(sys.pin_local, dtype=np.int64),
+        float(sys.model.pin_k), c(brg_rows, dtype=float), c(brg_off, dtype=float),
+        c(c_half, dtype=float), c(np.asarray(sys.brg_k, dtype=float)), c(toward, dtype=float),
+        work.toward is not None, c(guess, dtype=np.bool_), q, q0 is not None, MAX_ITERATIONS,
+        STEP_TOLERANCE, GAP_TOLERANCE, converged, iterations)
+    return q, converged, int(iterations.max(initial=0))
+
+
+def newton_batched(work, first_active, q0=None):
+    """`newton` in numpy, every pair of the chunk iterated together.
 
     The first step solves the linear system with the guessed pins in contact at
     their real gaps (a primal-dual active-set step), so it closes those gaps in one

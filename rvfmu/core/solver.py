@@ -16,8 +16,10 @@ Speed comes from structure, not from approximations:
   zero-energy mechanism mode until the first pin touches (docs/model.md section 5);
   only where that leaves a pin in interference, or with bearing clearance, is
   the equilibrium under a small probe torque solved and taken back to zero;
-- all pairs are iterated together in numpy, pairs that have converged leave
-  the batch, and the pairs come in chunks so that memory stays bounded.
+- the Newton iteration is compiled and runs pair by pair, each stopping when it
+  has converged (`newton_kernel`; without numba, all pairs are iterated together
+  in numpy and those that have converged leave the batch), and the pairs come
+  in chunks so that memory stays bounded.
 """
 
 from __future__ import annotations

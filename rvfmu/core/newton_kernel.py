@@ -1,0 +1,327 @@
+"""The quasi-static Newton iteration compiled, one (reducer, angle) pair at a time.
+
+`newton.newton` iterates a whole chunk of pairs together in numpy.  Each pair
+is a small problem (six disc unknowns, a few more per bearing with
+clearance), so in numpy nearly all the time is the Python cost of the many
+small array operations, not arithmetic; and a chunk iterates until its
+slowest pair has converged.  Here numba compiles the same iteration for one
+pair, and the pairs are solved one after another, each stopping when it has
+converged.  The algorithm is that of `newton.newton`, step for step: the
+primal-dual first step with the guessed pins (and bearings) engaged, then
+semismooth Newton steps on the true energy, a full step where it lowers the
+energy and the exact line search otherwise, the same tolerances.  The two
+agree to round-off (tests/test_newton_kernel.py); the numpy iteration is used
+where numba is absent or switched off (RVTE_NUMBA=0, `kernels.COMPILED`).
+
+Array arguments, B pairs, nN reduced unknowns, K pins per disc, p bearings
+with clearance (p may be 0):
+K, Kh: (B, nN, nN) reduced stiffness, and what the Hessian adds (the mode
+stiffness); f: (B, nN); rows: (B, 2, K, 3); pin_b: (B, 2, K); pin_local: (2, 3);
+brg_rows: (B, p, 2, nN); brg_off: (B, p, 2); c_half: (B, p); brg_k: (p,);
+toward: (B, p, 2); guess: (B, 2, K) bool; q: (B, nN), the start, overwritten
+by the solution.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .kernels import kernel
+
+
+@kernel
+def _deflections(rows, pin_b, pin_local, q, out):
+    """Pin deflections out (2, K) of one pair at q (nN,)."""
+    for j in range(2):
+        a, b, c = q[pin_local[j, 0]], q[pin_local[j, 1]], q[pin_local[j, 2]]
+        for k in range(rows.shape[1]):
+            out[j, k] = rows[j, k, 0] * a + rows[j, k, 1] * b + rows[j, k, 2] * c + pin_b[j, k]
+
+
+@kernel
+def _bearing_deflections(brg_rows, brg_off, q, out):
+    """Bearing deflections out (p, 2) of one pair at q (nN,)."""
+    for b in range(brg_rows.shape[0]):
+        for x in range(2):
+            s = brg_off[b, x]
+            for i in range(q.size):
+                s += brg_rows[b, x, i] * q[i]
+            out[b, x] = s
+
+
+@kernel
+def _bearing_tangent(dx, dy, c_half, k):
+    """(txx, txy, tyy): tangent stiffness of an isotropic bearing with free play c_half at (dx, dy)."""
+    norm = max(np.sqrt(dx * dx + dy * dy), 1e-300)
+    if norm <= c_half:
+        return 0.0, 0.0, 0.0
+    nx, ny = dx / norm, dy / norm
+    ratio = c_half / norm
+    return (k * (1.0 - ratio + ratio * nx * nx), k * ratio * nx * ny,
+            k * (1.0 - ratio + ratio * ny * ny))
+
+
+@kernel
+def _energy(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_k, q, delta, d):
+    """Reduced energy of one pair at q [J] (up to a constant); pin deflections into delta
+    (2, K) and bearing deflections into d (p, 2)."""
+    n = q.size
+    e = 0.0
+    for i in range(n):
+        kq = 0.0
+        for j in range(n):
+            kq += K[i, j] * q[j]
+        e += q[i] * (0.5 * kq + f[i])
+    _deflections(rows, pin_b, pin_local, q, delta)
+    pins = 0.0
+    for j in range(2):
+        for k in range(delta.shape[1]):
+            if delta[j, k] > 0.0:
+                pins += delta[j, k] * delta[j, k]
+    e += 0.5 * kp * pins
+    _bearing_deflections(brg_rows, brg_off, q, d)
+    for b in range(d.shape[0]):
+        over = max(np.sqrt(d[b, 0] ** 2 + d[b, 1] ** 2) - c_half[b], 0.0)
+        e += 0.5 * brg_k[b] * over * over
+    return e
+
+
+@kernel
+def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_k,
+                      toward, has_toward, gap_tolerance, q, guess, use_guess, engaged,
+                      grad, hess, true_grad, used, delta, d):
+    """`newton.Work.gradient_hessian` for one pair, into grad, hess, true_grad (nN,) / (nN, nN)
+    and used (2, K); delta and d are work space."""
+    n = q.size
+    for i in range(n):
+        s = f[i]
+        for j in range(n):
+            s += K[i, j] * q[j]
+            hess[i, j] = K[i, j] + Kh[i, j]
+        grad[i] = s
+        true_grad[i] = s
+    _deflections(rows, pin_b, pin_local, q, delta)
+    for j in range(2):
+        loc = pin_local[j]
+        for k in range(rows.shape[1]):
+            dk = delta[j, k]
+            if use_guess:
+                act = guess[j, k]
+                force = dk if act else 0.0
+            else:
+                act = dk > -gap_tolerance
+                force = dk if dk > 0.0 else 0.0
+            true_force = dk if dk > 0.0 else 0.0
+            used[j, k] = act
+            for x in range(3):
+                grad[loc[x]] += kp * force * rows[j, k, x]
+                true_grad[loc[x]] += kp * true_force * rows[j, k, x]
+            if act:
+                for x in range(3):
+                    for y in range(3):
+                        hess[loc[x], loc[y]] += kp * rows[j, k, x] * rows[j, k, y]
+    if brg_rows.shape[0] == 0:
+        return
+    _bearing_deflections(brg_rows, brg_off, q, d)
+    for b in range(d.shape[0]):
+        dx, dy = d[b, 0], d[b, 1]
+        kb, c = brg_k[b], c_half[b]
+        norm = np.sqrt(dx * dx + dy * dy)
+        scale = 1.0 - c / max(norm, 1e-300) if norm > c else 0.0
+        fx, fy = dx * scale * kb, dy * scale * kb          # the true bearing force
+        if engaged and has_toward:
+            gx, gy = (dx - c * toward[b, 0]) * kb, (dy - c * toward[b, 1]) * kb
+        else:
+            gx, gy = fx, fy
+        if engaged:
+            txx, txy, tyy = kb, 0.0, kb
+        else:
+            txx, txy, tyy = _bearing_tangent(dx, dy, c, kb)
+        for i in range(n):
+            rx, ry = brg_rows[b, 0, i], brg_rows[b, 1, i]
+            true_grad[i] += rx * fx + ry * fy
+            grad[i] += rx * gx + ry * gy
+            if rx == 0.0 and ry == 0.0:
+                continue
+            ux, uy = txx * rx + txy * ry, txy * rx + tyy * ry
+            for j in range(n):
+                sx, sy = brg_rows[b, 0, j], brg_rows[b, 1, j]
+                if sx != 0.0 or sy != 0.0:
+                    hess[i, j] += ux * sx + uy * sy
+
+
+@kernel
+def _solve_spd(A, b, L, x):
+    """x = A^-1 b for the symmetric positive definite Hessian A (n, n) of one pair, by Cholesky
+    into L (n, n); False where a pivot is not positive (the caller then solves by LU).
+    LAPACK through numba costs about three times as much for these 10-20 unknowns, all of it
+    call overhead."""
+    n = b.size
+    for j in range(n):
+        pivot = A[j, j]
+        for k in range(j):
+            pivot -= L[j, k] * L[j, k]
+        if not pivot > 0.0:
+            return False
+        pivot = np.sqrt(pivot)
+        L[j, j] = pivot
+        for i in range(j + 1, n):
+            v = A[i, j]
+            for k in range(j):
+                v -= L[i, k] * L[j, k]
+            L[i, j] = v / pivot
+    for i in range(n):
+        v = b[i]
+        for k in range(i):
+            v -= L[i, k] * x[k]
+        x[i] = v / L[i, i]
+    for i in range(n - 1, -1, -1):
+        v = x[i]
+        for k in range(i + 1, n):
+            v -= L[k, i] * x[k]
+        x[i] = v / L[i, i]
+    return True
+
+
+@kernel
+def _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k):
+    """(first, second) derivative of one pair's energy along its line at alpha."""
+    d1 = quad * alpha + lin
+    d2 = quad
+    for j in range(2):
+        for k in range(delta0.shape[1]):
+            dk = delta0[j, k] + alpha * ddelta[j, k]
+            if dk > 0.0:
+                d1 += kp * dk * ddelta[j, k]
+                d2 += kp * ddelta[j, k] * ddelta[j, k]
+    for b in range(d0.shape[0]):
+        dx, dy = d0[b, 0] + alpha * dd[b, 0], d0[b, 1] + alpha * dd[b, 1]
+        norm = np.sqrt(dx * dx + dy * dy)
+        over = 1.0 - c_half[b] / max(norm, 1e-300) if norm > c_half[b] else 0.0
+        d1 += (dx * dd[b, 0] + dy * dd[b, 1]) * over * brg_k[b]
+        txx, txy, tyy = _bearing_tangent(dx, dy, c_half[b], brg_k[b])
+        d2 += dd[b, 0] * (txx * dd[b, 0] + txy * dd[b, 1]) + dd[b, 1] * (txy * dd[b, 0] + tyy * dd[b, 1])
+    return d1, d2
+
+
+@kernel
+def _line_search(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_k, q, step,
+                 delta0, ddelta, d0, dd, zero_b):
+    """`newton.Work.line_search` for one pair: the exact minimiser of the energy along step."""
+    n = q.size
+    quad, lin = 0.0, 0.0
+    for i in range(n):
+        ks, kq = 0.0, 0.0
+        for j in range(n):
+            ks += K[i, j] * step[j]
+            kq += K[i, j] * q[j]
+        quad += step[i] * ks
+        lin += (kq + f[i]) * step[i]
+    _deflections(rows, pin_b, pin_local, q, delta0)
+    _deflections(rows, zero_b, pin_local, step, ddelta)
+    _bearing_deflections(brg_rows, brg_off, q, d0)
+    for b in range(brg_rows.shape[0]):
+        for x in range(2):
+            s = 0.0
+            for i in range(n):
+                s += brg_rows[b, x, i] * step[i]
+            dd[b, x] = s
+    d1_0, _ = _slope(0.0, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k)
+    lo, hi = 0.0, 1.0
+    d1, d2 = _slope(hi, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k)
+    for _ in range(60):                     # bracket: grow hi until the derivative is >= 0
+        if d1 >= 0.0:
+            break
+        lo = hi
+        hi *= 4.0
+        d1, d2 = _slope(hi, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k)
+    alpha = hi
+    if d1_0 >= 0.0:
+        return 0.0                          # no descent left: the pair is at its minimum
+    tolerance = 1e-12 * abs(d1_0) + 1e-300
+    if abs(d1) <= tolerance:
+        return alpha
+    for _ in range(60):                     # safeguarded Newton on the derivative
+        if d1 > 0.0:
+            hi = alpha
+        if d1 < 0.0:
+            lo = alpha
+        trial = alpha - d1 / (d2 if d2 > 0.0 else 1.0)
+        if d2 > 0.0 and lo < trial < hi:
+            alpha = trial
+        else:
+            alpha = 0.5 * (lo + hi)
+        d1, d2 = _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k)
+        if abs(d1) <= tolerance or hi - lo <= 1e-15 * hi:
+            break
+    return alpha
+
+
+@kernel
+def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_k,
+                 toward, has_toward, guess, q, warm, max_iterations, step_tolerance,
+                 gap_tolerance, converged, iterations):
+    """Solve every pair; q (B, nN) holds the starts and receives the solutions, converged (B,)
+    bool whether each pair converged, iterations (B,) how many Newton steps it took."""
+    B, n = q.shape
+    p = brg_rows.shape[1]
+    Kp = rows.shape[2]
+    smooth = p == 0                         # piecewise quadratic: a consistent active set is exact
+    grad, true_grad = np.empty(n), np.empty(n)
+    hess = np.empty((n, n))
+    used = np.empty((2, Kp), dtype=np.bool_)
+    delta, delta_trial, ddelta = np.empty((2, Kp)), np.empty((2, Kp)), np.empty((2, Kp))
+    d, d_trial, dd = np.empty((p, 2)), np.empty((p, 2)), np.empty((p, 2))
+    zero_b = np.zeros((2, Kp))
+    trial_q, step = np.empty(n), np.empty(n)
+    factor = np.empty((n, n))
+    for s in range(B):
+        qs = q[s]
+        Ks, fs, rs, bs = K[s], f[s], rows[s], pin_b[s]
+        Bs, os_, cs = brg_rows[s], brg_off[s], c_half[s]
+        energy = _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, qs, delta, d)
+        done = False
+        it = 0
+        while it < max_iterations:
+            it += 1
+            first = it == 1 and not warm
+            _gradient_hessian(Ks, Kh[s], fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, toward[s],
+                              has_toward, gap_tolerance, qs, guess[s], first, first,
+                              grad, hess, true_grad, used, delta, d)
+            if _solve_spd(hess, grad, factor, step):
+                for i in range(n):
+                    step[i] = -step[i]
+            else:
+                step[:] = -np.linalg.solve(hess, grad)
+            for i in range(n):
+                trial_q[i] = qs[i] + step[i]
+            trial = _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, trial_q, delta_trial, d_trial)
+            slope = 0.0
+            for i in range(n):
+                slope += true_grad[i] * step[i]
+            full = trial <= energy + 1e-4 * slope + 1e-13 * abs(energy)
+            alpha = 1.0
+            if not full:
+                alpha = _line_search(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, qs, step,
+                                     delta, ddelta, d, dd, zero_b)
+            largest_move, largest_q = 0.0, 0.0
+            for i in range(n):
+                qs[i] += alpha * step[i]
+                largest_move = max(largest_move, abs(alpha * step[i]))
+                largest_q = max(largest_q, abs(qs[i]))
+            energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, qs, delta, d)
+            # Done when a step no longer moves (a guessed first step says nothing of that), or,
+            # piecewise quadratic, when a full step landed where exactly the pins it assumed touch.
+            done = (not first) and largest_move <= step_tolerance + 1e-12 * largest_q
+            if smooth and full and not done:
+                consistent = True
+                for j in range(2):
+                    for k in range(Kp):
+                        dk = delta_trial[j, k]
+                        if (used[j, k] and dk < -gap_tolerance) or (not used[j, k] and dk > gap_tolerance):
+                            consistent = False
+                done = consistent
+            if done:
+                break
+        converged[s] = done
+        iterations[s] = it
