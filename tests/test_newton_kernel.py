@@ -1,0 +1,101 @@
+"""The compiled quasi-static Newton iteration against the numpy one it replaces.
+
+Both iterate the same active-set Newton method on the same reduced energy
+(rvfmu/core/newton_kernel.py, rvfmu/core/newton.py); the numpy one iterates a
+whole chunk at once and is the reference.  Their equilibria must agree to
+round-off on every route the solver takes: loaded and no-load, with and
+without bearing clearances (the continuation), resisting and driving, and the
+pairs re-solved on all pins.
+"""
+
+from pathlib import Path
+from unittest import mock
+
+import numpy as np
+import pytest
+
+from rvfmu.core import kernels
+from rvfmu.core.errors import stack
+from rvfmu.core.newton_kernel import _solve_spd
+from rvfmu.core.quasistatic import te_curve, windup
+from tolerance.sampling import errors_from_unit
+from tolerance.study import load_study
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def both(run):
+    """run() with the compiled iteration, then with the numpy one."""
+    assert kernels.COMPILED, "numba is a dependency: the compiled iteration must be the one in use"
+    compiled = run()
+    with mock.patch.object(kernels, "COMPILED", False):
+        plain = run()
+    return compiled, plain
+
+
+@pytest.fixture(scope="module")
+def full_study_reducers():
+    """Four reducers of the complete RV-40E-121 study: every error source, the three bearing
+    clearances included (rows of the study's own sampling)."""
+    study = load_study(ROOT / "studies" / "rv40e_121_full.toml")
+    X = np.random.default_rng(11).random((4, len(study.columns)))
+    return study.design, errors_from_unit(study, X)
+
+
+@pytest.mark.parametrize("tau", [0.0, -412.0, 150.0], ids=["no load", "resisting", "driving"])
+def test_with_bearing_clearances_the_compiled_and_numpy_equilibria_agree(full_study_reducers, tau):
+    design, errors = full_study_reducers
+    compiled, plain = both(lambda: te_curve(design, errors, tau_load=tau, points=400))
+    assert compiled.converged.all() and plain.converged.all()
+    np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(compiled.pin_force_max, plain.pin_force_max, rtol=1e-6, atol=1e-6)
+    # the curves are not trivial: clearances and errors make tens of arcsec
+    assert np.all(compiled.te_pp_arcsec > 5.0)
+
+
+@pytest.mark.parametrize("tau", [0.0, -412.0], ids=["no load", "rated"])
+def test_without_clearances_the_compiled_and_numpy_equilibria_agree(rv40, seed002, tau):
+    errors = stack([seed002] * 2)
+    compiled, plain = both(lambda: te_curve(rv40, errors, tau_load=tau, points=720))
+    np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(compiled.converged, plain.converged)
+
+
+def test_the_windup_test_agrees(full_study_reducers):
+    design, errors = full_study_reducers
+    compiled, plain = both(lambda: windup(design, errors, positions=4))
+    np.testing.assert_allclose(compiled.lost_motion_arcmin(), plain.lost_motion_arcmin(), rtol=1e-9)
+    np.testing.assert_allclose(compiled.torsional_rigidity_Nm_per_arcmin(),
+                               plain.torsional_rigidity_Nm_per_arcmin(), rtol=1e-9)
+
+
+def test_the_cholesky_solve_matches_lapack_and_refuses_an_indefinite_matrix():
+    rng = np.random.default_rng(3)
+    for n in (3, 9, 15):
+        R = rng.standard_normal((n, n))
+        # condition as the Hessians': a weak direction six orders below the rest
+        A = R @ R.T + n * np.eye(n)
+        w, V = np.linalg.eigh(A)
+        A = (V * np.r_[w[0] * 1e-6, w[1:]]) @ V.T
+        b = rng.standard_normal(n)
+        x = np.empty(n)
+        assert _solve_spd(A, b, np.empty((n, n)), x)
+        np.testing.assert_allclose(A @ x, b, rtol=0, atol=1e-8 * np.abs(b).max())
+        np.testing.assert_allclose(x, np.linalg.solve(A, b), rtol=1e-6)
+    indefinite = np.diag([1.0, -1.0, 2.0])
+    assert not _solve_spd(indefinite, np.ones(3), np.empty((3, 3)), np.empty(3))
+
+
+def test_on_every_pin_the_compiled_and_numpy_equilibria_agree(full_study_reducers):
+    """The iteration on all z_p pins of each disc (where a pin outside the candidates
+    touches, the solver re-solves on all of them): no candidates preselected at all."""
+    from rvfmu.core import solver
+
+    design, errors = full_study_reducers
+    with mock.patch.object(solver, "CANDIDATE_MARGIN", design.z_p):
+        compiled, plain = both(lambda: te_curve(design, errors, tau_load=0.0, points=200))
+        narrow = te_curve(design, errors, tau_load=0.0, points=200)
+    np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-6)
+    # and the candidates change nothing: the same equilibria as the preselected iteration
+    candidates = te_curve(design, errors, tau_load=0.0, points=200)
+    np.testing.assert_allclose(narrow.te_arcsec, candidates.te_arcsec, rtol=0, atol=1e-6)
