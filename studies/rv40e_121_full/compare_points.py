@@ -27,18 +27,23 @@ STUDIES = HERE.parent
 FINE = 12480
 
 
-def fine_copy(study: Path) -> Path:
-    """The study file with points = 12480, its own name and output folder."""
+def variant(study: Path, suffix: str, **values) -> Path:
+    """A copy of the study file with these [study]/[operating] keys set (TOML values as
+    text or numbers), named <name>_<suffix>, its output in this folder's output/."""
     text = study.read_text()
-    name = re.search(r'(?m)^name\s*=\s*"([^"]+)"', text).group(1) + f"_{FINE}"
-    for key, value in (("name", f'"{name}"'), ("points", FINE),
-                       ("output", f'"{HERE / "output" / name}"')):
+    name = re.search(r'(?m)^name\s*=\s*"([^"]+)"', text).group(1) + f"_{suffix}"
+    for key, value in (("name", f'"{name}"'), ("output", f'"{HERE / "output" / name}"'), *values.items()):
         text, count = re.subn(rf"(?m)^{key}\s*=.*$", f"{key} = {value}", text)
         assert count == 1, key
     path = HERE / "output" / f"{name}.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     return path
+
+
+def fine_copy(study: Path) -> Path:
+    """The study file with points = 12480, its own name and output folder."""
+    return variant(study, str(FINE), points=FINE)
 
 
 class Job:
@@ -57,32 +62,39 @@ class Job:
                                       self.study.seed)
 
 
+def side_by_side(a: Job, b: Job, label_a: str, label_b: str, windup: bool) -> list:
+    """Markdown lines: each metric of the same rows in runs a and b, the values and the
+    indices side by side (the windup metrics only if `windup`)."""
+    lines = []
+    for j, column in enumerate(a.study.metric_columns):
+        if not windup and not column.startswith("te_"):
+            continue
+        ya, yb = a.Y[:, j], b.Y[:, j]
+        lines.append(f"`{column}`: {label_a} / {label_b}: mean ratio {np.mean(ya / yb):.3f}, "
+                     f"correlation {np.corrcoef(ya, yb)[0, 1]:.4f}, largest difference "
+                     f"{np.max(np.abs(ya - yb)):.2f} (mean {yb.mean():.1f} {label_b})")
+        lines.append("")
+        ia, ib = a.analyses[column].indices, b.analyses[column].indices
+        ra, rb = np.argsort(np.argsort(-ia.ST_reported)), np.argsort(np.argsort(-ib.ST_reported))
+        lines.append(f"| factor | ST {label_a} | ST {label_b} | rank {label_a} | rank {label_b} |")
+        lines.append("|---|---|---|---|---|")
+        for g in np.argsort(-ib.ST_reported):
+            lines.append(f"| `{ia.names[g]}` | {ia.ST_reported[g]:.3f} ± {ia.ST_conf[g]:.3f} | "
+                         f"{ib.ST_reported[g]:.3f} ± {ib.ST_conf[g]:.3f} | {ra[g] + 1} | {rb[g] + 1} |")
+        lines.append("")
+        lines.append(f"largest |ST({label_a}) - ST({label_b})| over the factors: "
+                     f"{np.max(np.abs(ia.ST_reported - ib.ST_reported)):.3f}")
+        lines.append("")
+    return lines
+
+
 def compare(study: Path, n: int, processes: int) -> str:
     coarse = Job(study, n, processes)
     fine = Job(fine_copy(study), n, processes)
     assert np.array_equal(coarse.X, fine.X)
     lines = [f"### {study.name}: n = {n} ({coarse.X.shape[0]} reducers, the same rows at both "
              "resolutions)", ""]
-    for j, column in enumerate(coarse.study.metric_columns):
-        if not column.startswith("te_"):
-            continue      # the windup metrics do not use the TE curve's points
-        a, b = coarse.Y[:, j], fine.Y[:, j]
-        lines.append(f"`{column}`: at {coarse.study.points} points / at {FINE}: mean ratio {np.mean(a / b):.3f}, "
-                     f"correlation {np.corrcoef(a, b)[0, 1]:.4f}, largest difference "
-                     f"{np.max(np.abs(a - b)):.2f} arcsec (mean te_pp {b.mean():.1f} arcsec)")
-        lines.append("")
-        ia, ib = coarse.analyses[column].indices, fine.analyses[column].indices
-        ra, rb = np.argsort(np.argsort(-ia.ST_reported)), np.argsort(np.argsort(-ib.ST_reported))
-        p = coarse.study.points
-        lines.append(f"| factor | ST at {p} | ST at {FINE} | rank at {p} | rank at {FINE} |")
-        lines.append("|---|---|---|---|---|")
-        for g in np.argsort(-ib.ST_reported):
-            lines.append(f"| `{ia.names[g]}` | {ia.ST_reported[g]:.3f} ± {ia.ST_conf[g]:.3f} | "
-                         f"{ib.ST_reported[g]:.3f} ± {ib.ST_conf[g]:.3f} | {ra[g] + 1} | {rb[g] + 1} |")
-        lines.append("")
-        lines.append(f"largest |ST({p}) - ST({FINE})| over the factors: "
-                     f"{np.max(np.abs(ia.ST_reported - ib.ST_reported)):.3f}")
-        lines.append("")
+    lines += side_by_side(coarse, fine, f"at {coarse.study.points}", f"at {FINE}", windup=False)
     return "\n".join(lines)
 
 
