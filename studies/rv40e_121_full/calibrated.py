@@ -10,10 +10,13 @@ with `design = "RV-40E-121"` (a copy of each beside its output), on the same
 Saltelli rows, and prints every metric's values and indices side by side.
 Stored runs are reused; a stopped run carries on.
 
-    python studies/rv40e_121_full/calibrated.py [-n 1024] [--processes 2]
+    python studies/rv40e_121_full/calibrated.py [STUDY ...] [-n 1024] [--processes 2]
+
+STUDY: study files to compare (default: the rated one, then the no-load one).
 """
 
 import argparse
+from pathlib import Path
 
 from compare_points import STUDIES, Job, side_by_side, variant
 
@@ -29,11 +32,14 @@ def compare(study, n: int, processes: int) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("studies", nargs="*", type=Path,
+                        default=[STUDIES / "rv40e_121_full_rated.toml", STUDIES / "rv40e_121_full.toml"],
+                        help="study files (default: both of this folder)")
     parser.add_argument("-n", type=int, default=1024, help="Sobol base samples (a power of 2)")
     parser.add_argument("--processes", type=int, default=2)
     args = parser.parse_args(argv)
-    print(compare(STUDIES / "rv40e_121_full_rated.toml", args.n, args.processes))
-    print(compare(STUDIES / "rv40e_121_full.toml", args.n, args.processes))
+    for study in args.studies:
+        print(compare(study, args.n, args.processes), flush=True)
     return 0
 
 
