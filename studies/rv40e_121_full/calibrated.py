@@ -10,9 +10,12 @@ with `design = "RV-40E-121"` (a copy of each beside its output), on the same
 Saltelli rows, and prints every metric's values and indices side by side.
 Stored runs are reused; a stopped run carries on.
 
-    python studies/rv40e_121_full/calibrated.py [STUDY ...] [-n 1024] [--processes 2]
+    python studies/rv40e_121_full/calibrated.py [STUDY ...] [-n 1024] [--processes 2] [--windup-only]
 
 STUDY: study files to compare (default: the rated one, then the no-load one).
+--windup-only: lost motion and torsional rigidity alone, on copies of both
+designs (the windup test needs no TE curve: minutes instead of the no-load
+TE's 45 to 80).
 """
 
 import argparse
@@ -21,7 +24,12 @@ from pathlib import Path
 from compare_points import STUDIES, Job, side_by_side, variant
 
 
-def compare(study, n: int, processes: int) -> str:
+WINDUP_ONLY = '["lost_motion", "torsional_rigidity"]'
+
+
+def compare(study, n: int, processes: int, windup_only: bool = False) -> str:
+    if windup_only:
+        study = variant(study, "windup", metrics=WINDUP_ONLY, te_pp_arcsec=None)
     estimate = Job(study, n, processes)
     calibrated = Job(variant(study, "calibrated", design='"RV-40E-121"'), n, processes)
     lines = [f"### {study.name}: N = {n} ({estimate.X.shape[0]} reducers, the same rows on both "
@@ -37,9 +45,11 @@ def main(argv=None) -> int:
                         help="study files (default: both of this folder)")
     parser.add_argument("-n", type=int, default=1024, help="Sobol base samples (a power of 2)")
     parser.add_argument("--processes", type=int, default=2)
+    parser.add_argument("--windup-only", action="store_true",
+                        help="lost motion and torsional rigidity alone (no TE curve)")
     args = parser.parse_args(argv)
     for study in args.studies:
-        print(compare(study, args.n, args.processes), flush=True)
+        print(compare(study, args.n, args.processes, args.windup_only), flush=True)
     return 0
 
 

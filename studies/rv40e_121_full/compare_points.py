@@ -28,12 +28,13 @@ FINE = 12480
 
 
 def variant(study: Path, suffix: str, **values) -> Path:
-    """A copy of the study file with these [study]/[operating] keys set (TOML values as
-    text or numbers), named <name>_<suffix>, its output in this folder's output/."""
+    """A copy of the study file with these keys set (TOML values as text or numbers; None
+    takes the key out), named <name>_<suffix>, its output in this folder's output/."""
     text = study.read_text()
     name = re.search(r'(?m)^name\s*=\s*"([^"]+)"', text).group(1) + f"_{suffix}"
     for key, value in (("name", f'"{name}"'), ("output", f'"{HERE / "output" / name}"'), *values.items()):
-        text, count = re.subn(rf"(?m)^{key}\s*=.*$", f"{key} = {value}", text)
+        line = f"# {key}: not in this copy" if value is None else f"{key} = {value}"
+        text, count = re.subn(rf"(?m)^{key}\s*=.*$", line, text)
         assert count == 1, key
     path = HERE / "output" / f"{name}.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
