@@ -94,8 +94,7 @@ def test_on_every_pin_the_compiled_and_numpy_equilibria_agree(full_study_reducer
     design, errors = full_study_reducers
     with mock.patch.object(solver, "CANDIDATE_MARGIN", design.z_p):
         compiled, plain = both(lambda: te_curve(design, errors, tau_load=0.0, points=200))
-        narrow = te_curve(design, errors, tau_load=0.0, points=200)
     np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-6)
     # and the candidates change nothing: the same equilibria as the preselected iteration
     candidates = te_curve(design, errors, tau_load=0.0, points=200)
-    np.testing.assert_allclose(narrow.te_arcsec, candidates.te_arcsec, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(compiled.te_arcsec, candidates.te_arcsec, rtol=0, atol=1e-6)

@@ -16,6 +16,8 @@ tested against, and what runs without numba.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 from . import kernels
@@ -129,12 +131,10 @@ class Work:
     bearing with clearance is probably loaded (zero where unknown), for the first step.
     """
 
-    def __init__(self, system, angle, f, rows, pin_b, brg_off, c_half, products=None,
-                 bearing_direction=None):
+    def __init__(self, system, angle, f, rows, pin_b, brg_off, c_half, bearing_direction=None):
         self.system = system
         self.angle = angle
         self.rows = rows
-        self.products = row_products(rows) if products is None else products  # (B, 2, K, 6)
         self.K = system.K_red[angle]                          # (B, nN, nN)
         self.f, self.pin_b, self.brg_off, self.c_half = f, pin_b, brg_off, c_half
         self.brg_rows = system.brg_rows[angle] if system.brg_k.size else None
@@ -143,11 +143,19 @@ class Work:
     def subset(self, keep):
         new = object.__new__(Work)
         new.system, new.angle = self.system, self.angle[keep]
-        for name in ("rows", "products", "K", "f", "pin_b", "brg_off", "c_half"):
+        for name in ("rows", "K", "f", "pin_b", "brg_off", "c_half"):
             setattr(new, name, getattr(self, name)[keep])
+        if "products" in self.__dict__:
+            new.products = self.products[keep]
         new.brg_rows = None if self.brg_rows is None else self.brg_rows[keep]
         new.toward = None if self.toward is None else self.toward[keep]
         return new
+
+    @cached_property
+    def products(self):
+        """(B, 2, K, 6) the pins' row products for the Hessian blocks: made on first use, so
+        that the compiled iteration, which never reads them, does not pay for them."""
+        return row_products(self.rows)
 
     def load_direction(self):
         """d(gradient)/d(-tau): the reduced load vector (B, nN)."""

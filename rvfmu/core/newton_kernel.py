@@ -50,14 +50,16 @@ def _bearing_deflections(brg_rows, brg_off, q, out):
 
 
 @kernel
-def _bearing_tangent(dx, dy, c_half, k):
-    """(txx, txy, tyy): tangent stiffness of an isotropic bearing with free play c_half at (dx, dy)."""
+def _bearing(dx, dy, c_half, k):
+    """(fx, fy, txx, txy, tyy): force and tangent stiffness of an isotropic bearing with free
+    play c_half at deflection (dx, dy): k (|d| - c) d/|d| outside the play, nothing inside."""
     norm = max(np.sqrt(dx * dx + dy * dy), 1e-300)
     if norm <= c_half:
-        return 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0
     nx, ny = dx / norm, dy / norm
     ratio = c_half / norm
-    return (k * (1.0 - ratio + ratio * nx * nx), k * ratio * nx * ny,
+    scale = k * (1.0 - ratio)
+    return (scale * dx, scale * dy, k * (1.0 - ratio + ratio * nx * nx), k * ratio * nx * ny,
             k * (1.0 - ratio + ratio * ny * ny))
 
 
@@ -126,17 +128,12 @@ def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c
     for b in range(d.shape[0]):
         dx, dy = d[b, 0], d[b, 1]
         kb, c = brg_k[b], c_half[b]
-        norm = np.sqrt(dx * dx + dy * dy)
-        scale = 1.0 - c / max(norm, 1e-300) if norm > c else 0.0
-        fx, fy = dx * scale * kb, dy * scale * kb          # the true bearing force
-        if engaged and has_toward:
-            gx, gy = (dx - c * toward[b, 0]) * kb, (dy - c * toward[b, 1]) * kb
-        else:
-            gx, gy = fx, fy
+        fx, fy, txx, txy, tyy = _bearing(dx, dy, c, kb)      # the true bearing force
+        gx, gy = fx, fy
         if engaged:
             txx, txy, tyy = kb, 0.0, kb
-        else:
-            txx, txy, tyy = _bearing_tangent(dx, dy, c, kb)
+            if has_toward:
+                gx, gy = (dx - c * toward[b, 0]) * kb, (dy - c * toward[b, 1]) * kb
         for i in range(n):
             rx, ry = brg_rows[b, 0, i], brg_rows[b, 1, i]
             true_grad[i] += rx * fx + ry * fy
@@ -195,18 +192,16 @@ def _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k):
                 d1 += kp * dk * ddelta[j, k]
                 d2 += kp * ddelta[j, k] * ddelta[j, k]
     for b in range(d0.shape[0]):
-        dx, dy = d0[b, 0] + alpha * dd[b, 0], d0[b, 1] + alpha * dd[b, 1]
-        norm = np.sqrt(dx * dx + dy * dy)
-        over = 1.0 - c_half[b] / max(norm, 1e-300) if norm > c_half[b] else 0.0
-        d1 += (dx * dd[b, 0] + dy * dd[b, 1]) * over * brg_k[b]
-        txx, txy, tyy = _bearing_tangent(dx, dy, c_half[b], brg_k[b])
+        fx, fy, txx, txy, tyy = _bearing(d0[b, 0] + alpha * dd[b, 0], d0[b, 1] + alpha * dd[b, 1],
+                                         c_half[b], brg_k[b])
+        d1 += fx * dd[b, 0] + fy * dd[b, 1]
         d2 += dd[b, 0] * (txx * dd[b, 0] + txy * dd[b, 1]) + dd[b, 1] * (txy * dd[b, 0] + tyy * dd[b, 1])
     return d1, d2
 
 
 @kernel
 def _line_search(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_k, q, step,
-                 delta0, ddelta, d0, dd, zero_b):
+                 delta0, ddelta, d0, dd, zero_b, zero_d):
     """`newton.Work.line_search` for one pair: the exact minimiser of the energy along step."""
     n = q.size
     quad, lin = 0.0, 0.0
@@ -220,12 +215,7 @@ def _line_search(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, br
     _deflections(rows, pin_b, pin_local, q, delta0)
     _deflections(rows, zero_b, pin_local, step, ddelta)
     _bearing_deflections(brg_rows, brg_off, q, d0)
-    for b in range(brg_rows.shape[0]):
-        for x in range(2):
-            s = 0.0
-            for i in range(n):
-                s += brg_rows[b, x, i] * step[i]
-            dd[b, x] = s
+    _bearing_deflections(brg_rows, zero_d, step, dd)
     d1_0, _ = _slope(0.0, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k)
     lo, hi = 0.0, 1.0
     d1, d2 = _slope(hi, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k)
@@ -272,7 +262,7 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half
     used = np.empty((2, Kp), dtype=np.bool_)
     delta, delta_trial, ddelta = np.empty((2, Kp)), np.empty((2, Kp)), np.empty((2, Kp))
     d, d_trial, dd = np.empty((p, 2)), np.empty((p, 2)), np.empty((p, 2))
-    zero_b = np.zeros((2, Kp))
+    zero_b, zero_d = np.zeros((2, Kp)), np.zeros((p, 2))
     trial_q, step = np.empty(n), np.empty(n)
     factor = np.empty((n, n))
     for s in range(B):
@@ -303,7 +293,7 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half
             alpha = 1.0
             if not full:
                 alpha = _line_search(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, qs, step,
-                                     delta, ddelta, d, dd, zero_b)
+                                     delta, ddelta, d, dd, zero_b, zero_d)
             largest_move, largest_q = 0.0, 0.0
             for i in range(n):
                 qs[i] += alpha * step[i]

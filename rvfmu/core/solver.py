@@ -30,7 +30,7 @@ import numpy as np
 
 from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
-from .newton import GAP_TOLERANCE, Work, newton, pin_delta, row_products
+from .newton import GAP_TOLERANCE, Work, newton, pin_delta
 
 CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
 REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
@@ -127,7 +127,6 @@ class ReducedSystem:
         self.candidate_rows = {
             direction: np.take_along_axis(model.pin_rows, cand[..., None], axis=2)
             for direction, cand in self.candidates.items()}
-        self.candidate_products = {d: row_products(rows) for d, rows in self.candidate_rows.items()}
         if not self.nl_bearings.size:
             # Shape of the linear parts with the mode held: [K_red m; m^T 0] bordered solve.
             mN = mode[:, N]
@@ -249,11 +248,9 @@ class ReducedSystem:
         forward = direction > 0
         cand = self.candidates[-1.0][angle]                                         # (B, 2, Kc)
         rows = self.candidate_rows[-1.0][angle]                                     # (B, 2, Kc, 3)
-        products = self.candidate_products[-1.0][angle]                             # (B, 2, Kc, 6)
         if np.any(forward):
             cand[forward] = self.candidates[1.0][angle[forward]]
             rows[forward] = self.candidate_rows[1.0][angle[forward]]
-            products[forward] = self.candidate_products[1.0][angle[forward]]
         pb = np.take_along_axis(pin_b, cand, axis=2)
         closing = np.take_along_axis(self.pin_rate[angle], cand, axis=2) * direction[:, None, None]
         if count is None:
@@ -269,7 +266,7 @@ class ReducedSystem:
             ordered = np.sort(travel, axis=-1)
             take = np.clip(count, 1, travel.shape[-1])[..., None] - 1
             guess = travel <= np.take_along_axis(ordered, take, axis=-1)
-        work = Work(self, angle, f, rows, pb, brg_off, c_half, products, bearing_direction)
+        work = Work(self, angle, f, rows, pb, brg_off, c_half, bearing_direction)
         q, converged, iterations = newton(work, guess, q0)
         # Any pin left out that touches at the solution: solve those pairs on all pins.
         outside = np.ones(pin_b.shape, dtype=bool)
