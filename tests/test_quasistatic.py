@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
-from conftest import hand_pin_geometry, unit
+from conftest import ROOT, hand_pin_geometry, unit
 from rvfmu.core.design import PRESET_NAMES, preset
 from rvfmu.core.equivalent import EquivalentModel
 from rvfmu.core.errors import stack, zero_errors
 from rvfmu.core.profile import disc_profile
-from rvfmu.core.quasistatic import (default_points, equilibria, equilibrium_te, input_angles, te_curve,
-                                    windup)
-from rvfmu.core.reference import te_reference
+from rvfmu.core.quasistatic import (NO_LOAD_PROBE, default_points, equilibria, equilibrium_te,
+                                    input_angles, te_curve, windup)
+from rvfmu.core.reference import no_load_limit_bracket, te_reference
 from rvfmu.core.solver import solve_pairs
 from rvfmu.core.units import ARCSEC, UM
 
@@ -191,3 +191,102 @@ def test_no_load_limit_from_either_side_is_the_limit_of_small_loads(rv40, seed00
     tiny = 1e-6 * design.rated_torque * zero_side
     eq = equilibria(design, seed002, theta_in, [0.0, tiny], zero_side=zero_side)
     np.testing.assert_allclose(eq.te[0, 0], eq.te[0, 1], atol=1e-3 * ARCSEC)
+
+
+def _with_clearances(errors, crank_disc, crank_carrier, main):
+    return errors.replace(crank_disc_clearance=np.array([crank_disc * UM]),
+                          crank_carrier_clearance=np.array([crank_carrier * UM]),
+                          main_bearing_clearance=np.array([main * UM]))
+
+
+@pytest.mark.parametrize("zero_side", [-1, 1])
+def test_no_load_limit_with_bearing_clearances_is_the_rigid_limit(rv40, seed002, zero_side):
+    """docs/model.md section 5 with clearances: rigid parts turned as far as the pins and the
+    clearance circles let them.  Two linear programs over all unknowns (the circles as the
+    polygons around and inside them) bracket that independently of the solver; the
+    weak springs must not hold the floating parts away from it."""
+    errors = stack([_with_clearances(zero_errors(rv40), 12.0, 8.0, 10.0),
+                    _with_clearances(seed002, 20.0, 15.0, 12.0)])
+    theta_in = input_angles(rv40, 16) + 0.1
+    te = equilibria(rv40, errors, theta_in, [0.0], zero_side=zero_side).te[:, 0]
+    model = EquivalentModel(rv40, theta_in, flank=1 if zero_side < 0 else -1)
+    checked = 0
+    for s in range(errors.samples):
+        for a in range(theta_in.size):
+            bracket = no_load_limit_bracket(model, errors, s, a, zero_side)
+            if bracket is None:
+                continue   # these errors preload some part at no load: the limit is elastic there
+            low, high = bracket
+            assert high - low < 0.01 * ARCSEC
+            assert low - 0.05 * ARCSEC <= te[s, a] <= high + 0.05 * ARCSEC, (s, a)
+            checked += 1
+    assert checked >= 24
+    # the clearances show: the error-free reducer turns back further than without them
+    plain = equilibria(rv40, zero_errors(rv40), theta_in, [0.0], zero_side=zero_side).te[0, 0]
+    assert np.all(zero_side * (te[0] - plain) > 1.0 * ARCSEC)
+
+
+def test_no_load_te_with_a_preloaded_needle_bearing_lies_between_small_loads(rv40, seed002):
+    """A needle clearance of 1 um with seed 002's errors preloads the discs at no load at most
+    angles, and a part touching its clearance circle with hardly any force rolls around it
+    at small loads: the TE moves by arcseconds between 0.01 % and 0.1 % of the rated
+    torque.  Whatever the limit does there, on the energy of one flank (convex) a resisting
+    load can only turn the output back and a driving one forward, so the no-load TE lies
+    between TE under the probe load and under a small driving load on that flank."""
+    errors = _with_clearances(seed002, 1.0, 10.0, 10.0)
+    theta_in = input_angles(rv40, 400)
+    probe = NO_LOAD_PROBE * rv40.rated_torque
+    eq = equilibria(rv40, errors, theta_in, [-10.0 * probe, -probe, 0.0])
+    model = EquivalentModel(rv40, theta_in, flank=1)
+    A = theta_in.size
+    ahead = solve_pairs(model, errors, np.zeros(A, dtype=int), np.arange(A), np.full(A, probe),
+                        no_load_probe=probe)
+    assert eq.converged.all() and ahead.converged.all()
+    te = eq.te[0] / ARCSEC
+    forward = ahead.q[:, model.carrier_rot] / model.scale / ARCSEC
+    tol = 0.05
+    assert np.all(te[0] <= te[1] + tol) and np.all(te[1] <= te[2] + tol)
+    assert np.all(te[2] <= forward + tol)
+    # the no-load TE is not the probe's: between them the output still turns by arcseconds
+    assert np.max(te[2] - te[1]) > 2.0
+
+
+def _complete_study_reducers(rows):
+    """Reducers of the complete study's Sobol sample (studies/rv40e_121_full.toml, N = 1024)."""
+    from tolerance import sobol
+    from tolerance.sampling import errors_from_unit
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / "rv40e_121_full.toml")
+    X = sobol.sample(study.problem(), 1024, False, seed=study.seed)
+    return study.design, errors_from_unit(study, X[rows])
+
+
+def test_no_load_limit_of_ordinary_reducers_of_the_complete_study_is_the_rigid_limit():
+    """Reducers whose weak springs once held the floating parts 0.9-1.7 arcsec away from the
+    rigid limit (every bearing clearance in its catalogue range, no preload at no load)."""
+    design, errors = _complete_study_reducers([5444, 10888])
+    theta_in = input_angles(design, 60)
+    te = equilibria(design, errors, theta_in, [0.0]).te[:, 0]
+    model = EquivalentModel(design, theta_in, flank=1)
+    for s in range(errors.samples):
+        for a in range(theta_in.size):
+            low, high = no_load_limit_bracket(model, errors, s, a)
+            assert low - 0.1 * ARCSEC <= te[s, a] <= high + 0.1 * ARCSEC, (s, a)
+
+
+def test_no_load_te_of_a_tight_needle_reducer_has_no_spike():
+    """Reducer 16594 of the complete study: needle clearance 4 um, preloaded at no load at
+    some angles.  Near input angle 1199 of 3200 the tangent at the probe was nearly singular
+    and sent the no-load TE 600 arcsec forward; it must stay between the probe's TE and
+    that under a small driving load on the same flank."""
+    design, errors = _complete_study_reducers([16594])
+    theta_in = input_angles(design, 3200)[1190:1210]
+    probe = NO_LOAD_PROBE * design.rated_torque
+    te = equilibria(design, errors, theta_in, [-probe, 0.0]).te[0] / ARCSEC
+    model = EquivalentModel(design, theta_in, flank=1)
+    A = theta_in.size
+    ahead = solve_pairs(model, errors, np.zeros(A, dtype=int), np.arange(A), np.full(A, probe),
+                        no_load_probe=probe)
+    forward = ahead.q[:, model.carrier_rot] / model.scale / ARCSEC
+    assert np.all(te[0] <= te[1] + 0.05) and np.all(te[1] <= forward + 0.05)

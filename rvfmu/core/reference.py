@@ -75,3 +75,55 @@ def te_reference(design: RVDesign, errors: ErrorSet, theta_in, tau_load: float,
         else:
             te[a] = equilibrium_reference(model, errors, sample, a, tau_load)[model.carrier_rot] / model.scale
     return te
+
+
+POLYGON_SIDES = 512  # bearing clearance circles as polygons in the no-load limit reference
+
+
+def no_load_limit_bracket(model: EquivalentModel, errors: ErrorSet, sample: int, angle: int,
+                          zero_side: int = -1, sides: int = POLYGON_SIDES):
+    """Bounds (low, high) [rad] on the no-load TE at one (reducer, angle), or None.
+
+    The definition of docs/model.md section 5 taken literally, with rigid parts: the
+    input held, every linear element (mesh, sun support, bearing without clearance)
+    at zero deflection, every pin gap >= 0, every bearing centre within its
+    clearance circle; among those poses the one that turns the output furthest
+    back (zero_side = -1, a resisting load going to zero; +1, a driving one: furthest
+    forward; the model's flank must be the one of that side).  That is a linear objective over a convex set; with each clearance circle
+    replaced by the polygon around it (a larger set) and the polygon inside it (a
+    smaller one) it becomes two linear programs (scipy's HiGHS) whose optima bracket
+    the limit, within c (1 - cos(pi / sides)) of play per bearing.  None where no such
+    pose exists (errors that force a preload at no load: the limit is then elastic).
+    """
+    from scipy.optimize import linprog
+
+    lin_b, brg_b, pin_b = model.offsets(errors, np.array([sample]), np.array([angle]))
+    c_half = model.clearance_halves(errors)[sample]
+    n = model.n_dof
+    free = c_half > 0
+    lin_rows = model.linear_rows[angle]
+    held = model.bearing_rows[angle][~free].reshape(-1, n)
+    a_eq = np.concatenate([lin_rows, held])
+    b_eq = -np.concatenate([lin_b[0], brg_b[0][~free].ravel()]) / SCALE
+    pin_rows = model.pin_rows[angle]                                  # (2, z_p, 3)
+    a_pin = np.zeros((pin_rows.shape[0] * pin_rows.shape[1], n))
+    for j, dofs in enumerate(model.pin_dofs):
+        a_pin[j * pin_rows.shape[1]:(j + 1) * pin_rows.shape[1], dofs] = pin_rows[j]
+    b_pin = -pin_b[0].ravel() / SCALE
+    phi = 2.0 * np.pi * np.arange(sides) / sides
+    u = np.stack([np.cos(phi), np.sin(phi)], axis=1)                  # (M, 2)
+    cost = np.zeros(n)
+    cost[model.carrier_rot] = -float(zero_side)
+    bounds = []
+    for radius in (1.0, np.cos(np.pi / sides)):                       # polygon around, inside
+        a_ub, b_ub = [a_pin], [b_pin]
+        for p in np.flatnonzero(free):
+            rows = model.bearing_rows[angle][p]                       # (2, n): d = rows q + b
+            a_ub.append(u @ rows)
+            b_ub.append((c_half[p] * radius - u @ brg_b[0][p]) / SCALE)
+        res = linprog(cost, A_ub=np.concatenate(a_ub), b_ub=np.concatenate(b_ub),
+                      A_eq=a_eq, b_eq=b_eq, bounds=(None, None), method="highs")
+        if res.status != 0:
+            return None
+        bounds.append(-zero_side * res.fun * SCALE / model.scale)
+    return min(bounds), max(bounds)

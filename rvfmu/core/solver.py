@@ -36,6 +36,10 @@ CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
 REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
 MODE_DIRECTION_STIFFNESS = 1e-9  # relative to the pin stiffness, Hessian only: see ReducedSystem
 CONTINUATION = (1e3, 1e2, 1e1, 1.0)  # no load with bearing clearance: probe multiples, large to small
+RELEASE_ROUNDS = 3       # no load with bearing clearance: solves with the weak springs re-centred
+RELEASE_BELOW = 100.0    # loads up to this many probe torques get the same release
+TANGENT_AGREEMENT = 3.0  # back to zero load along the tangent unless it turns the carrier this many
+                         # times further than the chord through the last two probe loads
 CANDIDATE_MARGIN = 1     # pins per disc iterated on beyond the half that the load closes
 
 
@@ -117,6 +121,12 @@ class ReducedSystem:
         mode[:, c] = 1.0
         mode[:, rest] = -np.linalg.solve(kfull[:, rest][:, :, rest], kfull[:, rest][:, :, [c]])[..., 0]
         self.mode = mode
+        # The carrier's rotation as a function of the reduced unknowns (its linear part).
+        if c in position:
+            self.carrier_row = np.zeros((A, nN))
+            self.carrier_row[:, position[c]] = 1.0
+        else:
+            self.carrier_row = -self.G[:, int(np.flatnonzero(L == c)[0]), :]
         self.pin_rate = np.einsum("ajkx,ajx->ajk", model.pin_rows, mode[:, model.pin_dofs])
         # Candidate pins: those the load closes (about half) and a margin of the nearly
         # square ones; the others are checked after the solve and taken in if they touch.
@@ -140,7 +150,8 @@ class ReducedSystem:
         # load, only the pins stop the carrier.
         m_hat = mode[:, N] / np.linalg.norm(mode[:, N], axis=1, keepdims=True)
         along = m_hat[:, :, None] * m_hat[:, None, :]
-        self.K_red = self.K_red + self.reg * (np.eye(nN) - along)
+        self.reg_matrix = self.reg * (np.eye(nN) - along)
+        self.K_red = self.K_red + self.reg_matrix
         # Newton directions need some stiffness along the mode before a pin touches; this
         # one enters the Hessian only (the energy and its minimiser do not see it).
         self.mode_stiffness = MODE_DIRECTION_STIFFNESS * model.pin_k * along
@@ -154,8 +165,8 @@ class ReducedSystem:
         torque `probe` (negative: a resisting load, docs/model.md section 5; positive: a
         driving one); where it needs an elastic solve (interference, bearing
         clearance) the equilibrium under `probe` (with bearing clearance reached
-        by continuation over CONTINUATION x probe) is taken back to zero load
-        along its tangent.
+        by continuation over CONTINUATION x probe, the weak springs released at
+        the last two loads) is taken back to zero load (`_to_zero_load`).
         first_count: (B, 2) int, optional: how many pins of each disc probably touch
         (from the error-free reducer, at the load of the pair's first elastic solve:
         its own, or the first probe torque); the first guess takes that many, those
@@ -196,23 +207,40 @@ class ReducedSystem:
                 # Probe torques, from large to small when parts float in bearing clearances
                 # (each solve starts from the last), the last one the probe itself.
                 steps = CONTINUATION if self.nl_bearings.size else (1.0,)
-                for scale in steps:
+                path = []
+                for k, scale in enumerate(steps):
                     loads = np.full(group.size, probe * scale)
                     q_start, conv, its = self._solve_group(
                         group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
                         bearing_direction if q_start is None else None, q_start)
                     iterations += its
-                # From tau = probe back to tau = 0 along the tangent at that contact state.
+                    # At the last two probe loads the weak springs let go of the floating
+                    # parts: re-centred on the solution, they no longer pull it anywhere.
+                    release = RELEASE_ROUNDS if self.nl_bearings.size and k >= len(steps) - 2 else 0
+                    for _ in range(release):
+                        q_start, conv, its = self._solve_group(
+                            group, angle, f0, pin_b, brg_off, c_half, loads, None, None, q_start,
+                            centre=q_start)
+                        iterations += its
+                    path.append((probe * scale, q_start))
                 a = angle[group]
-                part = Work(self, a, f0[group] - probe * self.g_red[a], model.pin_rows[a],
-                             pin_b[group], brg_off[group], c_half[group])
-                dq = np.linalg.solve(part.hessian(q_start, None), part.load_direction()[..., None])
-                qn[group] = q_start - probe * dq[..., 0]
+                qn[group] = self._to_zero_load(a, f0[group], pin_b[group], brg_off[group],
+                                               c_half[group], path[-2:])
             else:
                 qn[group], conv, its = self._solve_group(
                     group, angle, f0, pin_b, brg_off, c_half, loads, first_count, bearing_direction,
                     None)
                 iterations += its
+                # Small loads feel the weak springs too: released the same way.
+                light = group[np.abs(loads) <= RELEASE_BELOW * abs(probe)] if self.nl_bearings.size \
+                    else group[:0]
+                for _ in range(RELEASE_ROUNDS if light.size else 0):
+                    q_light, conv_light, its = self._solve_group(
+                        light, angle, f0, pin_b, brg_off, c_half, tau[light], None, None, qn[light],
+                        centre=qn[light])
+                    qn[light] = q_light
+                    conv[np.isin(group, light)] = conv_light
+                    iterations += its
             converged[group] = conv
         q = np.empty((B, model.n_dof))
         q[:, self.N] = qn
@@ -225,14 +253,41 @@ class ReducedSystem:
                            converged, iterations)
 
     def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
-                     bearing_direction, q0):
+                     bearing_direction, q0, centre=None):
         a = angle[group]
         f = f0[group] - loads[:, None] * self.g_red[a]
+        if centre is not None:
+            f = f - np.einsum("bij,bj->bi", self.reg_matrix[a], centre)
         direction = np.where(loads > 0, 1.0, -1.0)
         count = None if first_count is None else first_count[group]
         toward = None if bearing_direction is None else bearing_direction[group]
         return self._elastic(a, f, pin_b[group], brg_off[group], c_half[group], direction, count, q0,
                              f_errors=f0[group], bearing_direction=toward)
+
+    def _to_zero_load(self, angle, f0, pin_b, brg_off, c_half, path):
+        """From the smallest probe load back to zero: q_N (B, nN).
+
+        path: [(load [N*m], q_N (B, nN))], the last probe loads solved, smallest
+        last.  The step back follows the tangent at the last one (exact while no
+        contact changes between it and zero); where the tangent moves the carrier
+        more than TANGENT_AGREEMENT times as far as the chord through the last
+        two solutions does (a contact at the probe that is about to change, a
+        part just touching its clearance circle: the Hessian there says nothing
+        about the way to zero), the chord is followed instead.
+        """
+        load, q = path[-1]
+        work = Work(self, angle, f0 - load * self.g_red[angle], self.model.pin_rows[angle], pin_b,
+                    brg_off, c_half)
+        slope = np.linalg.solve(work.hessian(q, None), work.load_direction()[..., None])[..., 0]
+        tangent = -load * slope
+        if len(path) < 2:
+            return q + tangent
+        previous_load, previous = path[-2]
+        chord = (q - previous) * (load / (previous_load - load))
+        turn_tangent = np.einsum("bn,bn->b", self.carrier_row[angle], tangent)
+        turn_chord = np.einsum("bn,bn->b", self.carrier_row[angle], chord)
+        agree = np.abs(turn_tangent) <= TANGENT_AGREEMENT * np.abs(turn_chord) + 1e-13
+        return q + np.where(agree[:, None], tangent, chord)
 
     def _elastic(self, angle, f, pin_b, brg_off, c_half, direction, count, q0=None, f_errors=None,
                  bearing_direction=None):

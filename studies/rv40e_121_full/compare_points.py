@@ -10,6 +10,8 @@ te_pp itself moves.  Stored runs are reused (the study's own from the first
 rows of its N = 1024 run).
 
     python studies/rv40e_121_full/compare_points.py [--n-no-load 16] [--n-rated 32] [--processes 2]
+
+(n = 0 leaves that file out.)
 """
 
 import argparse
@@ -105,8 +107,9 @@ def main(argv=None) -> int:
     parser.add_argument("--n-rated", type=int, default=32)
     parser.add_argument("--processes", type=int, default=2)
     args = parser.parse_args(argv)
-    print(compare(STUDIES / "rv40e_121_full.toml", args.n_no_load, args.processes))
-    print(compare(STUDIES / "rv40e_121_full_rated.toml", args.n_rated, args.processes))
+    for name, n in (("rv40e_121_full.toml", args.n_no_load), ("rv40e_121_full_rated.toml", args.n_rated)):
+        if n > 0:   # 0 leaves that file out
+            print(compare(STUDIES / name, n, args.processes))
     return 0
 
 
