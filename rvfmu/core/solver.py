@@ -214,13 +214,9 @@ class ReducedSystem:
                         group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
                         bearing_direction if q_start is None else None, q_start)
                     iterations += its
-                    # At the last two probe loads the weak springs let go of the floating
-                    # parts: re-centred on the solution, they no longer pull it anywhere.
-                    release = RELEASE_ROUNDS if self.nl_bearings.size and k >= len(steps) - 2 else 0
-                    for _ in range(release):
-                        q_start, conv, its = self._solve_group(
-                            group, angle, f0, pin_b, brg_off, c_half, loads, None, None, q_start,
-                            centre=q_start)
+                    if self.nl_bearings.size and k >= len(steps) - 2:
+                        q_start, conv, its = self._release(group, angle, f0, pin_b, brg_off, c_half,
+                                                           loads, q_start)
                         iterations += its
                     path.append((probe * scale, q_start))
                 a = angle[group]
@@ -232,14 +228,11 @@ class ReducedSystem:
                     None)
                 iterations += its
                 # Small loads feel the weak springs too: released the same way.
-                light = group[np.abs(loads) <= RELEASE_BELOW * abs(probe)] if self.nl_bearings.size \
-                    else group[:0]
-                for _ in range(RELEASE_ROUNDS if light.size else 0):
-                    q_light, conv_light, its = self._solve_group(
-                        light, angle, f0, pin_b, brg_off, c_half, tau[light], None, None, qn[light],
-                        centre=qn[light])
-                    qn[light] = q_light
-                    conv[np.isin(group, light)] = conv_light
+                light = np.abs(loads) <= RELEASE_BELOW * abs(probe)
+                if self.nl_bearings.size and np.any(light):
+                    some = group[light]
+                    qn[some], conv[light], its = self._release(some, angle, f0, pin_b, brg_off, c_half,
+                                                               loads[light], qn[some])
                     iterations += its
             converged[group] = conv
         q = np.empty((B, model.n_dof))
@@ -263,6 +256,17 @@ class ReducedSystem:
         toward = None if bearing_direction is None else bearing_direction[group]
         return self._elastic(a, f, pin_b[group], brg_off[group], c_half[group], direction, count, q0,
                              f_errors=f0[group], bearing_direction=toward)
+
+    def _release(self, group, angle, f0, pin_b, brg_off, c_half, loads, q):
+        """The weak springs let go of the floating parts: RELEASE_ROUNDS solves of the pairs
+        `group` under `loads`, each from the last with the springs centred on it (at
+        convergence they pull on nothing).  Returns (q_N, converged, iterations)."""
+        iterations = 0
+        for _ in range(RELEASE_ROUNDS):
+            q, converged, its = self._solve_group(group, angle, f0, pin_b, brg_off, c_half, loads,
+                                                  None, None, q, centre=q)
+            iterations += its
+        return q, converged, iterations
 
     def _to_zero_load(self, angle, f0, pin_b, brg_off, c_half, path):
         """From the smallest probe load back to zero: q_N (B, nN).
