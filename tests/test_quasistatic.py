@@ -6,7 +6,7 @@ import pytest
 from conftest import ROOT, hand_pin_geometry, unit
 from rvfmu.core.design import PRESET_NAMES, preset
 from rvfmu.core.equivalent import EquivalentModel
-from rvfmu.core.errors import stack, zero_errors
+from rvfmu.core.errors import load_errors, stack, zero_errors
 from rvfmu.core.profile import disc_profile
 from rvfmu.core.quasistatic import (NO_LOAD_PROBE, default_points, equilibria, equilibrium_te,
                                     input_angles, te_curve, windup)
@@ -153,6 +153,26 @@ def test_agrees_with_a_straightforward_scipy_solve(rv40, seed002, tau_fraction, 
     slow = te_reference(design, errors, theta_in, tau)
     assert ok.all()
     np.testing.assert_allclose(fast[0, 0] / ARCSEC, slow / ARCSEC, atol=0.01)
+
+
+@pytest.mark.parametrize("name", PRESET_NAMES)
+def test_reference_models_the_output_compliance_of_every_calibrated_preset(name):
+    """The calibrated presets carry a series compliance at the output; the reference holds
+    it as a torsional spring to an output flange of its own, the solver adds its windup."""
+    design = preset(name)
+    assert design.output_compliance > 0.0
+    errors = load_errors(ROOT / "studies" / "seed002_errors.toml", design) \
+        if name == "RV-40E-121" else zero_errors(design)
+    theta_in = input_angles(design, 4) + 0.2
+    tau = -design.rated_torque
+    fast, _, ok = equilibrium_te(design, errors, theta_in, [tau])
+    slow = te_reference(design, errors, theta_in, tau)
+    assert ok.all()
+    np.testing.assert_allclose(fast[0, 0] / ARCSEC, slow / ARCSEC, atol=0.01)
+    # without the compliance the two differ by its windup: the reference does not ignore it
+    bare = te_reference(design.with_fields(output_compliance=0.0), errors, theta_in, tau)
+    np.testing.assert_allclose((slow - bare) / ARCSEC, design.output_compliance * tau / ARCSEC,
+                               atol=0.01)
 
 
 def test_default_points_resolve_the_pin_passing_order(rv40):

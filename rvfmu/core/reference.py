@@ -5,6 +5,12 @@ write down its energy over all unknowns and hand it to a general-purpose
 minimiser.  It shares the element Jacobians with the fast solver but none of
 its tricks (no condensation, no active sets, no first-contact kinematics), so
 the tests use it as an independent check and the benchmark as its baseline.
+
+Every element the solver has is here: the meshes, the sun support, the bearings
+with their clearances, the pins, and the torsional compliance in series with the
+output (`output_compliance`), which the solver adds to the carrier's rotation
+afterwards and which this solve carries as one more unknown, the output flange's
+rotation, joined to the carrier by a torsional spring and loaded by tau_load.
 """
 
 from __future__ import annotations
@@ -22,7 +28,13 @@ SCALE = 1e-6  # the optimiser works in micrometres
 
 def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int, angle: int,
                           tau_load: float) -> np.ndarray:
-    """Unknowns q (n,) at one (reducer, angle) under tau_load [N*m], by L-BFGS-B."""
+    """Unknowns q (n + 1,) at one (reducer, angle) under tau_load [N*m], by L-BFGS-B.
+
+    The last unknown is the output flange's rotation (arc length at R_p, as the
+    carrier's): tau_load acts on it, and a torsional spring of stiffness
+    1 / output_compliance joins it to the carrier (with no compliance, the flange
+    is the carrier: the last unknown repeats the carrier's rotation).
+    """
     lin_b, brg_b, pin_b = model.offsets(errors, np.array([sample]), np.array([angle]))
     lin_rows, lin_k = model.linear_rows[angle], model.linear_k
     brg_rows, brg_k = model.bearing_rows[angle], model.bearing_k
@@ -31,9 +43,24 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
     c_half = model.clearance_halves(errors)[sample]
     g = model.load_vector() * tau_load
     reg = 1e-8 * pin_k
+    compliance = model.design.output_compliance
+    # Torsional spring N*m/rad between carrier and flange, on arc-length unknowns: k / R_p^2.
+    flange_k = 0.0 if compliance == 0.0 else 1.0 / compliance / model.scale ** 2
+    c = model.carrier_rot
 
     def energy(x):
-        q = x * SCALE
+        if flange_k:
+            # The load acts on the flange, which the spring joins to the carrier.
+            q, flange = x[:-1] * SCALE, x[-1] * SCALE
+            twist = flange - q[c]
+            e_flange = 0.5 * flange_k * twist * twist - g[c] * flange
+            e, grad = _element_energy(q, np.zeros_like(g))
+            grad[c] -= flange_k * twist
+            return e + e_flange, np.append(grad, flange_k * twist - g[c]) * SCALE
+        e, grad = _element_energy(x * SCALE, g)
+        return e, grad * SCALE
+
+    def _element_energy(q, g):
         lin = lin_rows @ q + lin_b[0]
         e = 0.5 * np.sum(lin_k * lin * lin)
         grad = lin_rows.T @ (lin_k * lin)
@@ -49,31 +76,34 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
         np.add.at(grad, dofs, pin_gen)
         e += 0.5 * reg * q @ q - g @ q
         grad += reg * q - g
-        return e, grad * SCALE
+        return e, grad
 
-    x0 = np.zeros(model.n_dof)
+    x0 = np.zeros(model.n_dof + (1 if flange_k else 0))
     result = minimize(energy, x0, jac=True, method="L-BFGS-B",
                       options={"maxiter": 20000, "maxcor": 30, "ftol": 1e-16, "gtol": 1e-14})
-    return result.x * SCALE
+    q = result.x * SCALE
+    return q if flange_k else np.append(q, q[c])
 
 
 def te_reference(design: RVDesign, errors: ErrorSet, theta_in, tau_load: float,
                  sample: int = 0) -> np.ndarray:
-    """TE [rad] at each input angle, one scipy solve per angle.
+    """TE [rad] of the output flange at each input angle, one scipy solve per angle.
 
     Zero load: two probe loads and a straight line back to zero (the no-load limit).
     """
     theta_in = np.atleast_1d(theta_in)
     model = EquivalentModel(design, theta_in, flank=1 if tau_load <= 0 else -1)
     te = np.empty(theta_in.size)
-    probe = NO_LOAD_PROBE * 10 * design.rated_torque
+    # The probe of the solver's no-load solves: a larger one bends the straight line back to
+    # zero where a contact changes between the two probe loads (0.03 arcsec at 10x, seed 002).
+    probe = NO_LOAD_PROBE * design.rated_torque
     for a in range(theta_in.size):
         if tau_load == 0.0:
-            one = equilibrium_reference(model, errors, sample, a, -probe)[model.carrier_rot]
-            two = equilibrium_reference(model, errors, sample, a, -2 * probe)[model.carrier_rot]
+            one = equilibrium_reference(model, errors, sample, a, -probe)[-1]
+            two = equilibrium_reference(model, errors, sample, a, -2 * probe)[-1]
             te[a] = (2.0 * one - two) / model.scale
         else:
-            te[a] = equilibrium_reference(model, errors, sample, a, tau_load)[model.carrier_rot] / model.scale
+            te[a] = equilibrium_reference(model, errors, sample, a, tau_load)[-1] / model.scale
     return te
 
 
