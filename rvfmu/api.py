@@ -21,6 +21,7 @@ from .core.design import PRESET_NAMES, RVDesign, in_file_units, load_design, pre
 from .core.errors import ErrorSet, load_errors, zero_errors
 from .core.quasistatic import TECurve, Windup, default_points, te_curve, windup
 from .outputs import figure_file, output_file
+from .budget import StiffnessReport, stiffness  # noqa: F401  (the job of `rvte stiffness`)
 from .progress import counter as progress_counter
 
 HARMONICS_SHOWN = 5

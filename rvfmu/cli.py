@@ -76,6 +76,11 @@ def _modes(args):
     _show(report, args.json, (("plot", args.plot),))
 
 
+def _stiffness(args):
+    report = api.stiffness(args.design, args.errors, load=args.load, plot_path=args.plot)
+    _show(report, args.json, (("plot", args.plot),))
+
+
 def _errors(args):
     text = api.errors_template(args.template, args.output)
     if args.output:
@@ -193,6 +198,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", help="write a Campbell diagram (0 to 1.25 x the speed)")
     p.add_argument("--json", action="store_true", help="print the modes as JSON")
     p.set_defaults(run=_modes)
+
+    p = sub.add_parser("stiffness", help="torsional rigidity, lost motion and the compliance "
+                       "budget: every elastic element's share of the windup")
+    p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
+    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um "
+                   "and deg (`rvte errors --template DESIGN` writes one to fill)")
+    p.add_argument("--load", type=float, default=None, help="torque [N*m] whose 50-100 %% span the "
+                   "budget covers, in both senses (default: the rated torque, the catalogue's range)")
+    p.add_argument("--plot", help="write a figure of the shares and the windup curve")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.set_defaults(run=_stiffness)
 
     p = sub.add_parser("measure", help="TE from a bench's input and output encoder angles, "
                        "the bench's runout removed")

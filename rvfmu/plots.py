@@ -168,7 +168,46 @@ def plot_catalogue(rows, path: str | Path) -> Path:
     return path
 
 
-__all__ = ["figure_te", "marker_orders", "plot_te", "plot_windup", "plot_catalogue", "rad_to_arcsec"]
+def plot_budget(report, path: str | Path) -> Path:
+    """The compliance budget (`rvfmu.budget.StiffnessReport`): each element's share of the
+    windup as bars (left) and the windup curve, input locked, at each position and their
+    mean, with the torsional rigidity's slope between 50 % and 100 % rated (right)."""
+    plt = _pyplot()
+    budget, wind = report.budget, report.windup
+    fig, (bars, curve) = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True,
+                                      gridspec_kw={"width_ratios": [1, 1.2]})
+    elements = sorted(budget.elements, key=lambda e: e.share)
+    shares = [100 * e.share for e in elements]
+    bars.barh([f"{e.name} (×{e.count})" for e in elements], shares, color="tab:blue")
+    for y, share in enumerate(shares):
+        bars.text(share, y, f" {share:.1f} %", va="center", fontsize=8)
+    bars.set_xlim(0, max(shares) * 1.2 + 1)
+    bars.set_xlabel(f"share of the windup, {budget.torque_low:g} to {budget.torque_high:g} N·m [%]")
+    bars.set_title(f"{budget.design.name}: compliance budget")
+    bars.grid(axis="x", alpha=0.3)
+    mean = wind.windup[0].mean(axis=-1) / ARCMIN
+    for p in range(wind.theta_in.size):
+        curve.plot(wind.tau_load, wind.windup[0, :, p] / ARCMIN, "-", color="0.7", lw=0.6)
+    curve.plot(wind.tau_load, mean, "o-", ms=3, color="tab:blue", label="mean over the positions")
+    rated = wind.design.rated_torque
+    k = report.torsional_rigidity_Nm_per_arcmin
+    half = int(np.argmin(np.abs(wind.tau_load - 0.5 * rated)))
+    torque = np.array([0.5, 1.0]) * rated
+    curve.plot(torque, mean[half] + (torque - 0.5 * rated) / k, "k:", lw=2,
+               label=f"torsional rigidity {k:.1f} N·m/arcmin")
+    curve.set_xlabel("output torque τ_load [N·m]")
+    curve.set_ylabel("output windup [arcmin]")
+    curve.set_title(f"windup, input locked; lost motion {report.lost_motion_arcmin:.3f} arcmin")
+    curve.grid(alpha=0.3)
+    curve.legend(fontsize=8, loc="upper left")
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+__all__ = ["figure_te", "marker_orders", "plot_te", "plot_windup", "plot_catalogue", "plot_budget",
+           "rad_to_arcsec"]
 
 
 def plot_simulation(sim, path: str | Path) -> Path:

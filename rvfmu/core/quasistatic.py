@@ -40,6 +40,7 @@ NO_LOAD_PROBE = 1e-4
 POINTS_PER_PIN_PASS = 8  # default sampling: 8 points per pin-passing period (order z_p*z_c)
 LOST_MOTION_FRACTION = 0.03                      # catalogue: windup span at +-3 % rated torque
 RIGIDITY_FRACTIONS = (0.5, 1.0)                  # catalogue: slope between 50 % and 100 %
+WINDUP_POSITIONS = 8                             # locked input positions of the windup test
 
 
 def default_points(design: RVDesign) -> int:
@@ -222,15 +223,20 @@ def catalogue_torques(design: RVDesign) -> np.ndarray:
     return fractions * design.rated_torque
 
 
+def windup_positions(design: RVDesign, positions: int) -> np.ndarray:
+    """(positions,) locked input angles of the windup test over one output revolution [rad],
+    offset by half a pin pitch of the output so that they do not all sit on a pin."""
+    return input_angles(design, positions) + np.pi * design.ratio / (design.z_p * positions)
+
+
 def windup(design: RVDesign, errors: ErrorSet | None = None, tau_load=None,
-           positions: int = 8) -> Windup:
+           positions: int = WINDUP_POSITIONS) -> Windup:
     """Windup curves with the input locked at `positions` angles over one output revolution."""
     errors = _checked_errors(design, errors)
     positions = integer("positions", positions, 1)
     tau_load = catalogue_torques(design) if tau_load is None else np.asarray(tau_load, dtype=float)
     if np.any(tau_load == 0.0):
         raise InputError("tau_load", 0.0, "windup needs nonzero torques (the curve has a jump at 0)")
-    # Offset by half a pin pitch of the output so that positions do not all sit on a pin.
-    theta_in = input_angles(design, positions) + np.pi * design.ratio / (design.z_p * positions)
+    theta_in = windup_positions(design, positions)
     te, _, ok = equilibrium_te(design, errors, theta_in, tau_load)
     return Windup(design, tau_load, theta_in, te, ok.all(axis=(1, 2)))

@@ -1,0 +1,85 @@
+"""`rvte stiffness`: the torsional rigidity and lost motion of a reducer with its compliance budget.
+
+The job over `rvfmu.core.budget`: the catalogue figures from the windup test
+(`quasistatic.windup`), every elastic element of the model with its stiffness,
+count and share of the windup between 50 % and 100 % of the rated torque (or of
+`load`), a table for people, JSON for scripts and a figure.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from .core.budget import ComplianceBudget, compliance_budget
+from .core.quasistatic import Windup, windup
+from .outputs import figure_file
+
+
+@dataclass(frozen=True)
+class StiffnessReport:
+    """Catalogue rigidity and lost motion of one reducer, and its compliance budget."""
+
+    budget: ComplianceBudget
+    windup: Windup
+    torsional_rigidity_Nm_per_arcmin: float
+    lost_motion_arcmin: float
+
+    def summary(self) -> str:
+        b, d = self.budget, self.budget.design
+        lines = [
+            f"design             {d.name} (ratio {d.ratio:g}, rated torque {d.rated_torque:g} N*m)",
+            f"torsional rigidity {self.torsional_rigidity_Nm_per_arcmin:.1f} N*m/arcmin "
+            "(50-100 % rated torque, both senses, input locked)",
+            f"lost motion        {self.lost_motion_arcmin:.3f} arcmin (windup span at +-3 % rated)",
+            f"compliance budget  shares of the windup between {b.torque_low:g} and "
+            f"{b.torque_high:g} N*m (element strain energy / output work; "
+            f"{b.torsional_rigidity_Nm_per_arcmin:.1f} N*m/arcmin there)",
+            f"  {'element':<28} {'count':>5} {'stiffness each':>16}  {'share':>6}",
+        ]
+        for e in sorted(b.elements, key=lambda e: -e.share):
+            k = "rigid" if math.isinf(e.stiffness) else f"{e.stiffness:.4g} {e.unit}"
+            lines.append(f"  {e.name:<28} {e.count:>5} {k:>16}  {100 * e.share:>5.1f} %")
+        lines.append(f"  {'sum':<28} {'':>5} {'':>16}  {100 * b.share_sum:>5.1f} %")
+        if not b.converged or not self.windup.converged.all():
+            lines.append("warning            the equilibrium did not converge at some positions")
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        b = self.budget
+        return {
+            "design": b.design.name,
+            "torsional_rigidity_Nm_per_arcmin": self.torsional_rigidity_Nm_per_arcmin,
+            "lost_motion_arcmin": self.lost_motion_arcmin,
+            "budget_torque_Nm": [b.torque_low, b.torque_high],
+            "elements": [{"name": e.name, "count": e.count,
+                          "stiffness": None if math.isinf(e.stiffness) else e.stiffness,
+                          "unit": e.unit, "share": e.share} for e in b.elements],
+            "converged": bool(b.converged and self.windup.converged.all()),
+        }
+
+
+def stiffness(design, errors=None, load: float | None = None,
+              plot_path: str | Path | None = None) -> StiffnessReport:
+    """Torsional rigidity, lost motion and the compliance budget of one reducer.
+
+    design: preset name, design file or RVDesign; errors: error file or ErrorSet (default
+    none); load [N*m]: the budget spans 50 % to 100 % of it (default the rated torque,
+    the catalogue's range); plot_path: a figure of the shares and the windup curve
+    (checked before any work).
+    """
+    from .api import resolve_design, resolve_errors
+
+    plot_path = None if plot_path is None else figure_file("plot", plot_path)
+    design = resolve_design(design)
+    errors = resolve_errors(design, errors)
+    budget = compliance_budget(design, errors, torque=load)
+    wind = windup(design, errors)
+    report = StiffnessReport(budget, wind, float(wind.torsional_rigidity_Nm_per_arcmin()[0]),
+                             float(wind.lost_motion_arcmin()[0]))
+    if plot_path is not None:
+        from .plots import plot_budget
+
+        plot_budget(report, plot_path)
+    return report

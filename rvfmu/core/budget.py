@@ -1,0 +1,177 @@
+"""The compliance budget: which elastic element gives how much of the torsional windup.
+
+The engineering question: a catalogue test winds the output up with the input
+locked and reads the torsional rigidity from the slope between 50 % and 100 %
+of rated torque (docs/model.md section 5).  Which parts of the reducer make
+that windup, and by how much?  A stiffer needle bearing is worth buying only
+if the needle bearings carry a real share of it.
+
+The answer comes from energy, not from stiffening one element at a time (which
+moves the load onto the others and so answers another question).  At
+equilibrium the elements' strain energy U and the output torque's work agree
+at every torque: dU = tau dtheta (the envelope theorem applied to the
+potential U - tau theta, whose minimum over the unknowns is the equilibrium).
+Between two torques, then, the increase of each element's strain energy over
+the work of the output torque is that element's share of the windup, the
+shares add up to one, and for linear elements a share is exactly the fraction
+of the incremental compliance that the element contributes.  The work is
+integrated along the loading path on LEVELS torques (trapezoidal rule, exact
+while no contact changes between two levels); the energies are those of the
+solver's own energy (`solver.py`), term by term, but for the weak springs that
+keep floating parts determinate (under 1e-6 of the work).
+
+Positions and senses follow the catalogue test of `quasistatic.windup`: the
+input locked at `positions` angles over one output revolution, the output
+loaded in both senses; each element's energy increase and the work are
+summed over all of them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .checks import InputError, finite_number, integer
+from .design import RVDesign
+from .equivalent import EquivalentModel
+from .errors import ErrorSet
+from .limits import check_load
+from .newton import pin_delta
+from .quasistatic import (NO_LOAD_PROBE, RIGIDITY_FRACTIONS, WINDUP_POSITIONS, _checked_errors,
+                          windup_positions)
+from .solver import solve_pairs
+from .units import ARCMIN
+
+# Torques from 50 % to 100 %: the trapezoidal work is then within 3e-8 of the energy where no
+# part floats; where parts float in bearing clearances, the solver's weak springs (solver.
+# REGULARISATION) hold another 8e-7 of it, which no element of the table owns.
+LEVELS = 321
+
+
+@dataclass(frozen=True)
+class Element:
+    """One kind of elastic element: `count` alike in the reducer, each of `stiffness`
+    [`unit`]; `share` of the windup between the budget's two torques (shares add up to 1)."""
+
+    name: str
+    count: int
+    stiffness: float
+    unit: str
+    share: float
+
+
+@dataclass(frozen=True)
+class ComplianceBudget:
+    """Shares of the output windup between torque_low and torque_high [N*m], one reducer.
+
+    elements: the model's elastic elements, each with its share; energy: (E,) increase of
+    each element's strain energy [J] and work: the output torque's work over the same
+    loading [J], both summed over the positions and both senses; windup_low, windup_high:
+    (2, P) output rotation [rad] at the two torques, resisting (row 0, negative torque)
+    and driving (row 1) loads, at each position.
+    """
+
+    design: RVDesign
+    torque_low: float
+    torque_high: float
+    elements: tuple[Element, ...]
+    energy: np.ndarray
+    work: float
+    windup_low: np.ndarray
+    windup_high: np.ndarray
+    converged: bool
+
+    @property
+    def share_sum(self) -> float:
+        """Sum of the element energies over the work: 1 but for the integration error."""
+        return float(self.energy.sum() / self.work)
+
+    @property
+    def torsional_rigidity_Nm_per_arcmin(self) -> float:
+        """Torque over windup slope between the two torques, mean over positions and
+        senses (the catalogue definition, `quasistatic.Windup`) [N*m/arcmin]."""
+        span = self.torque_high - self.torque_low
+        slope = np.abs(self.windup_high - self.windup_low).mean(axis=-1) / span  # (2,) rad/N*m
+        return float(1.0 / (0.5 * slope.sum() / ARCMIN))
+
+
+def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q) -> dict:
+    """Strain energy [J] of each kind of element at the equilibria q (B, n) of the pairs
+    (sample[b], angle[b]): {element name: (B,)}, the terms of the solver's energy."""
+    d = model.design
+    n_c = d.n_c
+    lin_b, brg_b, pin_b = model.offsets(errors, sample, angle)
+    lin = np.einsum("bmn,bn->bm", model.linear_rows[angle], q) + lin_b
+    lin_energy = 0.5 * model.linear_k * lin * lin                                  # (B, m)
+    brg = np.einsum("bpxn,bn->bpx", model.bearing_rows[angle], q) + brg_b
+    over = np.maximum(np.linalg.norm(brg, axis=-1) - model.clearance_halves(errors)[sample], 0.0)
+    brg_energy = 0.5 * model.bearing_k * over * over                               # (B, nb)
+    delta = np.maximum(pin_delta(model.pin_rows[angle], q[:, model.pin_dofs], pin_b), 0.0)
+    return {
+        "pin-disc contacts": 0.5 * model.pin_k * (delta * delta).sum(axis=(1, 2)),
+        "sun-planet meshes": lin_energy[:, :n_c].sum(axis=1),
+        "sun support": lin_energy[:, n_c:].sum(axis=1),
+        "crank-carrier bearings": brg_energy[:, :n_c].sum(axis=1),
+        "crank-disc needle bearings": brg_energy[:, n_c:3 * n_c].sum(axis=1),
+        "main bearing": brg_energy[:, -1],
+    }
+
+
+def _elements(design: RVDesign, shares: dict) -> tuple[Element, ...]:
+    """The element table: name, count, stiffness and unit of each kind, with its share."""
+    d = design
+    output = np.inf if d.output_compliance == 0.0 else ARCMIN / d.output_compliance
+    table = (("pin-disc contacts", 2 * d.z_p, d.pin_disc_stiffness, "N/m"),
+             ("sun-planet meshes", d.n_c, d.mesh_stiffness, "N/m"),
+             ("sun support", 1, d.sun_support_stiffness, "N/m"),
+             ("crank-carrier bearings", d.n_c, d.crank_carrier_bearing_stiffness, "N/m"),
+             ("crank-disc needle bearings", 2 * d.n_c, d.crank_disc_bearing_stiffness, "N/m"),
+             ("main bearing", 1, d.main_bearing_stiffness, "N/m"),
+             ("output series compliance", 1, output, "N*m/arcmin"))
+    return tuple(Element(name, count, float(k), unit, float(shares[name]))
+                 for name, count, k, unit in table)
+
+
+def compliance_budget(design: RVDesign, errors: ErrorSet | None = None, torque: float | None = None,
+                      positions: int = WINDUP_POSITIONS, levels: int = LEVELS,
+                      sample: int = 0) -> ComplianceBudget:
+    """Each element's share of the windup between 50 % and 100 % of `torque` [N*m]
+    (default: the rated torque, the catalogue's range) for reducer `sample` of `errors`.
+
+    The output torque resists (negative tau_load) and drives (positive) in turn, at
+    `positions` locked input angles; `levels` torques span each range.
+    """
+    errors = _checked_errors(design, errors)
+    torque = design.rated_torque if torque is None else finite_number("load", torque)
+    if torque <= 0.0:
+        raise InputError("load", torque, "must be a positive torque [N*m]: the budget spans "
+                         "50 % to 100 % of it, in both senses")
+    check_load("load", torque, design.rated_torque)
+    positions = integer("positions", positions, 1)
+    levels = integer("levels", levels, 2)
+    sample = integer("sample", sample, 0, errors.samples - 1)
+    low, high = (f * torque for f in RIGIDITY_FRACTIONS)
+    magnitudes = np.linspace(low, high, levels)
+    theta_in = windup_positions(design, positions)
+    names, energy, work, ends, converged = [], None, 0.0, [], True
+    for sense, flank in ((-1.0, 1), (1.0, -1)):
+        tau = sense * magnitudes
+        model = EquivalentModel(design, theta_in, flank=flank)
+        t, a = (g.ravel() for g in np.meshgrid(np.arange(levels), np.arange(positions), indexing="ij"))
+        s = np.full(t.size, sample)
+        eq = solve_pairs(model, errors, s, a, tau[t], no_load_probe=NO_LOAD_PROBE * design.rated_torque)
+        converged &= bool(eq.converged.all())
+        parts = element_energies(model, errors, s, a, eq.q)
+        parts["output series compliance"] = 0.5 * design.output_compliance * tau[t] ** 2
+        names = list(parts)
+        increase = np.array([(p.reshape(levels, positions)[-1] - p.reshape(levels, positions)[0]).sum()
+                             for p in parts.values()])
+        energy = increase if energy is None else energy + increase
+        theta = (eq.q[:, model.carrier_rot] / model.scale
+                 + design.output_compliance * tau[t]).reshape(levels, positions)
+        work += float(np.sum(0.5 * (tau[1:] + tau[:-1])[:, None] * np.diff(theta, axis=0)))
+        ends.append((theta[0], theta[-1]))
+    shares = dict(zip(names, energy / work))
+    return ComplianceBudget(design, low, high, _elements(design, shares), energy, work,
+                            np.array([e[0] for e in ends]), np.array([e[1] for e in ends]), converged)

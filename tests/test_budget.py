@@ -1,0 +1,109 @@
+"""The compliance budget (`rvte stiffness`): shares from energy, against the work and the windup."""
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from rvfmu import api
+from rvfmu.core.budget import compliance_budget
+from rvfmu.core.checks import InputError
+from rvfmu.core.design import preset
+from rvfmu.core.quasistatic import windup
+from rvfmu.core.units import ARCMIN, UM
+from test_cli import rvte
+
+
+def test_shares_add_up_to_the_work_of_the_output_torque(rv40, seed002):
+    """Element energies over the output torque's work, integrated independently along the
+    loading path: they add up to one (dU = tau dtheta at equilibrium)."""
+    budget = compliance_budget(rv40, seed002)
+    assert budget.converged
+    assert abs(budget.share_sum - 1.0) < 1e-6
+    assert sum(e.share for e in budget.elements) == pytest.approx(budget.share_sum, abs=1e-12)
+    assert all(e.share >= 0.0 for e in budget.elements)
+
+
+def test_shares_add_up_with_bearing_clearances(rv40, seed002):
+    errors = seed002.replace(crank_disc_clearance=np.array([6.0 * UM]),
+                             crank_carrier_clearance=np.array([4.0 * UM]),
+                             main_bearing_clearance=np.array([10.0 * UM]))
+    budget = compliance_budget(rv40, errors)
+    assert budget.converged
+    assert abs(budget.share_sum - 1.0) < 1e-6
+
+
+@pytest.mark.parametrize("name", ["RV-40E-121", "RV-20E"])
+def test_rigidity_of_the_budget_is_the_windup_tests(name):
+    design = preset(name)
+    budget = compliance_budget(design)
+    catalogue = windup(design).torsional_rigidity_Nm_per_arcmin()[0]
+    assert budget.torsional_rigidity_Nm_per_arcmin == pytest.approx(catalogue, rel=1e-9)
+
+
+def test_series_compliance_share_is_its_part_of_the_compliance():
+    """A spring in series with the output carries the whole torque: its share is its
+    compliance over the reducer's, c * k (closed form for two springs in series)."""
+    design = preset("RV-40E-121")
+    budget = compliance_budget(design)
+    shares = {e.name: e.share for e in budget.elements}
+    compliance_arcmin = design.output_compliance / ARCMIN
+    expected = compliance_arcmin * budget.torsional_rigidity_Nm_per_arcmin
+    assert 0.5 < expected < 0.9
+    assert shares["output series compliance"] == pytest.approx(expected, rel=2e-3)
+
+
+def test_without_series_compliance_its_share_is_zero_and_the_rest_adds_up(rv40):
+    budget = compliance_budget(rv40)
+    by_name = {e.name: e for e in budget.elements}
+    assert by_name["output series compliance"].share == 0.0
+    assert np.isinf(by_name["output series compliance"].stiffness)
+    # the crank-disc path and the pins carry nearly all of it; the stage 1 almost nothing
+    assert by_name["crank-disc needle bearings"].share + by_name["pin-disc contacts"].share > 0.85
+    assert by_name["sun-planet meshes"].share < 0.02
+
+
+def test_four_times_stiffer_needle_bearings_take_a_quarter_of_their_compliance(rv40):
+    """Springs in series: an element of share s made 4x stiffer keeps (s/4) / (s/4 + 1 - s)
+    of the new compliance, while the load path stays the same (it nearly does here)."""
+    base = {e.name: e.share for e in compliance_budget(rv40).elements}
+    stiff = rv40.with_fields(crank_disc_bearing_stiffness=4.0 * rv40.crank_disc_bearing_stiffness)
+    after = {e.name: e.share for e in compliance_budget(stiff).elements}
+    s = base["crank-disc needle bearings"]
+    assert after["crank-disc needle bearings"] == pytest.approx((s / 4) / (s / 4 + 1 - s), rel=0.02)
+    assert after["pin-disc contacts"] > base["pin-disc contacts"]
+
+
+def test_budget_refuses_a_bad_load_or_sample(rv40):
+    with pytest.raises(InputError, match="load"):
+        compliance_budget(rv40, torque=-10.0)
+    with pytest.raises(InputError, match="load"):
+        compliance_budget(rv40, torque=10.0 * rv40.rated_torque)
+    with pytest.raises(InputError, match="sample"):
+        compliance_budget(rv40, sample=3)
+
+
+def test_stiffness_job_json_and_plot(tmp_path):
+    plot = tmp_path / "budget.png"
+    proc = rvte("stiffness", "RV-40E-121", "--errors", ROOT / "studies" / "seed002_errors.toml",
+                "--json", "--plot", plot)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert {"torsional_rigidity_Nm_per_arcmin", "lost_motion_arcmin", "elements"} <= set(data)
+    assert sum(e["share"] for e in data["elements"]) == pytest.approx(1.0, abs=1e-6)
+    for element in data["elements"]:
+        assert set(element) == {"name", "count", "stiffness", "unit", "share"}
+    report = api.stiffness("RV-40E-121", ROOT / "studies" / "seed002_errors.toml")
+    assert data["torsional_rigidity_Nm_per_arcmin"] == pytest.approx(
+        report.torsional_rigidity_Nm_per_arcmin, rel=1e-12)
+    assert plot.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_stiffness_command_checks_its_inputs_first(tmp_path):
+    proc = rvte("stiffness", "RV-40E-121", "--plot", tmp_path / "missing" / "b.png")
+    assert proc.returncode == 2 and "plot" in proc.stderr and "does not exist" in proc.stderr
+    proc = rvte("stiffness", "RV-40E-121", "--load", "0")
+    assert proc.returncode == 2 and "load = 0" in proc.stderr
+    proc = rvte("stiffness", "RV-40E-121")
+    assert proc.returncode == 0 and "compliance budget" in proc.stdout and "sum" in proc.stdout
