@@ -1,0 +1,101 @@
+"""Element laws from geometry (rvfmu/core/compliance.py), each against a closed form."""
+
+import math
+
+import numpy as np
+import pytest
+
+from rvfmu.core import compliance as c
+from rvfmu.core.stiffness import hertz_line_contact_approach, simply_supported_beam_stiffness
+
+E, NU = 211e9, 0.29
+
+
+@pytest.mark.parametrize("load", [200.0, 1000.0, 4000.0])
+def test_palmgren_agrees_with_the_hertz_line_contact(load):
+    """A 3 mm needle on an 18 mm cam, 8 mm long: Palmgren's power law against Radzimovsky's
+    closed form of the Hertz line contact, one contact, within 5 %."""
+    palmgren = c.palmgren_roller_approach(load, 8e-3, contacts=1)
+    hertz = hertz_line_contact_approach(load, 8e-3, 1.5e-3, 9e-3, E, NU)
+    assert palmgren == pytest.approx(hertz, rel=0.05)
+
+
+def test_palmgren_worked_example():
+    """Harris & Kotzalas's form by hand: 1000 N on a 10 mm roller, one contact,
+    3.84e-5 * 1000^0.9 / 10^0.8 mm = 3.84e-5 * 501.19 / 6.3096 = 3.050 um; two contacts twice."""
+    assert c.palmgren_roller_approach(1000.0, 10e-3, contacts=1) == pytest.approx(3.050e-6, rel=1e-3)
+    assert c.palmgren_roller_approach(1000.0, 10e-3) == pytest.approx(6.100e-6, rel=1e-3)
+    # the load constant inverts it
+    k = c.roller_load_constant(10e-3)
+    assert k * c.palmgren_roller_approach(1000.0, 10e-3) ** c.LINE_EXPONENT == pytest.approx(1000.0)
+
+
+def test_stribeck_constant_of_a_line_contact_bearing_without_clearance():
+    """Zero clearance: the most loaded roller carries 4.08 F / Z (Stribeck, line contact;
+    Harris & Kotzalas's J_r(0.5) = 0.2453 for a finite roller count)."""
+    for rollers, force in ((12, 1000.0), (20, 5000.0)):
+        q_max = c.most_loaded_roller(force, rollers, 8e-3)
+        assert q_max * rollers / force == pytest.approx(4.08, abs=0.01)
+
+
+def test_loaded_arc_integral_of_a_linear_law_has_its_closed_form():
+    """With exponent 1: the integral of (d cos psi - c) cos psi over |psi| < psi_l is
+    d (psi_l + sin psi_l cos psi_l) - 2 c sin psi_l."""
+    for d, half in ((1.0, 0.0), (2.0, 0.7), (5.0, 4.9)):
+        limit = math.acos(half / d)
+        exact = d * (limit + math.sin(limit) * math.cos(limit)) - 2.0 * half * math.sin(limit)
+        force, _ = c._loaded_arc_integrals(d, half, n=1.0)
+        assert force == pytest.approx(exact, rel=1e-10)
+
+
+def test_bearing_force_tangent_and_inverse():
+    for half in (0.0, 3e-6):
+        d = c.bearing_deflection(2500.0, 14, 6e-3, half)
+        force, tangent = c.bearing_radial_force(d, 14, 6e-3, half)
+        assert force == pytest.approx(2500.0, rel=1e-10)
+        h = 1e-4 * d
+        numeric = (c.bearing_radial_force(d + h, 14, 6e-3, half)[0]
+                   - c.bearing_radial_force(d - h, 14, 6e-3, half)[0]) / (2 * h)
+        assert tangent == pytest.approx(numeric, rel=1e-4)
+    # free within the clearance, and the clearance is the free play of the centre
+    assert c.bearing_radial_force(2.9e-6, 14, 6e-3, 3e-6) == (0.0, 0.0)
+    with_play = c.bearing_deflection(2500.0, 14, 6e-3, 3e-6)
+    without = c.bearing_deflection(2500.0, 14, 6e-3)
+    assert with_play > without + 3e-6 * 0.5  # fewer rollers carry it: more than the play alone
+
+
+def test_bearing_stiffens_under_load():
+    """delta ~ F^0.9 without clearance: the secant stiffness grows as F^0.1."""
+    law = lambda f: c.bearing_deflection(f, 12, 8e-3)  # noqa: E731
+    low, high = c.secant_stiffness(law, 100.0, 200.0), c.secant_stiffness(law, 1000.0, 2000.0)
+    assert high / low == pytest.approx(10.0 ** 0.1, rel=1e-6)
+
+
+def test_beam_influence_reciprocity_and_the_central_load():
+    inertia = math.pi * 0.016 ** 4 / 64
+    assert c.beam_influence(0.04, 0.01, 0.03, E, inertia) == pytest.approx(
+        c.beam_influence(0.04, 0.03, 0.01, E, inertia), rel=1e-12)       # Maxwell
+    central = c.crank_bending_stiffness(E, 0.016, 0.04, [0.02])
+    assert central == pytest.approx(simply_supported_beam_stiffness(E, 0.016, 0.04), rel=1e-12)
+    # two cams loaded alike bend the crank more than one
+    assert c.crank_bending_stiffness(E, 0.016, 0.04, [0.013, 0.027]) < \
+        c.crank_bending_stiffness(E, 0.016, 0.04, [0.013])
+
+
+def test_guided_beam_and_torsion_closed_forms():
+    inertia, area = 1e-9, 1e-4
+    slender = c.guided_beam_stiffness(E, NU, inertia, area, 0.3, 0.85)
+    assert slender == pytest.approx(12 * E * inertia / 0.3 ** 3, rel=0.01)  # shear negligible
+    stubby = c.guided_beam_stiffness(E, NU, 1e-7, area, 0.005, 0.85)
+    g = E / (2 * (1 + NU))
+    assert 1 / stubby == pytest.approx(0.005 ** 3 / (12 * E * 1e-7) + 0.005 / (0.85 * g * area))
+    assert c.shaft_torsion_stiffness(g, 0.02, 0.1) == pytest.approx(g * math.pi * 0.02 ** 4 / 32 / 0.1)
+
+
+def test_carrier_compliance_by_energy():
+    """Symmetric cams: half the torque through the far flange; four pillars of k at r
+    twist it by (T/2) / (4 k r^2), and the output sees a quarter of that per unit torque."""
+    share = c.end_plate_share([0.01, 0.03], 0.04)
+    assert share == 0.5
+    k, r = 2e8, 0.04
+    assert c.carrier_torsional_compliance(4, k, r, share) == pytest.approx(0.25 / (4 * k * r * r))
