@@ -40,7 +40,7 @@ How it is answered, and why so:
   `crank_disc_bearing_stiffness`, which the presets take as that bearing in
   series with the crank bent between its supports (docs/model.md section 6,
   `rvfmu.core.stiffness`).  Fitting R_pd therefore sets
-  crank_disc_bearing_stiffness = series(R_pd, 48 E I / L^3) with the crank's
+  crank_disc_bearing_stiffness = series(R_pd, crank bending at its cams) with the crank's
   diameter and span from the design's [sources] table (or its preset's): the
   bearing is what seed 003 identifies, the crank's bending is geometry.
 - Cheap evaluations: a data set's model costs its grid, `points` per output
@@ -74,7 +74,8 @@ from .core.checks import InputError, finite_number, integer, non_negative, posit
 from .core.design import DESIGN_FIELDS, ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, preset_file
 from .core.errors import ErrorSet, load_errors, stack, toml_text, zero_errors
 from .core.quasistatic import windup
-from .core.stiffness import series, simply_supported_beam_stiffness
+from .core import compliance
+from .core.stiffness import cam_positions, series
 from .core.units import ARCMIN, ARCSEC, MM
 from .measured import MeasuredTE
 
@@ -259,8 +260,10 @@ def resolve_name(name: str) -> tuple[str, str]:
 
 
 def crank_bending_stiffness(design: RVDesign, sources: dict | None) -> float:
-    """The crank bent between its supports, 48 E I / L^3 [N/m], from [sources] crank_diameter_mm
-    and crank_span_mm and the design's Young's modulus; an InputError if they are missing."""
+    """The crank bent between its supports at its two cams [N/m] (`rvfmu.core.compliance.
+    crank_bending_stiffness`, cams by `stiffness.cam_positions`), from [sources]
+    crank_diameter_mm and crank_span_mm and the design's disc width and Young's modulus; an
+    InputError if they are missing."""
     needed = ("crank_diameter_mm", "crank_span_mm")
     if not sources or any(k not in sources for k in needed):
         raise InputError("fit", "R_pd", "needs the crank's bending stiffness in series with the "
@@ -269,7 +272,8 @@ def crank_bending_stiffness(design: RVDesign, sources: dict | None) -> float:
                          "crank_disc_bearing_stiffness itself")
     diameter = positive("sources.crank_diameter_mm", sources["crank_diameter_mm"]) * MM
     span = positive("sources.crank_span_mm", sources["crank_span_mm"]) * MM
-    return simply_supported_beam_stiffness(design.youngs_modulus, diameter, span)
+    return compliance.crank_bending_stiffness(design.youngs_modulus, diameter, span,
+                                              cam_positions(span, design.disc_width))
 
 
 def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dict | None = None,

@@ -21,8 +21,9 @@ def test_shares_add_up_to_the_work_of_the_output_torque(rv40, seed002):
     budget = compliance_budget(rv40, seed002)
     assert budget.converged
     assert abs(budget.share_sum - 1.0) < 1e-6
-    assert sum(e.share for e in budget.elements) == pytest.approx(budget.share_sum, abs=1e-12)
-    assert all(e.share >= 0.0 for e in budget.elements)
+    # the solver's weak springs hold a millionth, no element's
+    assert 0.0 <= budget.regularisation / budget.work < 1e-5
+    assert sum(e.share for e in budget.elements) == pytest.approx(budget.share_sum, abs=1e-5)
 
 
 def test_shares_add_up_with_bearing_clearances(rv40, seed002):
@@ -44,14 +45,16 @@ def test_rigidity_of_the_budget_is_the_windup_tests(name):
 
 def test_series_compliance_share_is_its_part_of_the_compliance():
     """A spring in series with the output carries the whole torque: its share is its
-    compliance over the reducer's, c * k (closed form for two springs in series)."""
+    compliance over the reducer's, c * k (closed form for springs in series)."""
     design = preset("RV-40E-121")
     budget = compliance_budget(design)
     shares = {e.name: e.share for e in budget.elements}
-    compliance_arcmin = design.output_compliance / ARCMIN
-    expected = compliance_arcmin * budget.torsional_rigidity_Nm_per_arcmin
-    assert 0.5 < expected < 0.9
-    assert shares["output series compliance"] == pytest.approx(expected, rel=2e-3)
+    assert all(e.share >= 0.0 for e in budget.elements)  # no errors: nothing unloads
+    for name, compliance in (("output series compliance", design.output_compliance),
+                             ("carrier pillars", design.carrier_compliance)):
+        expected = compliance / ARCMIN * budget.torsional_rigidity_Nm_per_arcmin
+        assert 0.05 < expected < 0.5
+        assert shares[name] == pytest.approx(expected, rel=2e-3)
 
 
 def test_without_series_compliance_its_share_is_zero_and_the_rest_adds_up(rv40):
@@ -59,9 +62,12 @@ def test_without_series_compliance_its_share_is_zero_and_the_rest_adds_up(rv40):
     by_name = {e.name: e for e in budget.elements}
     assert by_name["output series compliance"].share == 0.0
     assert np.isinf(by_name["output series compliance"].stiffness)
-    # the crank-disc path and the pins carry nearly all of it; the stage 1 almost nothing
-    assert by_name["crank-disc needle bearings"].share + by_name["pin-disc contacts"].share > 0.85
-    assert by_name["sun-planet meshes"].share < 0.02
+    # the crank bearings carry most of it, the pins less, the stage 1 almost nothing (its
+    # compliance reaches the output divided by the second stage's ratio squared)
+    crank = by_name["crank-disc needle bearings"].share + by_name["crank-carrier bearings"].share
+    assert crank > 0.8
+    assert 0.02 < by_name["pin-disc contacts"].share < 0.15
+    assert by_name["sun-planet meshes"].share < 0.01
 
 
 def test_four_times_stiffer_needle_bearings_take_a_quarter_of_their_compliance(rv40):

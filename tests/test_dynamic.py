@@ -58,7 +58,9 @@ def test_at_a_small_load_and_slow_speed_the_dynamic_te_is_the_no_load_limit(rv40
 def test_exact_reducer_without_errors_runs_flat_and_the_varying_mesh_shows_at_its_frequency(rv40):
     exact = rv40.with_fields(d_rp=0.0, d_rrp=0.0)
     constant = simulate(exact, None, 1600.0, load=206.0, duration=0.25, mesh="constant")
-    assert constant.te_pp_arcsec < 0.05                 # arcsec: only the pin-passing load sharing
+    # arcsec: the pin-passing load sharing (0.014 arcsec quasi-static at this load) and what
+    # the start leaves ringing in the lightly damped modes
+    assert constant.te_pp_arcsec < 0.1
     varying = simulate(exact, None, 1600.0, load=206.0, duration=0.25, mesh="varying")
     mesh_hz = Excitations.at(exact, 1600.0).mesh
     f, a = varying.spectrum_hz()
@@ -87,7 +89,7 @@ def base(rv40):
 
 def test_a_crank_cam_eccentricity_puts_its_te_at_the_crank_frequency(rv40, base):
     cam = simulate(rv40, with_error(rv40, "crank_cam_eccentricity", (0, 0), 5e-6), 1600.0,
-                   load=206.0, duration=0.5, mesh="constant")
+                   load=206.0, duration=0.5, mesh="constant", step=base.step)  # base's time grid
     f, a = spectrum(cam.steady_te_arcsec() - base.steady_te_arcsec(), cam.step)
     crank = Excitations.at(rv40, 1600.0).crank
     assert abs(f[np.argmax(a)] - crank) <= 1.5 * (f[1] - f[0])
@@ -98,7 +100,7 @@ def test_a_sun_eccentricity_turns_with_the_input_and_cancels_in_the_te(rv40, bas
     carrier; for equally spaced planets the tangential parts sum to zero (sum of t_i = 0), so
     the TE keeps only a second-order trace, far below E / r_b / i of a fixed-axis pair."""
     sun = simulate(rv40, with_error(rv40, "sun_eccentricity", (), 5e-6), 1600.0, load=206.0,
-                   duration=0.5, mesh="constant")
+                   duration=0.5, mesh="constant", step=base.step)
     crank = sun.dofs.index("crank0_rot")
     f, a = spectrum(sun.q[sun.steady:, crank] - base.q[base.steady:, crank], sun.step)
     ex = Excitations.at(rv40, 1600.0)

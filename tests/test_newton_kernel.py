@@ -48,7 +48,8 @@ def test_with_bearing_clearances_the_compiled_and_numpy_equilibria_agree(full_st
     compiled, plain = both(lambda: te_curve(design, errors, tau_load=tau, points=400))
     assert compiled.converged.all() and plain.converged.all()
     np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-6)
-    np.testing.assert_allclose(compiled.pin_force_max, plain.pin_force_max, rtol=1e-6, atol=1e-6)
+    # at no load the pin forces are those of the probe torque's continuation, micronewtons
+    np.testing.assert_allclose(compiled.pin_force_max, plain.pin_force_max, rtol=1e-6, atol=1e-5)
     # the curves are not trivial: clearances and errors make tens of arcsec
     assert np.all(compiled.te_pp_arcsec > 5.0)
 

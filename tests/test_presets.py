@@ -32,7 +32,8 @@ TABLE = {
 STIFFNESS_KEYS = ("pin_disc_stiffness_N_per_m", "mesh_stiffness_N_per_m",
                   "crank_disc_bearing_stiffness_N_per_m",
                   "crank_carrier_bearing_stiffness_N_per_m",
-                  "main_bearing_stiffness_N_per_m", "sun_support_stiffness_N_per_m")
+                  "main_bearing_stiffness_N_per_m", "sun_support_stiffness_N_per_m",
+                  "carrier_compliance_arcsec_per_Nm")
 AGREEMENT = 0.005  # preset files carry 4 significant digits; 0.5 % catches a wrong input
 
 
@@ -130,38 +131,7 @@ def test_api_and_cli_list_the_presets_with_their_ratios():
 
 def recomputed_stiffness(name: str, key: str) -> float:
     """The stiffness `key` of preset `name` from its geometry and [sources] [N/m]."""
-    values = preset_file(name)
-    src = values["sources"]
-    E = values["youngs_modulus_GPa"] * 1e9
-    nu = values["poisson_ratio"]
-    R_p, r_rp, e = values["R_p_mm"] * MM, values["r_rp_mm"] * MM, values["e_mm"] * MM
-    z_p = values["z_p"]
-    if key == "pin_disc_stiffness_N_per_m":
-        force = stiffness.largest_pin_force(values["rated_torque_Nm"] / 2.0, R_p, e, z_p)
-        disc_radius = stiffness.disc_curvature_radius_at_largest_lever(R_p, r_rp, e, z_p)
-        return stiffness.hertz_line_contact_stiffness(
-            force, values["disc_width_mm"] * MM, r_rp, disc_radius, E, nu)
-    if key == "mesh_stiffness_N_per_m":
-        return stiffness.iso6336_mesh_stiffness(
-            values["z_s"], values["z_pl"], values["m_mm"] * MM,
-            values["pressure_angle_deg"] * DEG, values["gear_width_mm"] * MM)
-    if key == "crank_disc_bearing_stiffness_N_per_m":
-        needle = stiffness.roller_bearing_stiffness(
-            src["needle_roller_length_mm"] * MM, src["needle_rollers"], E, nu)
-        crank = stiffness.simply_supported_beam_stiffness(
-            E, src["crank_diameter_mm"] * MM, src["crank_span_mm"] * MM)
-        return stiffness.series(needle, crank)
-    if key == "crank_carrier_bearing_stiffness_N_per_m":
-        return stiffness.roller_bearing_stiffness(
-            src["tapered_roller_length_mm"] * MM, src["tapered_rollers"], E, nu,
-            contact_angle=src["tapered_contact_angle_deg"] * DEG)
-    if key == "main_bearing_stiffness_N_per_m":
-        return (src["main_bearing_reference_N_per_m"]
-                * values["R_p_mm"] / src["main_bearing_reference_R_p_mm"])
-    if key == "sun_support_stiffness_N_per_m":
-        return stiffness.cantilever_stiffness(
-            E, src["input_shaft_diameter_mm"] * MM, src["input_shaft_length_mm"] * MM)
-    raise KeyError(key)
+    return stiffness.estimate_from_sources(preset_file(name))[key]
 
 
 @pytest.mark.parametrize("key", STIFFNESS_KEYS)
@@ -170,8 +140,8 @@ def test_preset_stiffness_is_recomputed_from_its_sources(name, key):
     stated = preset_file(name)[key]
     assert recomputed_stiffness(name, key) == pytest.approx(stated, rel=AGREEMENT)
     # and the design carries the file value unchanged (N/m in files and in SI)
-    field = next(spec.field for spec in DESIGN_FIELDS if spec.file_key == key)
-    assert getattr(preset(name), field) == stated
+    spec = next(spec for spec in DESIGN_FIELDS if spec.file_key == key)
+    assert getattr(preset(name), spec.field) == pytest.approx(stated * spec.scale, rel=1e-15)
 
 
 def test_rv20e_main_bearing_is_the_identified_value_of_seed_003():
@@ -318,3 +288,42 @@ def test_disc_radius_at_largest_lever_against_finite_differences(name):
     # The lever is flat at its maximum, so where exactly it is found (and the radius of
     # curvature there) moves by a few 0.1 % with the sampling; the stiffness hardly notices.
     assert got == pytest.approx(expected, rel=5e-3)
+
+
+# -- the geometric estimate's compositions by hand ------------------------------------------
+
+def test_crank_carrier_pair_is_two_bearings_at_half_the_load():
+    """Contact angle 90 deg from the axis (0 to the radial plane): the pair's secant is that of
+    one bearing at half the load, doubled."""
+    from rvfmu.core import compliance
+
+    pair = stiffness.crank_carrier_stiffness_estimate(412.0, 2, 0.036, 14, 6 * MM, 90.0 * DEG)
+    one = compliance.secant_stiffness(lambda f: compliance.bearing_deflection(f, 14, 6 * MM),
+                                      0.25 * 412 / (2 * 0.036), 0.5 * 412 / (2 * 0.036))
+    assert pair == pytest.approx(2.0 * one, rel=1e-9)
+    # inclined rollers carry a radial load less directly
+    assert stiffness.crank_carrier_stiffness_estimate(412.0, 2, 0.036, 14, 6 * MM, 80.0 * DEG) < pair
+
+
+def test_pin_with_its_groove_is_softer_than_against_the_disc_alone():
+    with_groove = stiffness.pin_stiffness_estimate(412.0, 64.05 * MM, 3 * MM, 1.3 * MM, 40, 10 * MM,
+                                                   5e-3 * MM, 211e9, 0.29)
+    force = stiffness.largest_pin_force(206.0, 64.05 * MM, 1.3 * MM, 40)
+    rho = stiffness.disc_curvature_radius_at_largest_lever(64.05 * MM, 3 * MM, 1.3 * MM, 40)
+    disc_only = (0.5 * force) / (stiffness.hertz_line_contact_approach(force, 10 * MM, 3 * MM, rho, 211e9, 0.29)
+                                 - stiffness.hertz_line_contact_approach(0.5 * force, 10 * MM, 3 * MM, rho,
+                                                                         211e9, 0.29))
+    groove = (0.5 * force) / (
+        stiffness.hertz_line_contact_approach(force, 10 * MM, 3 * MM, -3.005 * MM, 211e9, 0.29)
+        - stiffness.hertz_line_contact_approach(0.5 * force, 10 * MM, 3 * MM, -3.005 * MM, 211e9, 0.29))
+    assert with_groove == pytest.approx(stiffness.series(disc_only, groove), rel=1e-9)
+    assert 0.6 < with_groove / disc_only < 0.9
+
+
+def test_carrier_compliance_of_the_rv40e_by_hand():
+    """Two pillars of 18 mm (a/2) and 22 mm, clamped: 12EI/L^3 = 12*211e9*5153e-12/1.0648e-5
+    = 1.2255e9 N/m, in series with kGA/L = 0.8860*81.78e9*2.545e-4/0.022 = 8.382e8: 4.977e8 N/m;
+    half the torque through them at 36 mm: 0.25 / (2 * 4.977e8 * 0.036^2) = 1.938e-7 rad/N*m
+    = 0.03998 arcsec/N*m."""
+    c = stiffness.carrier_compliance_estimate(2, 0.036, 10 * MM, 40 * MM, 211e9, 0.29)
+    assert c / (DEG / 3600) == pytest.approx(0.03998, rel=2e-3)

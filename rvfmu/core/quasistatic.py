@@ -2,8 +2,9 @@
 
 For each input angle the reducer is in static equilibrium under the output
 torque (`solver`), with the input held at that angle; the carrier's rotation
-away from theta_in / i, plus the windup tau_load x output_compliance of what the
-design puts in series with the output (flange, housing), is the TE of
+away from theta_in / i, plus the windup tau_load x series_compliance of what the
+design puts in series with the output (the carrier's pillars; the flange and
+housing, calibrated), is the TE of
 docs/model.md section 5.  One call evaluates a
 whole batch of reducers: arrays are shaped (samples, angles).
 
@@ -145,9 +146,9 @@ def equilibria(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=
         s, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
         eq = solve_pairs(model, errors, s, a, tau_load[t], no_load_probe=probe, progress=progress,
                          zero_side=zero_side)
-        # The output flange: the carrier's rotation plus the series compliance's windup.
+        # The output flange: the carrier's crank seats' rotation plus the series windup.
         out["te"][s, t, a] = eq.q[:, model.carrier_rot] / model.scale + \
-            design.output_compliance * tau_load[t]
+            design.series_compliance * tau_load[t]
         # Mesh force on the sun acts along -w at the sun's base circle.
         out["tau_in"][s, t, a] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
         out["pin_force_max"][s, t, a] = eq.pin_force.max(axis=(1, 2))

@@ -8,9 +8,10 @@ the tests use it as an independent check and the benchmark as its baseline.
 
 Every element the solver has is here: the meshes, the sun support, the bearings
 with their clearances, the pins, and the torsional compliance in series with the
-output (`output_compliance`), which the solver adds to the carrier's rotation
-afterwards and which this solve carries as one more unknown, the output flange's
-rotation, joined to the carrier by a torsional spring and loaded by tau_load.
+output (`series_compliance`: the carrier's pillars and the calibrated remainder),
+which the solver adds to the carrier's rotation afterwards and which this solve
+carries as one more unknown, the output flange's rotation, joined to the carrier
+by a torsional spring and loaded by tau_load.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
 
     The last unknown is the output flange's rotation (arc length at R_p, as the
     carrier's): tau_load acts on it, and a torsional spring of stiffness
-    1 / output_compliance joins it to the carrier (with no compliance, the flange
+    1 / series_compliance joins it to the carrier (with no compliance, the flange
     is the carrier: the last unknown repeats the carrier's rotation).
     """
     lin_b, brg_b, pin_b = model.offsets(errors, np.array([sample]), np.array([angle]))
@@ -43,7 +44,7 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
     c_half = model.clearance_halves(errors)[sample]
     g = model.load_vector() * tau_load
     reg = 1e-8 * pin_k
-    compliance = model.design.output_compliance
+    compliance = model.design.series_compliance
     # Torsional spring N*m/rad between carrier and flange, on arc-length unknowns: k / R_p^2.
     flange_k = 0.0 if compliance == 0.0 else 1.0 / compliance / model.scale ** 2
     c = model.carrier_rot

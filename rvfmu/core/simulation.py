@@ -315,10 +315,10 @@ def _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive):
 def _record(model, design, speed_rpm, motion, q, v, ramp, step, failed, drive: str) -> Simulation:
     """The run's record from the unknowns q and their rates v, (T, n), at the motion's times."""
     # the output flange: the carrier plus the windup of the massless series compliance
-    te = q[:, model.carrier_rot] / model.scale + design.output_compliance * motion.tau_load
+    te = q[:, model.carrier_rot] / model.scale + design.series_compliance * motion.tau_load
     omega_out = motion.omega_in / design.ratio + v[:, model.carrier_rot] / model.scale
-    if design.output_compliance and motion.time.size > 1:
-        omega_out = omega_out + design.output_compliance * np.gradient(motion.tau_load, motion.time)
+    if design.series_compliance and motion.time.size > 1:
+        omega_out = omega_out + design.series_compliance * np.gradient(motion.tau_load, motion.time)
     return Simulation(design, speed_rpm, motion.time, motion.theta_in,
                       motion.theta_in / design.ratio + te, te, omega_out,
                       model.input_torque(q.T, v.T), motion.tau_load, q, tuple(model.names),

@@ -137,3 +137,141 @@ def cantilever_stiffness(youngs_modulus, diameter, length):
     """Stiffness of a round shaft loaded at its free end, 3 E I / L^3 [N/m]."""
     inertia = math.pi * diameter ** 4 / 64.0
     return 3.0 * youngs_modulus * inertia / length ** 3
+
+
+# -- the estimate of every element from the reducer's geometry -----------------------------
+#
+# The laws of `compliance.py` are nonlinear (Palmgren's delta ~ Q^0.9, the roller load
+# distribution, the Hertz logarithm); the element set of the quasi-static and dynamic
+# models holds one stiffness per element.  Each is therefore the secant of its law between
+# the element's loads at 50 % and 100 % of rated torque: the stiffness the catalogue's
+# rigidity test sees (docs/model.md section 5).  The loads come from statics with rigid
+# parts: the output torque T reaches the carrier through the n_c crank seats on the crank
+# circle a (T / (n_c a) each), each disc carrying half of it through its n_c cams
+# (T / (2 n_c a) each); the largest pin force is `largest_pin_force`.
+#
+# Geometry the [sources] of a preset do not give follows one rule for every frame
+# (docs/model.md section 6): the two discs side by side in the middle of the crank span
+# (cams at span/2 -+ disc_width/2); n_c pillars of diameter a/2 on the crank
+# circle, as long as the two discs plus 2 mm, clamped in both flanges; pins lying in housing
+# grooves along their whole length (no pin bending), the groove radius larger than the pin's
+# by `pin_groove_clearance_mm`.
+
+RATED_RANGE = (0.5, 1.0)             # the catalogue's rigidity range, x rated torque
+PILLAR_DIAMETER_PER_CRANK_RADIUS = 0.5
+PILLAR_EXTRA_LENGTH = 2e-3           # m beyond the two discs' widths
+CIRCLE_SHEAR_COEFFICIENT = lambda nu: 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu)  # noqa: E731 (Cowper)
+
+
+def cam_positions(span, disc_width):
+    """Axial positions [m] of the two cams from the output-side crank bearing."""
+    return (0.5 * span - 0.5 * disc_width, 0.5 * span + 0.5 * disc_width)
+
+
+def _secant_over_rated(approach, load_at_rated):
+    """Secant stiffness [N/m] of a load-deflection law between 50 % and 100 % of its
+    load at rated torque."""
+    from .compliance import secant_stiffness
+
+    low, high = (f * load_at_rated for f in RATED_RANGE)
+    return secant_stiffness(approach, low, high)
+
+
+def pin_stiffness_estimate(rated_torque, R_p, r_rp, e, z_p, disc_width, groove_clearance,
+                           youngs_modulus, poisson_ratio):
+    """One pin between a disc and its housing groove, along the contact normal [N/m]:
+    the pin-disc and the pin-groove Hertz line contacts in series (each Radzimovsky's
+    approach), secant over the rated range at the largest pin force (half the torque per
+    disc)."""
+    force = largest_pin_force(rated_torque / 2.0, R_p, e, z_p)
+    disc_radius = disc_curvature_radius_at_largest_lever(R_p, r_rp, e, z_p)
+    groove_radius = -(r_rp + groove_clearance)
+
+    def approach(f):
+        return (hertz_line_contact_approach(f, disc_width, r_rp, disc_radius, youngs_modulus,
+                                            poisson_ratio)
+                + hertz_line_contact_approach(f, disc_width, r_rp, groove_radius, youngs_modulus,
+                                              poisson_ratio))
+    return _secant_over_rated(approach, force)
+
+
+def crank_disc_stiffness_estimate(rated_torque, n_c, crank_radius, rollers, roller_length,
+                                  crank_diameter, span, disc_width, youngs_modulus):
+    """A cam's needle bearing in series with the crankshaft bent at its cams [N/m].
+
+    Needle bearing: Palmgren's law with the roller load distribution, no clearance (the
+    clearance is an error, docs/model.md section 4), at T / (2 n_c a); crank: simply
+    supported by its two bearings, both cams loaded alike (`compliance.crank_bending_stiffness`).
+    """
+    from .compliance import bearing_deflection, crank_bending_stiffness
+
+    needle = _secant_over_rated(lambda f: bearing_deflection(f, rollers, roller_length),
+                                rated_torque / (2.0 * n_c * crank_radius))
+    bending = crank_bending_stiffness(youngs_modulus, crank_diameter, span,
+                                      cam_positions(span, disc_width))
+    return series(needle, bending)
+
+
+def crank_carrier_stiffness_estimate(rated_torque, n_c, crank_radius, rollers, roller_length,
+                                     seed003_contact_angle):
+    """The two tapered roller bearings of one crankshaft, radial, at its cams [N/m].
+
+    Each carries half the crank's load T / (n_c a) (cams symmetric in the span); a roller's
+    normal approach is the radial deflection times cos(alpha) and its load's radial part
+    Q cos(alpha), alpha the contact angle to the radial plane (seed 003 writes 80 deg from
+    the axis: alpha = 90 - 80 = 10 deg).
+    """
+    from .compliance import bearing_deflection
+
+    alpha = math.pi / 2.0 - seed003_contact_angle
+    c = math.cos(alpha)
+
+    def approach(f):  # both bearings alike, each with half the load
+        return bearing_deflection(0.5 * f / c, rollers, roller_length) / c
+    return _secant_over_rated(approach, rated_torque / (n_c * crank_radius))
+
+
+def carrier_compliance_estimate(n_c, crank_radius, disc_width, span, youngs_modulus,
+                                poisson_ratio):
+    """Windup [rad] per output torque [N*m] of the carrier's far flange turning on its
+    pillars (`compliance.carrier_torsional_compliance`), pillars by the rule above."""
+    from .compliance import carrier_torsional_compliance, end_plate_share, guided_beam_stiffness
+
+    diameter = PILLAR_DIAMETER_PER_CRANK_RADIUS * crank_radius
+    length = 2.0 * disc_width + PILLAR_EXTRA_LENGTH
+    pillar = guided_beam_stiffness(youngs_modulus, poisson_ratio, math.pi * diameter ** 4 / 64.0,
+                                   math.pi * diameter ** 2 / 4.0, length,
+                                   CIRCLE_SHEAR_COEFFICIENT(poisson_ratio))
+    share = end_plate_share(cam_positions(span, disc_width), span)
+    return carrier_torsional_compliance(n_c, pillar, crank_radius, share)
+
+
+def estimate_from_sources(values: dict) -> dict:
+    """Every stiffness of a preset file estimated from its geometry and [sources]:
+    {file key: value in file units}.  `values`: the preset file as read (file keys)."""
+    src = values["sources"]
+    mm, E, nu = 1e-3, values["youngs_modulus_GPa"] * 1e9, values["poisson_ratio"]
+    T, n_c = values["rated_torque_Nm"], values["n_c"]
+    R_p, r_rp, e = values["R_p_mm"] * mm, values["r_rp_mm"] * mm, values["e_mm"] * mm
+    module, alpha = values["m_mm"] * mm, math.radians(values["pressure_angle_deg"])
+    a = module * (values["z_s"] + values["z_pl"]) / 2.0
+    width, gear = values["disc_width_mm"] * mm, values["gear_width_mm"] * mm
+    crank, span = src["crank_diameter_mm"] * mm, src["crank_span_mm"] * mm
+    return {
+        "pin_disc_stiffness_N_per_m": pin_stiffness_estimate(
+            T, R_p, r_rp, e, values["z_p"], width, src["pin_groove_clearance_mm"] * mm, E, nu),
+        "mesh_stiffness_N_per_m": iso6336_mesh_stiffness(
+            values["z_s"], values["z_pl"], module, alpha, gear),
+        "crank_disc_bearing_stiffness_N_per_m": crank_disc_stiffness_estimate(
+            T, n_c, a, src["needle_rollers"], src["needle_roller_length_mm"] * mm, crank, span,
+            width, E),
+        "crank_carrier_bearing_stiffness_N_per_m": crank_carrier_stiffness_estimate(
+            T, n_c, a, src["tapered_rollers"], src["tapered_roller_length_mm"] * mm,
+            math.radians(src["tapered_contact_angle_deg"])),
+        "main_bearing_stiffness_N_per_m": (src["main_bearing_reference_N_per_m"]
+                                           * values["R_p_mm"] / src["main_bearing_reference_R_p_mm"]),
+        "sun_support_stiffness_N_per_m": cantilever_stiffness(
+            E, src["input_shaft_diameter_mm"] * mm, src["input_shaft_length_mm"] * mm),
+        "carrier_compliance_arcsec_per_Nm": carrier_compliance_estimate(
+            n_c, a, width, span, E, nu) / (math.pi / 180.0 / 3600.0),
+    }

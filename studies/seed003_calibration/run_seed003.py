@@ -2,6 +2,7 @@
 
     python studies/seed003_calibration/run_seed003.py                  # fit, print beside seed 003
     python studies/seed003_calibration/run_seed003.py --make-datasets  # re-derive datasets.toml
+    python studies/seed003_calibration/run_seed003.py --quick -o DIR   # a small budget (the tests)
 
 Seed 003 fits three support stiffnesses of an RV-20E to the TE peaks of ten data
 sets.  It prints the peaks, not what differs between the data sets (load, speed,
@@ -14,7 +15,10 @@ errors): see README.md for what we assumed and why.  This script
    003's pre-optimisation peak, and writes datasets.toml;
 3. runs `rvfmu.api.calibrate` on the measured peaks within seed 003's bounds and
    prints our R_ca, R_b, R_pd beside seed 003's, with the misfit per data set,
-   and writes output/ (the calibrated design, the JSON report, the printout).
+   and writes output/ (the calibrated design, the JSON report, the printout);
+4. fits the same three again from the stiffnesses our model estimates from the
+   RV-20E's geometry (`RV-20E-estimate`, docs/model.md section 6), within half to
+   twice them: whether the three move the peaks where a real reducer's bearings are.
 """
 
 from __future__ import annotations
@@ -41,6 +45,9 @@ DATASETS = HERE / "datasets.toml"
 ERRORS = HERE.parent / "seed002_errors.toml"
 OUTPUT = HERE / "output"
 FIT = ("R_ca", "R_b", "R_pd")
+ESTIMATE = "RV-20E-estimate"  # our geometric estimate of the same reducer
+ESTIMATE_RANGE = 2.0          # its bounds: / and x this factor
+QUICK = dict(points=320, maxiter=1, popsize=3)  # --quick: a budget for the test suite
 # Assumption (README): every data set at the RV-20E's rated torque; seed 003 names no load.
 LOAD_NM = 167.0
 # Error scales are searched in this range (x seed 002's magnitudes).
@@ -103,14 +110,15 @@ def make_datasets() -> None:
     print(f"wrote {DATASETS}")
 
 
-def run() -> str:
+def run(output: Path = OUTPUT, budget: dict | None = None) -> str:
+    budget = budget or {}
     table = seed_table()
     params = {row["parameter"]: row for row in csv.DictReader((HERE / "seed003_parameters.csv").open())}
     bounds = {name: (float(params[name]["range_low_1e10"]) * 1e10,
                      float(params[name]["range_high_1e10"]) * 1e10) for name in FIT}
-    OUTPUT.mkdir(exist_ok=True)
+    output.mkdir(exist_ok=True)
     report = api.calibrate(DESIGN, [DATASETS], FIT, target="peaks", bounds=bounds,
-                           output=OUTPUT / "rv20e_seed003_calibrated.toml")
+                           output=output / "rv20e_seed003_calibrated.toml", **budget)
     cal = report.calibration
     runs = read_csv("seed003_runs.csv")
     lines = [report.summary(), "",
@@ -140,7 +148,8 @@ def run() -> str:
               f"18.62 %, mean improvement {table['improvement'].mean():.2f} %, prints 10.09 %); "
               f"ours {v0:.3f} -> {v1:.3f} ({100 * (1 - v1 / v0):.2f} % less)"]
     # What does move our model's peaks: the pin-disc contacts (README).
-    pin = api.calibrate(DESIGN, [DATASETS], ("pin_disc_stiffness",), target="peaks").calibration
+    pin = api.calibrate(DESIGN, [DATASETS], ("pin_disc_stiffness",), target="peaks",
+                        **budget).calibration
     (p,), (v,), (s,) = pin.problem.parameters, pin.values, pin.sigma
     w0, w1 = pin.v_index
     lines += ["", "For comparison, pin_disc_stiffness alone fitted to the same peaks (bounds "
@@ -148,21 +157,50 @@ def run() -> str:
               f"({100 * (v / p.value - 1):+.1f} %), V {w0:.3f} -> {w1:.3f} "
               f"({100 * (1 - w1 / w0):.1f} % less), misfit after "
               + ", ".join(f"{r['misfit_after']:+.2f}" for r in pin.misfit()) + " arcsec"]
+    lines += ["", *from_estimate(cal, budget)]
     text = "\n".join(lines)
-    (OUTPUT / "calibration.txt").write_text(text + "\n")
-    (OUTPUT / "calibration.json").write_text(json.dumps(report.to_json(), indent=1) + "\n")
+    (output / "calibration.txt").write_text(text + "\n")
+    (output / "calibration.json").write_text(json.dumps(report.to_json(), indent=1) + "\n")
     return text
+
+
+def from_estimate(seed_start, budget: dict) -> list[str]:
+    """The three fitted again from our geometric estimate of the RV-20E (bounds / and x
+    ESTIMATE_RANGE): lines comparing how much each moves the peaks there and at seed 003's
+    values (`per +1 %`: RMS change of the residuals)."""
+    start = {p.name: p.value for p in
+             api.calibrate(ESTIMATE, [DATASETS], FIT, target="peaks", maxiter=0,
+                           points=budget.get("points")).calibration.problem.parameters}
+    bounds = {name: (v / ESTIMATE_RANGE, v * ESTIMATE_RANGE) for name, v in start.items()}
+    cal = api.calibrate(ESTIMATE, [DATASETS], FIT, target="peaks", bounds=bounds,
+                        **budget).calibration
+    v0, v1 = cal.v_index
+    lines = [f"From our geometric estimate ({ESTIMATE}, docs/model.md section 6), bounds / and x "
+             f"{ESTIMATE_RANGE:g}: V {v0:.3f} -> {v1:.3f}",
+             f"{'':<6} {'ours start':>11} {'fitted':>11} {'1-sigma':>10} {'per +1 %':>10} "
+             f"{'at seed 003 pre':>16}"]
+    for p, v, s, moved, seed_moved in zip(cal.problem.parameters, cal.values, cal.sigma,
+                                          cal.sensitivity(), seed_start.sensitivity()):
+        lines.append(f"{p.name:<6} {p.value:>11.4g} {v:>11.4g} {s:>10.3g} {moved:>10.3g} "
+                     f"{seed_moved:>16.3g}")
+    lines.append("per +1 %: RMS change of the ten residuals [arcsec] for +1 % of the value")
+    return lines
 
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--make-datasets", action="store_true",
                         help="re-derive the error scale of each data set (datasets.toml)")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"a small budget ({QUICK}): checks that it runs, not the figures")
+    parser.add_argument("-o", "--output", type=Path, default=None,
+                        help=f"folder to write (default {OUTPUT})")
     args = parser.parse_args(argv)
+    output = OUTPUT if args.output is None else args.output.resolve()
     os.chdir(ROOT)
     if args.make_datasets or not DATASETS.is_file():
         make_datasets()
-    print(run())
+    print(run(output, QUICK if args.quick else None))
 
 
 if __name__ == "__main__":
