@@ -318,3 +318,33 @@ def test_no_load_te_of_a_tight_needle_reducer_has_no_spike():
     te = equilibria(design, errors, theta_in, [-probe, 0.0]).te[0] / ARCSEC
     forward = _te_under_driving_probe_on_the_resisting_flank(design, errors, theta_in)
     assert np.all(te[0] <= te[1] + 0.05) and np.all(te[1] <= forward + 0.05)
+
+
+@pytest.mark.parametrize("row, index", [(12, 10857), (9, 9587)])
+def test_no_load_te_of_a_preloaded_reducer_without_bearing_clearance_is_the_limit(row, index):
+    """quick_mc's reducers on the calibrated RV-40E-121: no bearing clearance, pins in
+    interference at no load.  Near these angles (of 12480) the pose changes its contacts
+    between the probe and zero load; the tangent at the probe sent the no-load TE of
+    reducer 12 to 207 arcsec (its neighbours at -7 and +6.5) and that of reducer 9 to
+    38 arcsec (the limit: 18.9).  The no-load TE must be the limit of the TE under
+    resisting loads that shrink to zero (1e-3 and 1e-4 probes agree within 0.01 arcsec
+    there), and lie between the probe's TE and that under a small driving load on the
+    same flank."""
+    from tolerance.montecarlo import sample
+    from tolerance.sampling import errors_from_unit
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / "quick_mc.toml")
+    design = study.design
+    errors = errors_from_unit(study, sample(study, row + 1)[row:])
+    theta_in = input_angles(design, 12480)[index - 6:index + 7]
+    probe = NO_LOAD_PROBE * design.rated_torque
+    eq = equilibria(design, errors, theta_in, [-probe, -1e-3 * probe, -1e-4 * probe, 0.0])
+    assert eq.converged.all()
+    te = eq.te[0] / ARCSEC
+    assert np.max(np.abs(te[1] - te[2])) < 0.01
+    assert np.max(np.abs(te[3] - te[2])) < 0.05
+    forward = _te_under_driving_probe_on_the_resisting_flank(design, errors, theta_in)
+    assert np.all(te[0] <= te[3] + 0.05) and np.all(te[3] <= forward + 0.05)
+    # the probe's own TE is not the limit there: the test looks where it matters
+    assert np.max(np.abs(te[0] - te[3])) > 5.0

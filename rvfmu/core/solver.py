@@ -36,10 +36,16 @@ CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
 REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
 MODE_DIRECTION_STIFFNESS = 1e-9  # relative to the pin stiffness, Hessian only: see ReducedSystem
 CONTINUATION = (1e3, 1e2, 1e1, 1.0)  # no load with bearing clearance: probe multiples, large to small
+PRELOAD_PROBES = (2.0, 1.0)  # no load, a pin in interference, no bearing clearance: the same, so
+                             # that the step back to zero has a chord to check its tangent against
 RELEASE_ROUNDS = 3       # no load with bearing clearance: solves with the weak springs re-centred
 RELEASE_BELOW = 100.0    # loads up to this many probe torques get the same release
-TANGENT_AGREEMENT = 3.0  # back to zero load along the tangent unless it turns the carrier this many
-                         # times further than the chord through the last two probe loads
+TANGENT_AGREEMENT = 3.0  # with bearing clearance: back to zero load along the tangent unless it turns
+                         # the carrier this many times further than the chord through the last two
+                         # probe loads
+ZERO_RESIDUAL = 1e-3     # without: along the tangent where it lands in equilibrium (out-of-balance
+                         # force below this share of the probe's load vector) ...
+REFINEMENTS = 3          # ... elsewhere from probes 10x smaller, at most this many times, then the chord
 CANDIDATE_MARGIN = 1     # pins per disc iterated on beyond the half that the load closes
 
 
@@ -206,7 +212,7 @@ class ReducedSystem:
             if at_zero:
                 # Probe torques, from large to small when parts float in bearing clearances
                 # (each solve starts from the last), the last one the probe itself.
-                steps = CONTINUATION if self.nl_bearings.size else (1.0,)
+                steps = self._probe_steps()
                 path = []
                 for k, scale in enumerate(steps):
                     loads = np.full(group.size, probe * scale)
@@ -219,9 +225,10 @@ class ReducedSystem:
                                                            loads, q_start)
                         iterations += its
                     path.append((probe * scale, q_start))
-                a = angle[group]
-                qn[group] = self._to_zero_load(a, f0[group], pin_b[group], brg_off[group],
-                                               c_half[group], path[-2:])
+                qn[group], refined, its = self._back_to_zero(group, angle, f0, pin_b, brg_off,
+                                                             c_half, path[-2:])
+                conv = conv & refined
+                iterations += its
             else:
                 qn[group], conv, its = self._solve_group(
                     group, angle, f0, pin_b, brg_off, c_half, loads, first_count, bearing_direction,
@@ -244,6 +251,10 @@ class ReducedSystem:
         mesh = np.einsum("bmn,bn->bm", model.linear_rows[angle][:, :n_c], q) + lin_b[:, :n_c]
         return Equilibrium(q, model.pin_k * np.maximum(delta, 0.0), model.linear_k[:n_c] * mesh,
                            converged, iterations)
+
+    def _probe_steps(self):
+        """The probe multiples of the no-load solves, large to small, the probe itself last."""
+        return CONTINUATION if self.nl_bearings.size else PRELOAD_PROBES
 
     def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
                      bearing_direction, q0, centre=None):
@@ -268,30 +279,64 @@ class ReducedSystem:
             iterations += its
         return q, converged, iterations
 
-    def _to_zero_load(self, angle, f0, pin_b, brg_off, c_half, path):
-        """From the smallest probe load back to zero: q_N (B, nN).
+    def _back_to_zero(self, group, angle, f0, pin_b, brg_off, c_half, path, depth=0):
+        """The pairs `group` from their last two probe solutions back to zero load:
+        (q_N (G, nN), converged (G,), iterations).
 
-        path: [(load [N*m], q_N (B, nN))], the last probe loads solved, smallest
-        last.  The step back follows the tangent at the last one (exact while no
-        contact changes between it and zero); where the tangent moves the carrier
-        more than TANGENT_AGREEMENT times as far as the chord through the last
-        two solutions does (a contact at the probe that is about to change, a
-        part just touching its clearance circle: the Hessian there says nothing
-        about the way to zero), the chord is followed instead.
+        Without bearing clearance, where the tangent at the smaller probe does not
+        land in equilibrium (`_to_zero_load`: a contact changes between the probe
+        and zero), the equilibrium is solved again at a probe ten times smaller,
+        starting from the last, and the step is taken from there: at most
+        REFINEMENTS times, then the chord is followed.  With bearing clearance the
+        chord is followed at once where the tangent disagrees with it.
+        """
+        q, agree = self._to_zero_load(angle[group], f0[group], pin_b[group], brg_off[group],
+                                      c_half[group], path)
+        converged = np.ones(group.size, dtype=bool)
+        if agree.all() or depth == REFINEMENTS or self.nl_bearings.size:
+            return q, converged, 0
+        sub = np.flatnonzero(~agree)
+        load, q_last = path[-1]
+        loads = np.full(sub.size, load / 10.0)
+        q_sub, conv, iterations = self._solve_group(group[sub], angle, f0, pin_b, brg_off, c_half,
+                                                    loads, None, None, q_last[sub])
+        q[sub], converged[sub], its = self._back_to_zero(
+            group[sub], angle, f0, pin_b, brg_off, c_half,
+            [(load, q_last[sub]), (load / 10.0, q_sub)], depth + 1)
+        converged[sub] &= conv
+        return q, converged, iterations + its
+
+    def _to_zero_load(self, angle, f0, pin_b, brg_off, c_half, path):
+        """From the smaller of two probe loads back to zero: (q_N (B, nN), agree (B,)).
+
+        path: [(load [N*m], q_N (B, nN))] x 2, the smaller load last.  The step back
+        follows the tangent at the last one: exact while no contact changes between
+        it and zero (it then lands in equilibrium at zero load).  Where the Hessian
+        at the probe says nothing about the way to zero, the chord through the two
+        solutions is followed instead and `agree` is False:
+        - without bearing clearance, where the tangent does not land in equilibrium
+          (out-of-balance force above ZERO_RESIDUAL of the probe's load vector: a
+          pin closes or opens on the way);
+        - with bearing clearance, where the tangent turns the carrier more than
+          TANGENT_AGREEMENT times as far as the chord (a part just touching its
+          clearance circle with hardly any force rolls around it almost freely).
         """
         load, q = path[-1]
-        work = Work(self, angle, f0 - load * self.g_red[angle], self.model.pin_rows[angle], pin_b,
-                    brg_off, c_half)
+        rows = self.model.pin_rows[angle]
+        work = Work(self, angle, f0 - load * self.g_red[angle], rows, pin_b, brg_off, c_half)
         slope = np.linalg.solve(work.hessian(q, None), work.load_direction()[..., None])[..., 0]
         tangent = -load * slope
-        if len(path) < 2:
-            return q + tangent
         previous_load, previous = path[-2]
         chord = (q - previous) * (load / (previous_load - load))
-        turn_tangent = np.einsum("bn,bn->b", self.carrier_row[angle], tangent)
-        turn_chord = np.einsum("bn,bn->b", self.carrier_row[angle], chord)
-        agree = np.abs(turn_tangent) <= TANGENT_AGREEMENT * np.abs(turn_chord) + 1e-13
-        return q + np.where(agree[:, None], tangent, chord)
+        if self.nl_bearings.size:
+            turn_tangent = np.einsum("bn,bn->b", self.carrier_row[angle], tangent)
+            turn_chord = np.einsum("bn,bn->b", self.carrier_row[angle], chord)
+            agree = np.abs(turn_tangent) <= TANGENT_AGREEMENT * np.abs(turn_chord) + 1e-13
+        else:
+            at_zero = Work(self, angle, f0, rows, pin_b, brg_off, c_half)
+            residual = np.linalg.norm(at_zero.gradient_hessian(q + tangent)[2], axis=1)
+            agree = residual <= ZERO_RESIDUAL * abs(load) * np.linalg.norm(self.g_red[angle], axis=1)
+        return q + np.where(agree[:, None], tangent, chord), agree
 
     def _elastic(self, angle, f, pin_b, brg_off, c_half, direction, count, q0=None, f_errors=None,
                  bearing_direction=None):
@@ -412,7 +457,7 @@ def _nominal_guess(system, errors, sample, angle, tau_load, probe):
     deflection (B, p, 2), zero where it carries nothing), or (None, None)."""
     if errors.samples < NOMINAL_GUESS_MIN_SAMPLES:
         return None, None
-    first_probe = probe * (CONTINUATION[0] if system.nl_bearings.size else 1.0)
+    first_probe = probe * system._probe_steps()[0]
     tau_load = np.where(tau_load == 0.0, first_probe, tau_load)
     keys, inverse = np.unique(np.stack([angle, tau_load]), axis=1, return_inverse=True)
     a_u, t_u = keys[0].astype(int), keys[1]
