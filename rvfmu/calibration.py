@@ -302,6 +302,13 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
         if name in OTHER_NAMES:
             out.append(_other_parameter(design, name, given.get(name)))
             continue
+        law = {"crank_disc_bearing_stiffness": ("crank_disc", "needle_rollers"),
+               "crank_carrier_bearing_stiffness": ("crank_carrier", "tapered_rollers")}.get(field)
+        if law is not None and law[0] in design.roller_laws:
+            raise InputError("fit", name, f"sets {field}, but that bearing follows the roller law "
+                             f"({law[1]} = {getattr(design, law[1])}): its stiffness comes from "
+                             f"its rollers; fit another value, or set {law[1]} = 0 to fit it as "
+                             "a linear spring")
         current = getattr(design, field)
         bending = None
         if name == "R_pd":

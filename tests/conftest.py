@@ -3,7 +3,9 @@
 `rv40` is the RV-40E-121 as the seeds and the formulas give it (the preset before its
 calibration to the catalogue, `RV-40E-121-estimate`): the tests of the physics were built
 on that geometry and those stiffnesses.  The calibrated presets and the series compliance
-that calibration adds are tested on their own (test_catalogue.py), exactly.
+that calibration adds are tested on their own (test_catalogue.py), exactly.  `rv40_rollers` is
+`rv40` with the rollers of its crank bearings ([sources]): those bearings follow the roller
+law under load (rvfmu/core/roller_law.py).
 """
 
 from pathlib import Path
@@ -11,7 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rvfmu.core.design import preset
+import math
+
+from rvfmu.core.design import preset, preset_file
 from rvfmu.core.errors import load_errors
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -20,6 +24,22 @@ ROOT = Path(__file__).resolve().parent.parent
 @pytest.fixture(scope="session")
 def rv40():
     return preset("RV-40E-121-estimate")
+
+
+def with_rollers(design, name="RV-40E-121"):
+    """`design` with the crank bearings' rollers of preset `name`'s [sources]: the needle
+    and tapered roller bearings then follow the roller law."""
+    src = preset_file(name)["sources"]
+    return design.with_fields(
+        needle_rollers=src["needle_rollers"], needle_roller_length=src["needle_roller_length_mm"] * 1e-3,
+        tapered_rollers=src["tapered_rollers"],
+        tapered_roller_length=src["tapered_roller_length_mm"] * 1e-3,
+        tapered_contact_angle=math.radians(src["tapered_contact_angle_deg"]))
+
+
+@pytest.fixture(scope="session")
+def rv40_rollers(rv40):
+    return with_rollers(rv40)
 
 
 @pytest.fixture(scope="session")

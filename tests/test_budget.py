@@ -113,3 +113,27 @@ def test_stiffness_command_checks_its_inputs_first(tmp_path):
     assert proc.returncode == 2 and "load = 0" in proc.stderr
     proc = rvte("stiffness", "RV-40E-121")
     assert proc.returncode == 0 and "compliance budget" in proc.stdout and "sum" in proc.stdout
+
+
+@pytest.mark.parametrize("clearances", [False, True], ids=["tight", "clearances"])
+def test_with_the_roller_law_shares_still_add_up_and_the_crank_bending_is_its_own_row(
+        rv40_rollers, seed002, clearances):
+    """The roller law's energy is the integral of its force (rvfmu/core/roller_law.py): the
+    shares add up to one as with linear springs, the rigidity is the windup test's, and
+    the spring in series with the needles (the crank bent at its cams) is a row of its own:
+    its stiffness and the needles' own secant make the stated stiffness in series."""
+    errors = seed002
+    if clearances:
+        errors = seed002.replace(crank_disc_clearance=np.array([6.0 * UM]),
+                                 crank_carrier_clearance=np.array([4.0 * UM]),
+                                 main_bearing_clearance=np.array([10.0 * UM]))
+    budget = compliance_budget(rv40_rollers, errors)
+    assert budget.converged
+    assert abs(budget.share_sum - 1.0) < 1e-6
+    assert budget.torsional_rigidity_Nm_per_arcmin == pytest.approx(
+        windup(rv40_rollers, errors).torsional_rigidity_Nm_per_arcmin()[0], rel=1e-9)
+    rows = {e.name: e for e in budget.elements}
+    bending, needles = rows["crank bending at the cams"], rows["crank-disc needle bearings"]
+    assert 1.0 / bending.stiffness + 1.0 / needles.stiffness == pytest.approx(
+        1.0 / rv40_rollers.crank_disc_bearing_stiffness, rel=1e-12)
+    assert bending.share > 0.05 and needles.share > 0.05

@@ -44,6 +44,27 @@ def test_at_slow_speed_the_dynamic_te_is_the_quasi_static_te(rv40, seed002):
     assert np.max(np.abs(dynamic - static)) < 0.05 * pp
 
 
+def test_with_the_roller_law_the_slow_dynamic_te_is_the_quasi_static_te(rv40_rollers):
+    """The crank bearings follow the roller law in both models (rvfmu/core/roller_law.py)."""
+    from rvfmu.core.errors import load_errors
+    from conftest import ROOT
+
+    errors = load_errors(ROOT / "studies" / "seed002_errors.toml", rv40_rollers)
+    sim = simulate(rv40_rollers, errors, speed_rpm=5.0, load=300.0, revolutions=0.02,
+                   mesh="constant", ramp=0.5)
+    assert sim.failed_steps == 0
+    theta = sim.theta_in[sim.steady:][::5]
+    dynamic = sim.steady_te_arcsec()[::5]
+    te, _, _ = equilibrium_te(rv40_rollers, errors, theta, [-300.0])
+    static = rad_to_arcsec(te[0, 0])
+    assert np.ptp(static) > 5.0
+    assert np.max(np.abs(dynamic - static)) < 0.01 * np.ptp(static)
+    # and the law shows: the linear bearings of the stated stiffness wind up less
+    linear, _, _ = equilibrium_te(rv40_rollers.with_fields(needle_rollers=0, tapered_rollers=0),
+                                  errors, theta, [-300.0])
+    assert np.mean(rad_to_arcsec(linear[0, 0]) - static) > 1.0
+
+
 def test_at_a_small_load_and_slow_speed_the_dynamic_te_is_the_no_load_limit(rv40, seed002):
     small = 5e-4 * rv40.rated_torque                    # 0.2 N*m
     sim = simulate(rv40, seed002, speed_rpm=5.0, load=small, revolutions=0.01, mesh="constant",
@@ -110,14 +131,16 @@ def test_a_sun_eccentricity_turns_with_the_input_and_cancels_in_the_te(rv40, bas
     assert change < 0.1 * fixed_axis
 
 
-def test_newmark_conserves_energy_without_damping_load_or_input_motion(rv40, seed002):
-    design = rv40.with_fields(damping_ratio=0.0)
+@pytest.mark.parametrize("rollers", [False, True], ids=["linear bearings", "roller law"])
+def test_newmark_conserves_energy_without_damping_load_or_input_motion(rv40, rv40_rollers, seed002,
+                                                                      rollers):
+    design = (rv40_rollers if rollers else rv40).with_fields(damping_ratio=0.0)
     model = DynamicModel(design, seed002, contact="linear", mesh="constant")
     steps = 4000
     time = np.arange(steps) * 2e-6
     model.prepare(Motion(time, np.zeros(steps), np.zeros(steps), np.zeros(steps)))
     # released from its equilibrium under rated load: free vibration with pins opening and closing
-    q0 = static_equilibrium(model, -rv40.rated_torque * model.load_vector(), 0)
+    q0 = static_equilibrium(model, -design.rated_torque * model.load_vector(), 0)
     stepper = NewmarkStepper.starting_at(model, q0)
     energies = [model.energy(0, q0, np.zeros(model.n))]
     for _ in range(steps - 1):
@@ -222,13 +245,15 @@ def preset_rv40():
     return preset("RV-40E-121")
 
 
-@pytest.mark.parametrize("contact", ["linear", "impact"])
-def test_tangent_stiffness_and_damping_are_the_derivatives_of_the_forces(rv40, seed002, contact):
+@pytest.mark.parametrize("contact, rollers", [("linear", False), ("impact", False), ("linear", True)])
+def test_tangent_stiffness_and_damping_are_the_derivatives_of_the_forces(rv40, rv40_rollers, seed002,
+                                                                        contact, rollers):
     from rvfmu.core.simulation import _quasi_static_start
 
-    model = DynamicModel(rv40, seed002, contact=contact, mesh="varying")
+    design = rv40_rollers if rollers else rv40
+    model = DynamicModel(design, seed002, contact=contact, mesh="varying")
     model.prepare(ramp_motion(np.array([0.0, 1e-4]), 100.0, 0.0))
-    q = _quasi_static_start(model, rv40, seed002, -300.0, 1)
+    q = _quasi_static_start(model, design, seed002, -300.0, 1)
     rng = np.random.default_rng(3)
     v = rng.normal(0.0, 1e-4, model.n)
     f, K, C = model.forces(1, q, v)

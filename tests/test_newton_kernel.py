@@ -99,3 +99,21 @@ def test_on_every_pin_the_compiled_and_numpy_equilibria_agree(full_study_reducer
     # and the candidates change nothing: the same equilibria as the preselected iteration
     candidates = te_curve(design, errors, tau_load=0.0, points=200)
     np.testing.assert_allclose(compiled.te_arcsec, candidates.te_arcsec, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("clearances", [False, True], ids=["tight", "clearances"])
+def test_with_the_roller_law_the_compiled_and_numpy_equilibria_agree(rv40_rollers, full_study_reducers,
+                                                                     clearances):
+    """The crank bearings follow the roller law under load (rvfmu/core/roller_law.py): both
+    iterations evaluate it, the compiled one through the same compiled law."""
+    from rvfmu.core.errors import load_errors
+
+    design = rv40_rollers
+    if clearances:
+        errors = full_study_reducers[1]
+    else:
+        errors = stack([load_errors(ROOT / "studies" / "seed002_errors.toml", design)] * 2)
+    for tau in (-412.0, -12.0, 150.0):
+        compiled, plain = both(lambda: te_curve(design, errors, tau_load=tau, points=240))
+        assert compiled.converged.all() and plain.converged.all()
+        np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-6)

@@ -348,3 +348,80 @@ def test_no_load_te_of_a_preloaded_reducer_without_bearing_clearance_is_the_limi
     assert np.all(te[0] <= te[3] + 0.05) and np.all(te[3] <= forward + 0.05)
     # the probe's own TE is not the limit there: the test looks where it matters
     assert np.max(np.abs(te[0] - te[3])) > 5.0
+
+
+# -- the crank bearings' roller law -----------------------------------------------------------
+
+@pytest.mark.parametrize("tau_fraction, clearances", [(-1.0, False), (-0.03, False), (0.5, False),
+                                                       (-0.25, True)])
+def test_with_the_roller_law_the_solver_agrees_with_the_reference(rv40_rollers, tau_fraction,
+                                                                  clearances):
+    """The reference integrates the rollers' energy over the loaded arc and carries the crank's
+    bending as a spring with unknowns of its own (rvfmu/core/reference.py); the solver
+    tabulates the energy and eliminates the spring (rvfmu/core/roller_law.py)."""
+    design = rv40_rollers
+    errors = load_errors(ROOT / "studies" / "seed002_errors.toml", design)
+    if clearances:
+        errors = errors.replace(crank_disc_clearance=np.array([6.0 * UM]),
+                                crank_carrier_clearance=np.array([4.0 * UM]),
+                                main_bearing_clearance=np.array([10.0 * UM]))
+    theta_in = input_angles(design, 6) + 0.3
+    tau = tau_fraction * design.rated_torque
+    fast, _, ok = equilibrium_te(design, errors, theta_in, [tau])
+    slow = te_reference(design, errors, theta_in, tau)
+    assert ok.all()
+    np.testing.assert_allclose(fast[0, 0] / ARCSEC, slow / ARCSEC, atol=0.002)
+
+
+def test_the_roller_law_winds_up_as_its_stated_stiffness_under_load_and_softer_near_zero(
+        rv40, rv40_rollers, seed002):
+    """The stated stiffnesses are the laws' secants over 50-100 % of the bearing loads that
+    rigid-part statics gives at rated torque: the rigidity stays within 2 % (the model's
+    bearing loads carry the pins' radial forces too), while near zero load the rollers are
+    softer than that secant (Q ~ delta^(10/9)): the lost motion grows.  The no-load TE
+    without clearance is the rigid limit, which no stiffness moves."""
+    linear, rollers = windup(rv40, seed002), windup(rv40_rollers, seed002)
+    assert rollers.torsional_rigidity_Nm_per_arcmin()[0] == pytest.approx(
+        linear.torsional_rigidity_Nm_per_arcmin()[0], rel=0.02)
+    assert rollers.lost_motion_arcmin()[0] > linear.lost_motion_arcmin()[0] + 0.02
+    theta_in = input_angles(rv40, 180)
+    plain = equilibria(rv40, seed002, theta_in, [0.0]).te
+    law = equilibria(rv40_rollers, seed002, theta_in, [0.0]).te
+    np.testing.assert_allclose(law / ARCSEC, plain / ARCSEC, atol=1e-9)
+
+
+def test_with_the_roller_law_and_clearances_the_no_load_te_is_the_rigid_limit(rv40_rollers):
+    """At no load the bearings with clearance follow the roller law in the continuation;
+    the limit is that of rigid parts (the linear programs of `no_load_limit_bracket`),
+    whatever the law."""
+    design = rv40_rollers
+    errors = _with_clearances(load_errors(ROOT / "studies" / "seed002_errors.toml", design),
+                              20.0, 15.0, 12.0)
+    theta_in = input_angles(design, 16) + 0.1
+    te = equilibria(design, errors, theta_in, [0.0]).te[0, 0]
+    model = EquivalentModel(design, theta_in, flank=1)
+    checked = 0
+    for a in range(theta_in.size):
+        bracket = no_load_limit_bracket(model, errors, 0, a)
+        if bracket is None:
+            continue   # these errors preload some part at no load: the limit is elastic there
+        low, high = bracket
+        assert low - 0.05 * ARCSEC <= te[a] <= high + 0.05 * ARCSEC, a
+        checked += 1
+    assert checked >= 12
+
+
+def test_a_stated_stiffness_its_rollers_cannot_reach_is_refused(rv40):
+    from rvfmu.core.checks import InputError
+    from conftest import with_rollers
+
+    with pytest.raises(InputError) as info:
+        with_rollers(rv40.with_fields(crank_disc_bearing_stiffness=2e9))
+    assert info.value.field == "crank_disc_bearing_stiffness_N_per_m"
+    assert "secant stiffness of its rollers alone" in str(info.value)
+    with pytest.raises(InputError) as info:
+        rv40.with_fields(needle_rollers=12)
+    assert info.value.field == "needle_roller_length_mm"
+    with pytest.raises(InputError) as info:
+        rv40.with_fields(tapered_rollers=14, tapered_roller_length=6e-3)
+    assert info.value.field == "tapered_contact_angle_deg"

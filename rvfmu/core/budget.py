@@ -39,6 +39,7 @@ from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .limits import check_load
 from .newton import pin_delta
+from .roller_law import radial_law
 from .quasistatic import (NO_LOAD_PROBE, RIGIDITY_FRACTIONS, WINDUP_POSITIONS, _checked_errors,
                           windup_positions)
 from .solver import ReducedSystem, solve_pairs
@@ -97,19 +98,35 @@ class ComplianceBudget:
         return float(1.0 / (0.5 * slope.sum() / ARCMIN))
 
 
-def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q) -> dict:
+def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q,
+                     rollers=None) -> dict:
     """Strain energy [J] of each kind of element at the equilibria q (B, n) of the pairs
-    (sample[b], angle[b]): {element name: (B,)}, the terms of the solver's energy."""
+    (sample[b], angle[b]): {element name: (B,)}, the terms of the solver's energy.
+
+    The bearings `rollers` (nb,) bool (default: all that have a roller law; the solver
+    takes them as linear springs at no load) follow the roller law; where the law has a
+    spring in series (the crank bent at its cams, behind the needles), that spring's
+    energy is an element of its own."""
     d = model.design
     n_c = d.n_c
     lin_b, brg_b, pin_b = model.offsets(errors, sample, angle)
     lin = np.einsum("bmn,bn->bm", model.linear_rows[angle], q) + lin_b
     lin_energy = 0.5 * model.linear_k * lin * lin                                  # (B, m)
     brg = np.einsum("bpxn,bn->bpx", model.bearing_rows[angle], q) + brg_b
-    over = np.maximum(np.linalg.norm(brg, axis=-1) - model.clearance_halves(errors)[sample], 0.0)
+    s = np.linalg.norm(brg, axis=-1)
+    c_half = model.clearance_halves(errors)[sample]
+    over = np.maximum(s - c_half, 0.0)
     brg_energy = 0.5 * model.bearing_k * over * over                               # (B, nb)
+    series_energy = np.zeros_like(brg_energy)     # the springs in series with roller bearings
+    rollers = model.bearing_law_a > 0.0 if rollers is None else rollers
+    if np.any(rollers):
+        compliance = model.bearing_law_compliance[rollers]
+        energy, force, _ = radial_law(s[:, rollers], c_half[:, rollers],
+                                      model.bearing_law_a[rollers], compliance)
+        series_energy[:, rollers] = 0.5 * compliance * force * force
+        brg_energy[:, rollers] = energy - series_energy[:, rollers]
     delta = np.maximum(pin_delta(model.pin_rows[angle], q[:, model.pin_dofs], pin_b), 0.0)
-    return {
+    parts = {
         "pin-disc contacts": 0.5 * model.pin_k * (delta * delta).sum(axis=(1, 2)),
         "sun-planet meshes": lin_energy[:, :n_c].sum(axis=1),
         "sun support": lin_energy[:, n_c:].sum(axis=1),
@@ -117,6 +134,9 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q)
         "crank-disc needle bearings": brg_energy[:, n_c:3 * n_c].sum(axis=1),
         "main bearing": brg_energy[:, -1],
     }
+    if d.roller_laws.get("crank_disc", (0.0, 0.0))[1] > 0.0:
+        parts["crank bending at the cams"] = series_energy[:, n_c:3 * n_c].sum(axis=1)
+    return parts
 
 
 def _elements(design: RVDesign, shares: dict) -> tuple[Element, ...]:
@@ -124,14 +144,21 @@ def _elements(design: RVDesign, shares: dict) -> tuple[Element, ...]:
     d = design
     def per_arcmin(compliance):
         return np.inf if compliance == 0.0 else ARCMIN / compliance
-    table = (("pin-disc contacts", 2 * d.z_p, d.pin_disc_stiffness, "N/m"),
+    laws = d.roller_laws
+    needles = d.crank_disc_bearing_stiffness
+    table = [("pin-disc contacts", 2 * d.z_p, d.pin_disc_stiffness, "N/m"),
              ("sun-planet meshes", d.n_c, d.mesh_stiffness, "N/m"),
              ("sun support", 1, d.sun_support_stiffness, "N/m"),
              ("crank-carrier bearings", d.n_c, d.crank_carrier_bearing_stiffness, "N/m"),
-             ("crank-disc needle bearings", 2 * d.n_c, d.crank_disc_bearing_stiffness, "N/m"),
+             ("crank-disc needle bearings", 2 * d.n_c, needles, "N/m"),
              ("main bearing", 1, d.main_bearing_stiffness, "N/m"),
              ("carrier pillars", 1, per_arcmin(d.carrier_compliance), "N*m/arcmin"),
-             ("output series compliance", 1, per_arcmin(d.output_compliance), "N*m/arcmin"))
+             ("output series compliance", 1, per_arcmin(d.output_compliance), "N*m/arcmin")]
+    series = laws.get("crank_disc", (0.0, 0.0))[1]
+    if series > 0.0:
+        # the stated stiffness splits into the needles' own secant and the crank's bending
+        table[4] = ("crank-disc needle bearings", 2 * d.n_c, 1.0 / (1.0 / needles - series), "N/m")
+        table.insert(5, ("crank bending at the cams", 2 * d.n_c, 1.0 / series, "N/m"))
     return tuple(Element(name, count, float(k), unit, float(shares[name]))
                  for name, count, k, unit in table)
 
@@ -167,7 +194,8 @@ def compliance_budget(design: RVDesign, errors: ErrorSet | None = None, torque: 
         converged &= bool(eq.converged.all())
         # The weak springs of the solver's reduced system (solver.ReducedSystem), centred at
         # zero at these loads (they are released only below RELEASE_BELOW probe torques).
-        system = ReducedSystem(model, np.any(model.clearance_halves(errors) > 0, axis=0))
+        system = ReducedSystem(model, np.any(model.clearance_halves(errors) > 0, axis=0)
+                               | (model.bearing_law_a > 0.0))
         q_n = eq.q[:, system.N]
         held = 0.5 * np.einsum("bi,bij,bj->b", q_n, system.reg_matrix[a], q_n).reshape(levels, positions)
         weak += float((held[-1] - held[0]).sum())

@@ -14,6 +14,7 @@ the dynamic model (rvfmu/core/dynamic.py); the quasi-static model does not use t
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import tomllib
 from dataclasses import dataclass
@@ -33,7 +34,7 @@ class FieldSpec:
     field: str
     file_key: str
     scale: float  # file value * scale = SI value
-    kind: str  # "int", "positive", "signed", "non_negative", "fraction"
+    kind: str  # "int" (>= 1), "count" (>= 0), "positive", "signed", "non_negative", "fraction"
     doc: str
     default: float | None = None  # the value when a file leaves it out; None: required
 
@@ -80,6 +81,19 @@ DESIGN_FIELDS = (
     FieldSpec("rated_torque", "rated_torque_Nm", 1.0, "positive", "catalogue rated output torque"),
     FieldSpec("youngs_modulus", "youngs_modulus_GPa", GPA, "positive", "steel of the parts"),
     FieldSpec("poisson_ratio", "poisson_ratio", 1.0, "fraction", "steel of the parts"),
+    FieldSpec("needle_rollers", "needle_rollers", 1, "count",
+              "needles of one crank-disc bearing: with them the bearing follows the roller law "
+              "(docs/model.md section 6); 0 = the linear spring crank_disc_bearing_stiffness", 0),
+    FieldSpec("needle_roller_length", "needle_roller_length_mm", MM, "non_negative",
+              "effective contact length of a needle", 0.0),
+    FieldSpec("tapered_rollers", "tapered_rollers", 1, "count",
+              "rollers of one of the two tapered roller bearings of a crankshaft in the carrier: "
+              "with them the pair follows the roller law; 0 = the linear spring "
+              "crank_carrier_bearing_stiffness", 0),
+    FieldSpec("tapered_roller_length", "tapered_roller_length_mm", MM, "non_negative",
+              "effective contact length of a tapered roller", 0.0),
+    FieldSpec("tapered_contact_angle", "tapered_contact_angle_deg", DEG, "non_negative",
+              "contact angle of the tapered rollers, from the axis (seed 003: 80 deg)", 0.0),
     FieldSpec("carrier_compliance", "carrier_compliance_arcsec_per_Nm", ARCSEC, "non_negative",
               "torsional compliance of the carrier in series with the output: its far flange "
               "turning on its pillars, windup per output torque (estimated from geometry); "
@@ -91,6 +105,7 @@ DESIGN_FIELDS = (
 )
 
 _BY_KEY = {spec.file_key: spec for spec in DESIGN_FIELDS}
+INTEGER_KINDS = ("int", "count")
 PRESET_NAMES = ("RV-40E-121", "RV-40E-81", "RV-20E", "RV-110E")
 # A preset by its name is calibrated against its frame's catalogue figures (the [calibration]
 # table of its file); the same name with this suffix is the estimate from the seeds and the
@@ -140,6 +155,11 @@ class RVDesign:
     rated_torque: float
     youngs_modulus: float
     poisson_ratio: float
+    needle_rollers: int = 0
+    needle_roller_length: float = 0.0
+    tapered_rollers: int = 0
+    tapered_roller_length: float = 0.0
+    tapered_contact_angle: float = 0.0
     carrier_compliance: float = 0.0
     output_compliance: float = 0.0
 
@@ -147,6 +167,7 @@ class RVDesign:
         for spec in DESIGN_FIELDS:
             object.__setattr__(self, spec.field, _checked(spec, getattr(self, spec.field), self.name))
         _check_relations(self)
+        self.roller_laws  # noqa: B018 (a stated stiffness its rollers cannot reach is refused now)
 
     # -- derived quantities (docs/model.md section 2) --------------------------------
     @property
@@ -174,6 +195,14 @@ class RVDesign:
         the carrier's crank seats."""
         return self.carrier_compliance + self.output_compliance
 
+    @functools.cached_property
+    def roller_laws(self) -> dict:
+        """{"crank_disc" | "crank_carrier": (a, series compliance)} of the crank bearings that
+        follow the roller law (`stiffness.roller_laws`); empty without roller geometry."""
+        from .stiffness import roller_laws
+
+        return roller_laws(self)
+
     @property
     def tip_root_clearance(self) -> float:
         """Radial pin clearance at every lobe tip and root, d_rrp - d_rp [m] (docs/model.md section 3)."""
@@ -188,20 +217,20 @@ class RVDesign:
         values = {"name": self.name}
         for spec in DESIGN_FIELDS:
             value = getattr(self, spec.field)
-            values[spec.file_key] = value if spec.kind == "int" else value / spec.scale
+            values[spec.file_key] = value if spec.kind in INTEGER_KINDS else value / spec.scale
         return values
 
 
 def in_file_units(fields: dict) -> dict:
     """{file key: value in file units} of some SI design fields {field: value}."""
     specs = {spec.field: spec for spec in DESIGN_FIELDS}
-    return {specs[k].file_key: v if specs[k].kind == "int" else v / specs[k].scale
+    return {specs[k].file_key: v if specs[k].kind in INTEGER_KINDS else v / specs[k].scale
             for k, v in fields.items()}
 
 
 def _checked(spec: FieldSpec, value, where: str):
-    if spec.kind == "int":
-        return integer(spec.file_key, value, 1, where=where)
+    if spec.kind in INTEGER_KINDS:
+        return integer(spec.file_key, value, 1 if spec.kind == "int" else 0, where=where)
     # Checks are made on the file value so that the message shows what the user wrote.
     shown = value / spec.scale if isinstance(value, (int, float)) and not isinstance(value, bool) else value
     if spec.kind == "positive":
@@ -256,6 +285,14 @@ def _check_relations(d: RVDesign) -> None:
     if d.n_c > 1 and 2.0 * a * math.sin(math.pi / d.n_c) <= 2.0 * planet_tip:
         raise InputError("z_pl", d.z_pl, f"planets of tip radius {planet_tip / MM:.4g} mm collide "
                          f"on a crank circle of {a / MM:.4g} mm with {d.n_c} cranks", where)
+    for rollers, length, name in ((d.needle_rollers, d.needle_roller_length, "needle"),
+                                  (d.tapered_rollers, d.tapered_roller_length, "tapered")):
+        if rollers and not length > 0.0:
+            raise InputError(f"{name}_roller_length_mm", length / MM,
+                             f"must be > 0 with {name}_rollers = {rollers}", where)
+    if d.tapered_rollers and not 0.0 < d.tapered_contact_angle < math.pi / 2.0:
+        raise InputError("tapered_contact_angle_deg", math.degrees(d.tapered_contact_angle),
+                         "must be between 0 and 90 deg (from the axis) with tapered rollers", where)
     if not 0.0 < d.pressure_angle < math.radians(45):
         raise InputError("pressure_angle_deg", math.degrees(d.pressure_angle),
                          "must be between 0 and 45 deg", where)
@@ -301,8 +338,9 @@ def design_from_file_values(values: dict, where: str = "design") -> RVDesign:
     fields = {}
     for spec in DESIGN_FIELDS:
         raw = merged.get(spec.file_key, spec.default)
-        if spec.kind == "int":
-            fields[spec.field] = integer(spec.file_key, raw, 1, where=where)
+        if spec.kind in INTEGER_KINDS:
+            fields[spec.field] = integer(spec.file_key, raw, 1 if spec.kind == "int" else 0,
+                                         where=where)
         else:
             fields[spec.field] = finite_number(spec.file_key, raw, where) * spec.scale
     return RVDesign(name=str(name), **fields)

@@ -47,6 +47,7 @@ from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .kernels import Elements, Geometry, element_forces, gather, touched_columns
 from .stiffness import transverse_contact_ratio
+from .roller_law import TABLE_DE, TABLE_E, radial_law
 
 INPUT_SHAFT_FACTOR = 10.0  # input shaft torsional stiffness / torsional mesh stiffness at the sun
 DOUBLE_PAIR = 1.75         # double-pair / single-pair mesh stiffness: ISO 6336-1's c_gamma = c'(0.75 eps + 0.25)
@@ -160,7 +161,11 @@ class DynamicModel:
         s2 = self.scale ** 2
         self.elements = Elements(
             self.linear_c, np.ascontiguousarray(self.half_clearance, dtype=float), self.bearing_k,
-            self.bearing_c, np.asarray(self.pin_dofs, dtype=np.int64), float(self.pin_k),
+            self.bearing_c,
+            np.ascontiguousarray(np.stack([self.bearing_k, probe.bearing_law_a,
+                                           probe.bearing_law_compliance], axis=-1)),
+            np.ascontiguousarray(np.stack([TABLE_E, TABLE_DE])),
+            np.asarray(self.pin_dofs, dtype=np.int64), float(self.pin_k),
             float(self.pin_c), contact == "impact", float(self.impact_k), IMPACT_EXPONENT,
             IMPACT_PENETRATION, int(self.sun_rot), self.shaft_k / s2, self.shaft_c / s2)
         counts = {"crank": design.n_c, "disc": 2}
@@ -277,13 +282,18 @@ class DynamicModel:
         return f, K, C
 
     def energy(self, step: int, q: np.ndarray, v: np.ndarray) -> float:
-        """Kinetic plus elastic energy [J] at a step (linear contact law; for energy checks)."""
+        """Kinetic plus elastic energy [J] at a step (linear pin law; for energy checks)."""
         g, a = self.geometry(step)
         delta = np.sum(g.L[a] * q[g.linear_cols], axis=-1) + g.linear_offset[a]
         elastic = 0.5 * np.sum(g.linear_k[a] * delta ** 2)
         d = np.sum(g.B[a] * q[g.bearing_cols][:, None, :], axis=-1) + g.bearing_offset[a]
-        stretch = np.maximum(np.sqrt((d ** 2).sum(axis=1)) - self.half_clearance, 0.0)
-        elastic += 0.5 * np.sum(self.bearing_k * stretch ** 2)
+        r = np.sqrt((d ** 2).sum(axis=1))
+        stretch = np.maximum(r - self.half_clearance, 0.0)
+        rollers = self.elements.bearing_law[:, 1] > 0.0
+        elastic += 0.5 * np.sum((self.bearing_k * stretch ** 2)[~rollers])
+        elastic += np.sum(radial_law(r[rollers], self.half_clearance[rollers],
+                                     self.elements.bearing_law[rollers, 1],
+                                     self.elements.bearing_law[rollers, 2])[0])
         for j in range(2):
             pin = np.maximum(g.P[a, j] @ q[self.pin_dofs[j]] + g.pin_offset[a, j], 0.0)
             elastic += 0.5 * self.pin_k * np.sum(pin ** 2)

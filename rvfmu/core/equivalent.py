@@ -240,6 +240,13 @@ class EquivalentModel:
                                   + [d.main_bearing_stiffness])
         self.bearing_kind = (["crank_carrier_clearance"] * n_c + ["crank_disc_clearance"] * (2 * n_c)
                              + ["main_bearing_clearance"])
+        # The bearings that follow the roller law (`roller_law`): its constant a (0: the linear
+        # spring bearing_k) and the compliance of the spring in series with it [m/N].
+        laws = d.roller_laws
+        per_bearing = ([laws.get("crank_carrier", (0.0, 0.0))] * n_c
+                       + [laws.get("crank_disc", (0.0, 0.0))] * (2 * n_c) + [(0.0, 0.0)])
+        self.bearing_law_a = np.array([law[0] for law in per_bearing])
+        self.bearing_law_compliance = np.array([law[1] for law in per_bearing])
 
         # Pins: normal through the pitch point z_p e (cos psi, sin psi) (instant centre).
         pin_angle = 2.0 * np.pi * np.arange(d.z_p) / d.z_p

@@ -45,11 +45,16 @@ def kernel(function):
         return _NUMBA.njit(nogil=True)(function)
 
 
+# The roller law is compiled with `kernel` too: imported once `kernel` exists.
+from .roller_law import roller_law  # noqa: E402
+
 Elements = namedtuple("Elements", [
     "linear_c",        # (m,) dashpots of the meshes and sun support [N s/m]
     "half_clearance",  # (nb,) free radial play of each bearing [m]
     "bearing_k",       # (nb,) [N/m]
     "bearing_c",       # (nb,) [N s/m]
+    "bearing_law",     # (nb, 3): k, roller-law constant a (0: the linear spring k), series compliance
+    "law_table",       # (2, T): the roller law's table (roller_law.TABLE_E, TABLE_DE)
     "pin_dofs",        # (2, 3) unknowns of each disc: x, y, rotation
     "pin_k",           # linear pin law stiffness [N/m]
     "pin_c",           # pin dashpot (IMPACT: its c_max) [N s/m]
@@ -123,7 +128,8 @@ def element_forces(el, g, a, q, v, f, K, C):
             for y in range(cols.shape[1]):
                 K[i, cols[e, y]] += k * L[e, x] * L[e, y]
                 C[i, cols[e, y]] += c * L[e, x] * L[e, y]
-    # bearings: 2-D springs with a dead zone of half the radial clearance
+    # bearings: 2-D springs (linear, or the roller law) with a dead zone of half the radial
+    # clearance
     cols, B = g.bearing_cols, g.B[a]
     for b in range(cols.shape[0]):
         dx, dy = g.bearing_offset[a, b, 0], g.bearing_offset[a, b, 1]
@@ -138,13 +144,20 @@ def element_forces(el, g, a, q, v, f, K, C):
         if half > 0.0 and r <= half:
             continue                                   # inside its play; a tight one always holds
         k, c = el.bearing_k[b], el.bearing_c[b]
-        ratio = half / r if half > 0.0 else 0.0
         ux, uy = (dx / r, dy / r) if r > 0.0 else (0.0, 0.0)
-        # force k (r - half) u and its derivative k (1 - ratio) I + k ratio u u^T
-        fx, fy = k * (1.0 - ratio) * dx + c * vx, k * (1.0 - ratio) * dy + c * vy
-        sxx = k * (1.0 - ratio) + k * ratio * ux * ux
-        syy = k * (1.0 - ratio) + k * ratio * uy * uy
-        sxy = k * ratio * ux * uy
+        if el.bearing_law[b, 1] == 0.0:
+            # force k (r - half) u: F' = k along u, F / r = k (1 - half / r) across it
+            radial = k
+            across = k * (1.0 - half / r) if half > 0.0 else k
+        else:
+            # the roller law (rvfmu/core/roller_law.py): F(r) along u
+            _, force, radial = roller_law(el.law_table[0], el.law_table[1], r, half,
+                                          el.bearing_law[b, 1], el.bearing_law[b, 2])
+            across = force / r if r > 0.0 else 0.0
+        fx, fy = across * dx + c * vx, across * dy + c * vy
+        sxx = across + (radial - across) * ux * ux
+        syy = across + (radial - across) * uy * uy
+        sxy = (radial - across) * ux * uy
         for x in range(cols.shape[1]):
             i, bx, by = cols[b, x], B[b, 0, x], B[b, 1, x]
             f[i] += bx * fx + by * fy

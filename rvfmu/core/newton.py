@@ -21,6 +21,7 @@ from functools import cached_property
 import numpy as np
 
 from . import kernels
+from .roller_law import TABLE_DE, TABLE_E, radial_law
 
 MAX_ITERATIONS = 400
 STEP_TOLERANCE = 1e-14   # m: converged when a Newton step moves less (1e-8 um)
@@ -62,7 +63,9 @@ def newton_compiled(work, first_active, q0=None):
         c(work.K, dtype=float), c(sys.mode_stiffness[work.angle], dtype=float), c(work.f, dtype=float),
         c(work.rows, dtype=float), c(work.pin_b, dtype=float), c(sys.pin_local, dtype=np.int64),
         float(sys.model.pin_k), c(brg_rows, dtype=float), c(brg_off, dtype=float),
-        c(c_half, dtype=float), c(np.asarray(sys.brg_k, dtype=float)), c(toward, dtype=float),
+        c(c_half, dtype=float), c(np.stack([sys.brg_k, sys.brg_law_a, sys.brg_law_compliance],
+                                          axis=-1), dtype=float),
+        c(np.stack([TABLE_E, TABLE_DE])), c(toward, dtype=float),
         work.toward is not None, c(guess, dtype=np.bool_), q, q0 is not None, MAX_ITERATIONS,
         STEP_TOLERANCE, GAP_TOLERANCE, converged, iterations)
     return q, converged, int(iterations.max(initial=0))
@@ -179,8 +182,7 @@ class Work:
         pos = np.maximum(delta, 0.0)
         e += 0.5 * sys.model.pin_k * np.einsum("bjk,bjk->b", pos, pos)
         if self.brg_rows is not None:
-            over = np.maximum(np.linalg.norm(self._bearing(q), axis=-1) - self.c_half, 0.0)
-            e += 0.5 * np.einsum("bp,p->b", over * over, sys.brg_k)
+            e += bearing_law(self._bearing(q), self.c_half, sys)[0].sum(axis=1)
         return e, delta
 
     def gradient_hessian(self, q, active=None, bearings_engaged=False):
@@ -226,9 +228,8 @@ class Work:
                 true_grad[:, sys.pin_local[j]] += true_gen[:, j]
         if self.brg_rows is not None:
             d = self._bearing(q)
-            norm = np.linalg.norm(d, axis=-1)
-            scale = np.where(norm > self.c_half, 1.0 - self.c_half / np.maximum(norm, 1e-300), 0.0)
-            bforce = np.einsum("bpxn,bpx->bn", self.brg_rows, d * (scale * sys.brg_k)[..., None])
+            _, force, tangent = bearing_law(d, self.c_half, sys)
+            bforce = np.einsum("bpxn,bpx->bn", self.brg_rows, force)
             true_grad += bforce
             if bearings_engaged and self.toward is not None:
                 pull = (d - self.c_half[..., None] * self.toward) * sys.brg_k[:, None]
@@ -237,8 +238,6 @@ class Work:
             if bearings_engaged:
                 tangent = np.broadcast_to(np.eye(2) * sys.brg_k[:, None, None],
                                           self.brg_off.shape[:2] + (2, 2))
-            else:
-                tangent = bearing_tangent(d, self.c_half, sys.brg_k)
             # sum over bearings and directions of row^T tangent row: one (B, nN, 2p) @ (B, 2p, nN)
             B, p, _, n = self.brg_rows.shape
             pulled = np.matmul(tangent, self.brg_rows).reshape(B, 2 * p, n)
@@ -277,11 +276,8 @@ class Work:
             d2 = quad[t] + kp * np.einsum("bjk,bjk->b", on * ddelta[t], ddelta[t])
             if self.brg_rows is not None:
                 d = d0[t] + a * dd[t]
-                scale = np.linalg.norm(d, axis=-1)
-                over = np.where(scale > self.c_half[t], 1.0 - self.c_half[t] / np.maximum(scale, 1e-300), 0.0)
-                force = d * (over * sys.brg_k)[..., None]
+                _, force, tangent = bearing_law(d, self.c_half[t], sys)
                 d1 = d1 + np.einsum("bpx,bpx->b", force, dd[t])
-                tangent = bearing_tangent(d, self.c_half[t], sys.brg_k)
                 d2 = d2 + np.einsum("bpx,bpxy,bpy->b", dd[t], tangent, dd[t])
             return d1, d2
 
@@ -330,15 +326,29 @@ def row_products(rows):
     return rows[..., _UPPER[0]] * rows[..., _UPPER[1]]
 
 
-def bearing_tangent(d, c_half, k):
-    """Tangent stiffness (B, p, 2, 2) of isotropic bearings with free play c_half at deflection d."""
-    norm = np.maximum(np.linalg.norm(d, axis=-1), 1e-300)
-    n_hat = d / norm[..., None]
-    engaged = norm > c_half
-    ratio = np.where(engaged, c_half / norm, 1.0)
-    tangent = ((1.0 - ratio)[..., None, None] * np.eye(2)
-               + ratio[..., None, None] * n_hat[..., :, None] * n_hat[..., None, :])
-    return tangent * (engaged * k)[..., None, None]
+def bearing_law(d, c_half, system):
+    """(energy (B, p) [J], force (B, p, 2) [N], tangent stiffness (B, p, 2, 2) [N/m]) of the
+    isotropic bearings of `system` (its brg_k, and brg_law_a, brg_law_compliance for those
+    that follow the roller law, `roller_law`) with free play c_half at deflection d (B, p, 2).
+
+    Radial force F(s) along d/s, s = |d|: k (s - c) outside the play for a linear bearing,
+    the roller law for the others; the tangent is F'(s) along d and F(s)/s across it."""
+    s = np.linalg.norm(d, axis=-1)
+    over = np.maximum(s - c_half, 0.0)
+    k, a = system.brg_k, system.brg_law_a
+    energy, force, radial = 0.5 * k * over * over, k * over, k * (over > 0.0)
+    # across: F/s, written k (1 - c/s) for a linear bearing so that it is k at s = 0, c = 0
+    across = np.where(over > 0.0, k * (1.0 - c_half / np.maximum(s, 1e-300)), 0.0)
+    rollers = a > 0.0
+    if np.any(rollers):
+        e_r, f_r, k_r = radial_law(s[:, rollers], c_half[:, rollers], a[rollers],
+                                   system.brg_law_compliance[rollers])
+        energy[:, rollers], force[:, rollers], radial[:, rollers] = e_r, f_r, k_r
+        across[:, rollers] = f_r / np.maximum(s[:, rollers], 1e-300)
+    n_hat = d / np.maximum(s, 1e-300)[..., None]
+    along = n_hat[..., :, None] * n_hat[..., None, :]
+    tangent = across[..., None, None] * np.eye(2) + (radial - across)[..., None, None] * along
+    return energy, force[..., None] * n_hat, tangent
 
 
 def pin_delta(rows, q_local, offset):

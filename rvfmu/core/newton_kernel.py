@@ -17,7 +17,9 @@ Array arguments, B pairs, nN reduced unknowns, K pins per disc, p bearings
 with clearance (p may be 0):
 K, Kh: (B, nN, nN) reduced stiffness, and what the Hessian adds (the mode
 stiffness); f: (B, nN); rows: (B, 2, K, 3); pin_b: (B, 2, K); pin_local: (2, 3);
-brg_rows: (B, p, 2, nN); brg_off: (B, p, 2); c_half: (B, p); brg_k: (p,);
+brg_rows: (B, p, 2, nN); brg_off: (B, p, 2); c_half: (B, p); brg_law: (p, 3), each bearing's
+stiffness k, roller-law constant a (0: linear) and series compliance; table: (2, T) the
+roller law's table (`roller_law.TABLE_E`, `TABLE_DE`);
 toward: (B, p, 2); guess: (B, 2, K) bool; q: (B, nN), the start, overwritten
 by the solution.
 """
@@ -27,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .kernels import kernel
+from .roller_law import roller_law
 
 
 @kernel
@@ -50,21 +53,37 @@ def _bearing_deflections(brg_rows, brg_off, q, out):
 
 
 @kernel
-def _bearing(dx, dy, c_half, k):
-    """(fx, fy, txx, txy, tyy): force and tangent stiffness of an isotropic bearing with free
-    play c_half at deflection (dx, dy): k (|d| - c) d/|d| outside the play, nothing inside."""
-    norm = max(np.sqrt(dx * dx + dy * dy), 1e-300)
-    if norm <= c_half:
-        return 0.0, 0.0, 0.0, 0.0, 0.0
-    nx, ny = dx / norm, dy / norm
-    ratio = c_half / norm
-    scale = k * (1.0 - ratio)
-    return (scale * dx, scale * dy, k * (1.0 - ratio + ratio * nx * nx), k * ratio * nx * ny,
-            k * (1.0 - ratio + ratio * ny * ny))
+def _radial(s, c_half, law, table):
+    """(energy, force, radial stiffness, force / s) of an isotropic bearing with free play
+    c_half at radial deflection s: k (s - c) outside the play for a linear one (law[1] == 0),
+    the roller law (`roller_law.roller_law`) for the others; nothing inside the play."""
+    if s <= c_half:
+        return 0.0, 0.0, 0.0, 0.0
+    if law[1] == 0.0:
+        k = law[0]
+        over = s - c_half
+        return 0.5 * k * over * over, k * over, k, k * (1.0 - c_half / s)
+    energy, force, stiffness = roller_law(table[0], table[1], s, c_half, law[1], law[2])
+    return energy, force, stiffness, force / s
 
 
 @kernel
-def _energy(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_k, q, delta, d):
+def _bearing(dx, dy, c_half, law, table):
+    """(fx, fy, txx, txy, tyy): force and tangent stiffness of an isotropic bearing with free
+    play c_half at deflection (dx, dy) (`_radial`): F(|d|) along d, the tangent F' along d
+    and F/|d| across it."""
+    norm = max(np.sqrt(dx * dx + dy * dy), 1e-300)
+    if norm <= c_half:
+        return 0.0, 0.0, 0.0, 0.0, 0.0
+    _, force, radial, across = _radial(norm, c_half, law, table)
+    nx, ny = dx / norm, dy / norm
+    return (force * nx, force * ny, across + (radial - across) * nx * nx,
+            (radial - across) * nx * ny, across + (radial - across) * ny * ny)
+
+
+@kernel
+def _energy(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_law, table, q, delta,
+            d):
     """Reduced energy of one pair at q [J] (up to a constant); pin deflections into delta
     (2, K) and bearing deflections into d (p, 2)."""
     n = q.size
@@ -83,14 +102,13 @@ def _energy(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_k, 
     e += 0.5 * kp * pins
     _bearing_deflections(brg_rows, brg_off, q, d)
     for b in range(d.shape[0]):
-        over = max(np.sqrt(d[b, 0] ** 2 + d[b, 1] ** 2) - c_half[b], 0.0)
-        e += 0.5 * brg_k[b] * over * over
+        e += _radial(np.sqrt(d[b, 0] ** 2 + d[b, 1] ** 2), c_half[b], brg_law[b], table)[0]
     return e
 
 
 @kernel
-def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_k,
-                      toward, has_toward, gap_tolerance, q, guess, use_guess, engaged,
+def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_law,
+                      table, toward, has_toward, gap_tolerance, q, guess, use_guess, engaged,
                       grad, hess, true_grad, used, delta, d):
     """`newton.Work.gradient_hessian` for one pair, into grad, hess, true_grad (nN,) / (nN, nN)
     and used (2, K); delta and d are work space."""
@@ -127,8 +145,8 @@ def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c
     _bearing_deflections(brg_rows, brg_off, q, d)
     for b in range(d.shape[0]):
         dx, dy = d[b, 0], d[b, 1]
-        kb, c = brg_k[b], c_half[b]
-        fx, fy, txx, txy, tyy = _bearing(dx, dy, c, kb)      # the true bearing force
+        kb, c = brg_law[b, 0], c_half[b]
+        fx, fy, txx, txy, tyy = _bearing(dx, dy, c, brg_law[b], table)      # the true bearing force
         gx, gy = fx, fy
         if engaged:
             txx, txy, tyy = kb, 0.0, kb
@@ -181,7 +199,7 @@ def _solve_spd(A, b, L, x):
 
 
 @kernel
-def _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k):
+def _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table):
     """(first, second) derivative of one pair's energy along its line at alpha."""
     d1 = quad * alpha + lin
     d2 = quad
@@ -193,14 +211,14 @@ def _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k):
                 d2 += kp * ddelta[j, k] * ddelta[j, k]
     for b in range(d0.shape[0]):
         fx, fy, txx, txy, tyy = _bearing(d0[b, 0] + alpha * dd[b, 0], d0[b, 1] + alpha * dd[b, 1],
-                                         c_half[b], brg_k[b])
+                                         c_half[b], brg_law[b], table)
         d1 += fx * dd[b, 0] + fy * dd[b, 1]
         d2 += dd[b, 0] * (txx * dd[b, 0] + txy * dd[b, 1]) + dd[b, 1] * (txy * dd[b, 0] + tyy * dd[b, 1])
     return d1, d2
 
 
 @kernel
-def _line_search(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_k, q, step,
+def _line_search(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_law, table, q, step,
                  delta0, ddelta, d0, dd, zero_b, zero_d):
     """`newton.Work.line_search` for one pair: the exact minimiser of the energy along step."""
     n = q.size
@@ -216,15 +234,15 @@ def _line_search(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, br
     _deflections(rows, zero_b, pin_local, step, ddelta)
     _bearing_deflections(brg_rows, brg_off, q, d0)
     _bearing_deflections(brg_rows, zero_d, step, dd)
-    d1_0, _ = _slope(0.0, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k)
+    d1_0, _ = _slope(0.0, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table)
     lo, hi = 0.0, 1.0
-    d1, d2 = _slope(hi, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k)
+    d1, d2 = _slope(hi, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table)
     for _ in range(60):                     # bracket: grow hi until the derivative is >= 0
         if d1 >= 0.0:
             break
         lo = hi
         hi *= 4.0
-        d1, d2 = _slope(hi, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k)
+        d1, d2 = _slope(hi, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table)
     alpha = hi
     if d1_0 >= 0.0:
         return 0.0                          # no descent left: the pair is at its minimum
@@ -241,14 +259,14 @@ def _line_search(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, br
             alpha = trial
         else:
             alpha = 0.5 * (lo + hi)
-        d1, d2 = _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_k)
+        d1, d2 = _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table)
         if abs(d1) <= tolerance or hi - lo <= 1e-15 * hi:
             break
     return alpha
 
 
 @kernel
-def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_k,
+def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_law, table,
                  toward, has_toward, guess, q, warm, max_iterations, step_tolerance,
                  gap_tolerance, converged, iterations):
     """Solve every pair; q (B, nN) holds the starts and receives the solutions, converged (B,)
@@ -269,14 +287,14 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half
         qs = q[s]
         Ks, fs, rs, bs = K[s], f[s], rows[s], pin_b[s]
         Bs, os_, cs = brg_rows[s], brg_off[s], c_half[s]
-        energy = _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, qs, delta, d)
+        energy = _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_law, table, qs, delta, d)
         done = False
         it = 0
         while it < max_iterations:
             it += 1
             first = it == 1 and not warm
-            _gradient_hessian(Ks, Kh[s], fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, toward[s],
-                              has_toward, gap_tolerance, qs, guess[s], first, first,
+            _gradient_hessian(Ks, Kh[s], fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_law, table,
+                              toward[s], has_toward, gap_tolerance, qs, guess[s], first, first,
                               grad, hess, true_grad, used, delta, d)
             if _solve_spd(hess, grad, factor, step):
                 for i in range(n):
@@ -285,21 +303,23 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half
                 step[:] = -np.linalg.solve(hess, grad)
             for i in range(n):
                 trial_q[i] = qs[i] + step[i]
-            trial = _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, trial_q, delta_trial, d_trial)
+            trial = _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_law, table, trial_q,
+                            delta_trial, d_trial)
             slope = 0.0
             for i in range(n):
                 slope += true_grad[i] * step[i]
             full = trial <= energy + 1e-4 * slope + 1e-13 * abs(energy)
             alpha = 1.0
             if not full:
-                alpha = _line_search(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, qs, step,
+                alpha = _line_search(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_law, table, qs, step,
                                      delta, ddelta, d, dd, zero_b, zero_d)
             largest_move, largest_q = 0.0, 0.0
             for i in range(n):
                 qs[i] += alpha * step[i]
                 largest_move = max(largest_move, abs(alpha * step[i]))
                 largest_q = max(largest_q, abs(qs[i]))
-            energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_k, qs, delta, d)
+            energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_law,
+                                                table, qs, delta, d)
             # Done when a step no longer moves (a guessed first step says nothing of that), or,
             # piecewise quadratic, when a full step landed where exactly the pins it assumed touch.
             done = (not first) and largest_move <= step_tolerance + 1e-12 * largest_q

@@ -28,13 +28,20 @@ SCALE = 1e-6  # the optimiser works in micrometres
 
 
 def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int, angle: int,
-                          tau_load: float) -> np.ndarray:
+                          tau_load: float, rollers: bool = True) -> np.ndarray:
     """Unknowns q (n + 1,) at one (reducer, angle) under tau_load [N*m], by L-BFGS-B.
 
     The last unknown is the output flange's rotation (arc length at R_p, as the
     carrier's): tau_load acts on it, and a torsional spring of stiffness
     1 / series_compliance joins it to the carrier (with no compliance, the flange
     is the carrier: the last unknown repeats the carrier's rotation).
+
+    A bearing that follows the roller law (`model.bearing_law_a` > 0; with
+    `rollers` False none, as in the solver's no-load limit: the linear spring of its
+    stated stiffness) has its energy integrated over its rollers here (Gauss-Legendre over the loaded
+    arc, `_roller_energy`), and its series spring, where it has one, is a spring
+    of its own: two more unknowns, its deflection, between the bearing and the
+    part (`roller_law` instead tabulates the energy and eliminates the spring).
     """
     lin_b, brg_b, pin_b = model.offsets(errors, np.array([sample]), np.array([angle]))
     lin_rows, lin_k = model.linear_rows[angle], model.linear_k
@@ -42,48 +49,95 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
     pin_rows, pin_k = model.pin_rows[angle], model.pin_k
     dofs = model.pin_dofs
     c_half = model.clearance_halves(errors)[sample]
+    law = (model.bearing_law_a > 0) & rollers
+    law_a, law_c = model.bearing_law_a, model.bearing_law_compliance
+    springs = np.flatnonzero(law & (law_c > 0))                      # bearings with a series spring
     g = model.load_vector() * tau_load
     reg = 1e-8 * pin_k
     compliance = model.design.series_compliance
     # Torsional spring N*m/rad between carrier and flange, on arc-length unknowns: k / R_p^2.
     flange_k = 0.0 if compliance == 0.0 else 1.0 / compliance / model.scale ** 2
     c = model.carrier_rot
+    n = model.n_dof
 
     def energy(x):
+        x = x * SCALE
+        q, series = x[:n], x[n:n + 2 * springs.size].reshape(-1, 2)
+        grad = np.zeros_like(x)
+        e, grad[:n], grad[n:n + 2 * springs.size] = _element_energy(q, series)
         if flange_k:
             # The load acts on the flange, which the spring joins to the carrier.
-            q, flange = x[:-1] * SCALE, x[-1] * SCALE
+            flange = x[-1]
             twist = flange - q[c]
-            e_flange = 0.5 * flange_k * twist * twist - g[c] * flange
-            e, grad = _element_energy(q, np.zeros_like(g))
+            e += 0.5 * flange_k * twist * twist - g[c] * flange
             grad[c] -= flange_k * twist
-            return e + e_flange, np.append(grad, flange_k * twist - g[c]) * SCALE
-        e, grad = _element_energy(x * SCALE, g)
+            grad[-1] = flange_k * twist - g[c]
+        else:
+            e -= g @ q
+            grad[:n] -= g
         return e, grad * SCALE
 
-    def _element_energy(q, g):
+    def _element_energy(q, series):
         lin = lin_rows @ q + lin_b[0]
         e = 0.5 * np.sum(lin_k * lin * lin)
         grad = lin_rows.T @ (lin_k * lin)
         d = np.einsum("pxn,n->px", brg_rows, q) + brg_b[0]
+        # linear bearings: k (|d| - c)_+
         norm = np.linalg.norm(d, axis=1)
-        over = np.maximum(norm - c_half, 0.0)
+        over = np.where(law, 0.0, np.maximum(norm - c_half, 0.0))
         e += 0.5 * np.sum(brg_k * over * over)
         force = d * (brg_k * over / np.maximum(norm, 1e-300))[:, None]
+        # roller bearings: their rollers carry d less the series spring's deflection
+        series_grad = np.zeros_like(series)
+        for i, b in enumerate(np.flatnonzero(law)):
+            rollers_d = d[b].copy()
+            if b in springs:
+                k = springs.tolist().index(b)
+                rollers_d -= series[k]
+                e += 0.5 * series[k] @ series[k] / law_c[b]
+                series_grad[k] += series[k] / law_c[b]
+            s = np.linalg.norm(rollers_d)
+            energy_r, force_r = _roller_energy(s, c_half[b], law_a[b])
+            e += energy_r
+            pull = force_r * rollers_d / max(s, 1e-300)
+            force[b] += pull
+            if b in springs:
+                series_grad[springs.tolist().index(b)] -= pull
         grad += np.einsum("pxn,px->n", brg_rows, force)
         delta = np.maximum(np.einsum("jkx,jx->jk", pin_rows, q[dofs]) + pin_b[0], 0.0)
         e += 0.5 * pin_k * np.sum(delta * delta)
         pin_gen = pin_k * np.einsum("jk,jkx->jx", delta, pin_rows)
         np.add.at(grad, dofs, pin_gen)
-        e += 0.5 * reg * q @ q - g @ q
-        grad += reg * q - g
-        return e, grad
+        e += 0.5 * reg * q @ q
+        grad += reg * q
+        return e, grad, series_grad.ravel()
 
-    x0 = np.zeros(model.n_dof + (1 if flange_k else 0))
+    x0 = np.zeros(n + 2 * springs.size + (1 if flange_k else 0))
     result = minimize(energy, x0, jac=True, method="L-BFGS-B",
                       options={"maxiter": 20000, "maxcor": 30, "ftol": 1e-16, "gtol": 1e-14})
-    q = result.x * SCALE
-    return q if flange_k else np.append(q, q[c])
+    x = result.x * SCALE
+    q = x[:n]
+    return np.append(q, x[-1] if flange_k else q[c])
+
+
+_ARC_NODES, _ARC_WEIGHTS = np.polynomial.legendre.leggauss(64)
+
+
+def _roller_energy(s, c, a):
+    """(energy [J], radial force [N]) of a roller bearing with law constant a and free play
+    c at centre deflection s: each roller at angle psi from the load carries
+    Q = K_n (s cos psi - c)^n, stores Q (s cos psi - c) / (n + 1), the rollers spread over
+    the circumference (Z / (2 pi) per radian, in a): integrals over the loaded arc."""
+    from .compliance import LINE_EXPONENT as n
+
+    if s <= c:
+        return 0.0, 0.0
+    limit = np.arccos(c / s)
+    psi = limit * _ARC_NODES                      # the nodes on [-limit, limit]
+    w = limit * _ARC_WEIGHTS
+    approach = s * np.cos(psi) - c
+    return (a * np.sum(w * approach ** (n + 1.0)) / (n + 1.0),
+            a * np.sum(w * approach ** n * np.cos(psi)))
 
 
 def te_reference(design: RVDesign, errors: ErrorSet, theta_in, tau_load: float,
@@ -100,8 +154,8 @@ def te_reference(design: RVDesign, errors: ErrorSet, theta_in, tau_load: float,
     probe = NO_LOAD_PROBE * design.rated_torque
     for a in range(theta_in.size):
         if tau_load == 0.0:
-            one = equilibrium_reference(model, errors, sample, a, -probe)[-1]
-            two = equilibrium_reference(model, errors, sample, a, -2 * probe)[-1]
+            one = equilibrium_reference(model, errors, sample, a, -probe, rollers=False)[-1]
+            two = equilibrium_reference(model, errors, sample, a, -2 * probe, rollers=False)[-1]
             te[a] = (2.0 * one - two) / model.scale
         else:
             te[a] = equilibrium_reference(model, errors, sample, a, tau_load)[-1] / model.scale

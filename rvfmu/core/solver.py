@@ -69,22 +69,25 @@ class Equilibrium:
 class ReducedSystem:
     """The equivalent model with its linear unknowns condensed out, per angle.
 
-    `clearance` (nb,) bool says which bearings have a clearance somewhere in the
-    batch; those stay nonlinear, the others join the linear springs.
+    `nonlinear` (nb,) bool says which bearings stay nonlinear (those with a clearance
+    somewhere in the batch, and under load those that follow the roller law); the
+    others join the linear springs with their stated stiffness.  With `rollers` False
+    (the no-load limit) no bearing follows the roller law: the nonlinear ones are
+    linear beyond their clearance.
     """
 
-    def __init__(self, model: EquivalentModel, clearance: np.ndarray):
+    def __init__(self, model: EquivalentModel, nonlinear: np.ndarray, rollers: bool = True):
         self.model = model
         n = model.n_dof
         A = model.pose.theta_in.size
-        self.clearance = np.asarray(clearance, dtype=bool)
-        lin_b = np.flatnonzero(~self.clearance)
+        self.nonlinear = np.asarray(nonlinear, dtype=bool)
+        lin_b = np.flatnonzero(~self.nonlinear)
         # Linear rows: meshes, sun support, bearings without clearance (x and y rows).
         brg_rows = model.bearing_rows[:, lin_b].reshape(A, -1, n)
         self.rows = np.concatenate([model.linear_rows, brg_rows], axis=1)        # (A, m, n)
         self.k = np.concatenate([model.linear_k, np.repeat(model.bearing_k[lin_b], 2)])
         self.linear_bearings = lin_b
-        self.nl_bearings = np.flatnonzero(self.clearance)
+        self.nl_bearings = np.flatnonzero(self.nonlinear)
 
         touched = set(model.pin_dofs.ravel())
         for b in self.nl_bearings:
@@ -113,6 +116,8 @@ class ReducedSystem:
         self.pin_local = np.array([[position[d] for d in row] for row in model.pin_dofs])
         self.brg_rows = model.bearing_rows[:, self.nl_bearings][..., N]           # (A, nbn, 2, nN)
         self.brg_k = model.bearing_k[self.nl_bearings]
+        self.brg_law_a = model.bearing_law_a[self.nl_bearings] * float(rollers)
+        self.brg_law_compliance = model.bearing_law_compliance[self.nl_bearings]
         self.reg = REGULARISATION * model.pin_k
 
         # Mechanism mode: the carrier turning with the input held, all but the pins
@@ -426,25 +431,44 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     sample, angle = np.asarray(sample), np.asarray(angle)
     tau_load = np.broadcast_to(np.asarray(tau_load, dtype=float), sample.shape)
     half = model.clearance_halves(errors)
-    system = ReducedSystem(model, np.any(half > 0, axis=0))
+    clearance = np.any(half > 0, axis=0)
     B = sample.size
     q = np.empty((B, model.n_dof))
     pin_force = np.empty((B, 2, model.design.z_p))
     mesh_force = np.empty((B, model.design.n_c))
     converged = np.empty(B, dtype=bool)
     iterations = 0
-    count, toward = _nominal_guess(system, errors, sample, angle, tau_load, probe)
-    for start in range(0, B, CHUNK):
-        part = slice(start, min(start + CHUNK, B))
-        eq = system.solve(errors, sample[part], angle[part], tau_load[part], half, probe,
-                          None if count is None else count[part],
-                          None if toward is None else toward[part])
-        q[part], pin_force[part], converged[part] = eq.q, eq.pin_force, eq.converged
-        mesh_force[part] = eq.mesh_force
-        iterations = max(iterations, eq.iterations)
-        if progress is not None:
-            progress(part.stop - part.start)
+    for pairs, nonlinear, rollers in _routes(model, clearance, tau_load):
+        system = ReducedSystem(model, nonlinear, rollers)
+        count, toward = _nominal_guess(system, errors, sample[pairs], angle[pairs], tau_load[pairs],
+                                       probe)
+        for start in range(0, pairs.size, CHUNK):
+            part = slice(start, min(start + CHUNK, pairs.size))
+            at = pairs[part]
+            eq = system.solve(errors, sample[at], angle[at], tau_load[at], half, probe,
+                              None if count is None else count[part],
+                              None if toward is None else toward[part])
+            q[at], pin_force[at], converged[at] = eq.q, eq.pin_force, eq.converged
+            mesh_force[at] = eq.mesh_force
+            iterations = max(iterations, eq.iterations)
+            if progress is not None:
+                progress(at.size)
     return Equilibrium(q, pin_force, mesh_force, converged, iterations)
+
+
+def _routes(model, clearance, tau_load):
+    """[(pairs, nonlinear bearings, rollers)]: the bearings with clearance stay nonlinear
+    for every pair; the roller law holds under load only.  At no load (the rigid limit of
+    docs/model.md section 5, which no stiffness moves) the bearings that follow it are
+    springs of their stated stiffness, linear beyond any clearance: the probe loads of
+    the limit are far below where the law and its secant differ in what they give there."""
+    rollers = model.bearing_law_a > 0.0
+    loaded = tau_load != 0.0
+    if not rollers.any():
+        return [(np.arange(tau_load.size), clearance, False)]
+    routes = [(np.flatnonzero(~loaded), clearance, False),
+              (np.flatnonzero(loaded), clearance | rollers, True)]
+    return [route for route in routes if route[0].size]
 
 
 NOMINAL_GUESS_MIN_SAMPLES = 4  # below this, solving the error-free reducer first costs more than it saves

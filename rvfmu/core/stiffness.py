@@ -275,3 +275,57 @@ def estimate_from_sources(values: dict) -> dict:
         "carrier_compliance_arcsec_per_Nm": carrier_compliance_estimate(
             n_c, a, width, span, E, nu) / (math.pi / 180.0 / 3600.0),
     }
+
+
+# -- the roller law of a design's crank bearings ---------------------------------------------
+#
+# A design states one stiffness per bearing: its secant over the rated range, the stiffness
+# every linear part of the model uses (docs/model.md section 6).  Where it also gives the
+# rollers, the bearing follows their law (`roller_law`) and the rest of the stated
+# compliance is a linear spring in series (for the needle bearing: the crank bent at its
+# cams): 1 / k_stated = 1 / (the rollers' own secant) + C.  So the law and the stated
+# stiffness wind up alike between 50 % and 100 % of the rated torque.
+
+SERIES_ROUNDING = 1e-3   # a stated stiffness this much above the rollers' own secant: no series spring
+
+
+def roller_secant(a, load_at_rated):
+    """Secant stiffness [N/m] of the zero-clearance roller law F = a E(0) s^n over
+    50-100 % of its load at rated torque (closed form: s = (F / (a E(0)))^(1/n))."""
+    from .roller_law import N, TABLE_E
+
+    low, high = (f * load_at_rated for f in RATED_RANGE)
+    deflection = lambda f: (f / (a * TABLE_E[0])) ** (1.0 / N)  # noqa: E731
+    return (high - low) / (deflection(high) - deflection(low))
+
+
+def roller_laws(design) -> dict:
+    """{kind: (a [N/m^n], series compliance [m/N])} of the bearings of `design` that follow
+    the roller law: "crank_disc" (needle_rollers > 0), "crank_carrier" (tapered_rollers > 0).
+
+    Raises InputError where a stated stiffness is stiffer than its rollers alone."""
+    from .checks import InputError
+    from .compliance import roller_load_constant
+    from .roller_law import load_constant
+
+    crank_load = design.rated_torque / (design.n_c * design.crank_circle_radius)
+    laws = {}
+    for kind, rollers, length, angle, load, stated, key in (
+            ("crank_disc", design.needle_rollers, design.needle_roller_length, 0.0,
+             crank_load / 2.0, design.crank_disc_bearing_stiffness,
+             "crank_disc_bearing_stiffness_N_per_m"),
+            ("crank_carrier", design.tapered_rollers, design.tapered_roller_length,
+             math.pi / 2.0 - design.tapered_contact_angle, crank_load,
+             design.crank_carrier_bearing_stiffness, "crank_carrier_bearing_stiffness_N_per_m")):
+        if rollers == 0:
+            continue
+        a = load_constant(rollers, roller_load_constant(length), angle,
+                          bearings=1 if kind == "crank_disc" else 2)
+        own = roller_secant(a, load)
+        compliance = 1.0 / stated - 1.0 / own
+        if compliance < -SERIES_ROUNDING / stated:
+            raise InputError(key, stated, f"must not exceed the secant stiffness of its rollers "
+                             f"alone, {own:.4g} N/m (50-100 % of the rated load): the rollers "
+                             "given are softer than the bearing stated", design.name)
+        laws[kind] = (a, max(compliance, 0.0))
+    return laws
