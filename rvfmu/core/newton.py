@@ -185,6 +185,19 @@ class Work:
             e += bearing_law(self._bearing(q), self.c_half, sys)[0].sum(axis=1)
         return e, delta
 
+    def true_gradient(self, q):
+        """Gradient (B, nN) of the true energy at q: its out-of-balance force."""
+        sys = self.system
+        grad = np.matmul(self.K, q[..., None])[..., 0] + self.f
+        force = np.maximum(self.delta(q), 0.0)
+        gen = np.matmul(force[:, :, None, :], self.rows)[:, :, 0] * sys.model.pin_k   # (B, 2, 3)
+        for j in range(2):
+            grad[:, sys.pin_local[j]] += gen[:, j]
+        if self.brg_rows is not None:
+            grad += np.einsum("bpxn,bpx->bn", self.brg_rows,
+                              bearing_law(self._bearing(q), self.c_half, sys)[1])
+        return grad
+
     def gradient_hessian(self, q, active=None, bearings_engaged=False):
         """(gradient, Hessian, true gradient, pins taken as touching) at q.
 

@@ -36,8 +36,6 @@ CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
 REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
 MODE_DIRECTION_STIFFNESS = 1e-9  # relative to the pin stiffness, Hessian only: see ReducedSystem
 CONTINUATION = (1e3, 1e2, 1e1, 1.0)  # no load with bearing clearance: probe multiples, large to small
-PRELOAD_PROBES = (2.0, 1.0)  # no load, a pin in interference, no bearing clearance: the same, so
-                             # that the step back to zero has a chord to check its tangent against
 RELEASE_ROUNDS = 3       # no load with bearing clearance: solves with the weak springs re-centred
 RELEASE_BELOW = 100.0    # loads up to this many probe torques get the same release
 TANGENT_AGREEMENT = 3.0  # with bearing clearance: back to zero load along the tangent unless it turns
@@ -259,7 +257,7 @@ class ReducedSystem:
 
     def _probe_steps(self):
         """The probe multiples of the no-load solves, large to small, the probe itself last."""
-        return CONTINUATION if self.nl_bearings.size else PRELOAD_PROBES
+        return CONTINUATION if self.nl_bearings.size else (1.0,)
 
     def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
                      bearing_direction, q0, centre=None):
@@ -285,7 +283,7 @@ class ReducedSystem:
         return q, converged, iterations
 
     def _back_to_zero(self, group, angle, f0, pin_b, brg_off, c_half, path, depth=0):
-        """The pairs `group` from their last two probe solutions back to zero load:
+        """The pairs `group` from their last probe solutions (one or two) back to zero load:
         (q_N (G, nN), converged (G,), iterations).
 
         Without bearing clearance, where the tangent at the smaller probe does not
@@ -314,7 +312,9 @@ class ReducedSystem:
     def _to_zero_load(self, angle, f0, pin_b, brg_off, c_half, path):
         """From the smaller of two probe loads back to zero: (q_N (B, nN), agree (B,)).
 
-        path: [(load [N*m], q_N (B, nN))] x 2, the smaller load last.  The step back
+        path: [(load [N*m], q_N (B, nN))], the last one or two probe loads solved, the
+        smaller last (the chord needs two; without clearance the first check has one and
+        only the refinements have two).  The step back
         follows the tangent at the last one: exact while no contact changes between
         it and zero (it then lands in equilibrium at zero load).  Where the Hessian
         at the probe says nothing about the way to zero, the chord through the two
@@ -331,15 +331,18 @@ class ReducedSystem:
         work = Work(self, angle, f0 - load * self.g_red[angle], rows, pin_b, brg_off, c_half)
         slope = np.linalg.solve(work.hessian(q, None), work.load_direction()[..., None])[..., 0]
         tangent = -load * slope
-        previous_load, previous = path[-2]
-        chord = (q - previous) * (load / (previous_load - load))
+        if len(path) > 1:
+            previous_load, previous = path[-2]
+            chord = (q - previous) * (load / (previous_load - load))
+        else:
+            chord = tangent     # nothing to fall back on: the caller refines where not agreed
         if self.nl_bearings.size:
             turn_tangent = np.einsum("bn,bn->b", self.carrier_row[angle], tangent)
             turn_chord = np.einsum("bn,bn->b", self.carrier_row[angle], chord)
             agree = np.abs(turn_tangent) <= TANGENT_AGREEMENT * np.abs(turn_chord) + 1e-13
         else:
             at_zero = Work(self, angle, f0, rows, pin_b, brg_off, c_half)
-            residual = np.linalg.norm(at_zero.gradient_hessian(q + tangent)[2], axis=1)
+            residual = np.linalg.norm(at_zero.true_gradient(q + tangent), axis=1)
             agree = residual <= ZERO_RESIDUAL * abs(load) * np.linalg.norm(self.g_red[angle], axis=1)
         return q + np.where(agree[:, None], tangent, chord), agree
 
