@@ -26,11 +26,14 @@ def test_shares_add_up_to_the_work_of_the_output_torque(rv40, seed002):
     assert sum(e.share for e in budget.elements) == pytest.approx(budget.share_sum, abs=1e-5)
 
 
+def _with_clearances(errors):
+    return errors.replace(crank_disc_clearance=np.array([6.0 * UM]),
+                          crank_carrier_clearance=np.array([4.0 * UM]),
+                          main_bearing_clearance=np.array([10.0 * UM]))
+
+
 def test_shares_add_up_with_bearing_clearances(rv40, seed002):
-    errors = seed002.replace(crank_disc_clearance=np.array([6.0 * UM]),
-                             crank_carrier_clearance=np.array([4.0 * UM]),
-                             main_bearing_clearance=np.array([10.0 * UM]))
-    budget = compliance_budget(rv40, errors)
+    budget = compliance_budget(rv40, _with_clearances(seed002))
     assert budget.converged
     assert abs(budget.share_sum - 1.0) < 1e-6
 
@@ -122,11 +125,7 @@ def test_with_the_roller_law_shares_still_add_up_and_the_crank_bending_is_its_ow
     shares add up to one as with linear springs, the rigidity is the windup test's, and
     the spring in series with the needles (the crank bent at its cams) is a row of its own:
     its stiffness and the needles' own secant make the stated stiffness in series."""
-    errors = seed002
-    if clearances:
-        errors = seed002.replace(crank_disc_clearance=np.array([6.0 * UM]),
-                                 crank_carrier_clearance=np.array([4.0 * UM]),
-                                 main_bearing_clearance=np.array([10.0 * UM]))
+    errors = _with_clearances(seed002) if clearances else seed002
     budget = compliance_budget(rv40_rollers, errors)
     assert budget.converged
     assert abs(budget.share_sum - 1.0) < 1e-6

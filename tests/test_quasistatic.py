@@ -140,20 +140,23 @@ def test_superposition_of_small_errors_under_load(rv40, seed002):
     np.testing.assert_allclose(dab, da + db, atol=0.03 * max(np.abs(dab).max(), 1e-3))
 
 
-@pytest.mark.parametrize("tau_fraction, clearances", [(0.0, False), (-1.0, False), (-0.25, True)])
-def test_agrees_with_a_straightforward_scipy_solve(rv40, seed002, tau_fraction, clearances):
-    design = rv40
-    errors = seed002
-    if clearances:
-        errors = seed002.replace(crank_disc_clearance=np.array([6.0 * UM]),
-                                 crank_carrier_clearance=np.array([4.0 * UM]),
-                                 main_bearing_clearance=np.array([10.0 * UM]))
+@pytest.mark.parametrize("rollers, tau_fraction, clearances", [
+    (False, 0.0, False), (False, -1.0, False), (False, -0.25, True),
+    (True, -1.0, False), (True, -0.03, False), (True, 0.5, False), (True, -0.25, True)])
+def test_agrees_with_a_straightforward_scipy_solve(rv40, rv40_rollers, seed002, rollers, tau_fraction,
+                                                  clearances):
+    """With the roller law (rollers) the reference integrates the rollers' energy over the
+    loaded arc and carries the crank's bending as a spring with unknowns of its own
+    (rvfmu/core/reference.py); the solver tabulates the energy and eliminates the spring
+    (rvfmu/core/roller_law.py)."""
+    design = rv40_rollers if rollers else rv40
+    errors = _with_clearances(seed002, 6.0, 4.0, 10.0) if clearances else seed002
     theta_in = input_angles(design, 6) + 0.3
     tau = tau_fraction * design.rated_torque
     fast, _, ok = equilibrium_te(design, errors, theta_in, [tau])
     slow = te_reference(design, errors, theta_in, tau)
     assert ok.all()
-    np.testing.assert_allclose(fast[0, 0] / ARCSEC, slow / ARCSEC, atol=0.01)
+    np.testing.assert_allclose(fast[0, 0] / ARCSEC, slow / ARCSEC, atol=0.002)
 
 
 @pytest.mark.parametrize("name", PRESET_NAMES)
@@ -351,27 +354,6 @@ def test_no_load_te_of_a_preloaded_reducer_without_bearing_clearance_is_the_limi
 
 
 # -- the crank bearings' roller law -----------------------------------------------------------
-
-@pytest.mark.parametrize("tau_fraction, clearances", [(-1.0, False), (-0.03, False), (0.5, False),
-                                                       (-0.25, True)])
-def test_with_the_roller_law_the_solver_agrees_with_the_reference(rv40_rollers, tau_fraction,
-                                                                  clearances):
-    """The reference integrates the rollers' energy over the loaded arc and carries the crank's
-    bending as a spring with unknowns of its own (rvfmu/core/reference.py); the solver
-    tabulates the energy and eliminates the spring (rvfmu/core/roller_law.py)."""
-    design = rv40_rollers
-    errors = load_errors(ROOT / "studies" / "seed002_errors.toml", design)
-    if clearances:
-        errors = errors.replace(crank_disc_clearance=np.array([6.0 * UM]),
-                                crank_carrier_clearance=np.array([4.0 * UM]),
-                                main_bearing_clearance=np.array([10.0 * UM]))
-    theta_in = input_angles(design, 6) + 0.3
-    tau = tau_fraction * design.rated_torque
-    fast, _, ok = equilibrium_te(design, errors, theta_in, [tau])
-    slow = te_reference(design, errors, theta_in, tau)
-    assert ok.all()
-    np.testing.assert_allclose(fast[0, 0] / ARCSEC, slow / ARCSEC, atol=0.002)
-
 
 def test_the_roller_law_winds_up_as_its_stated_stiffness_under_load_and_softer_near_zero(
         rv40, rv40_rollers, seed002):
