@@ -113,7 +113,7 @@ def test_with_the_roller_law_the_compiled_and_numpy_equilibria_agree(rv40_roller
         errors = full_study_reducers[1]
     else:
         errors = stack([load_errors(ROOT / "studies" / "seed002_errors.toml", design)] * 2)
-    for tau in (-412.0, -12.0, 150.0):
+    for tau in (-412.0, -12.0, 150.0, 0.0):
         compiled, plain = both(lambda: te_curve(design, errors, tau_load=tau, points=240))
         assert compiled.converged.all() and plain.converged.all()
         np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-6)

@@ -36,6 +36,9 @@ CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
 REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
 MODE_DIRECTION_STIFFNESS = 1e-9  # relative to the pin stiffness, Hessian only: see ReducedSystem
 CONTINUATION = (1e3, 1e2, 1e1, 1.0)  # no load with bearing clearance: probe multiples, large to small
+LAW_PROBE = 1e-3         # no load, no clearance, the roller law: one solve at this x probe, from the
+                         # limit with the stated stiffnesses; the law's windup left there (it goes
+                         # as load^0.9) is below 1e-3 arcsec on the RV-40E-121
 RELEASE_ROUNDS = 3       # no load with bearing clearance: solves with the weak springs re-centred
 RELEASE_BELOW = 100.0    # loads up to this many probe torques get the same release
 TANGENT_AGREEMENT = 3.0  # with bearing clearance: back to zero load along the tangent unless it turns
@@ -71,14 +74,18 @@ class ReducedSystem:
     somewhere in the batch, and under load those that follow the roller law); the
     others join the linear springs with their stated stiffness.  With `rollers` False
     (the no-load limit) no bearing follows the roller law: the nonlinear ones are
-    linear beyond their clearance.
+    linear beyond their clearance.  `clearance`: some bearing has a clearance in the
+    batch (the no-load limit then takes the continuation route).
     """
 
-    def __init__(self, model: EquivalentModel, nonlinear: np.ndarray, rollers: bool = True):
+    def __init__(self, model: EquivalentModel, nonlinear: np.ndarray, rollers: bool = True,
+                 clearance: bool = False):
         self.model = model
         n = model.n_dof
         A = model.pose.theta_in.size
         self.nonlinear = np.asarray(nonlinear, dtype=bool)
+        self.rollers = rollers and bool(np.any(model.bearing_law_a[self.nonlinear] > 0.0))
+        self.clearance = clearance          # some bearing has a clearance in the batch
         lin_b = np.flatnonzero(~self.nonlinear)
         # Linear rows: meshes, sun support, bearings without clearance (x and y rows).
         brg_rows = model.bearing_rows[:, lin_b].reshape(A, -1, n)
@@ -167,7 +174,7 @@ class ReducedSystem:
 
     # -- one chunk -------------------------------------------------------------------------
     def solve(self, errors: ErrorSet, sample, angle, tau_load, half_clearance, probe,
-              first_count=None, bearing_direction=None) -> Equilibrium:
+              first_count=None, bearing_direction=None, start=None) -> Equilibrium:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
         tau_load == 0 gives the no-load limit from the side of the signed probe
@@ -183,6 +190,9 @@ class ReducedSystem:
         direction in which each bearing with clearance is loaded there in the
         error-free reducer (zero where it carries nothing); the first step takes
         those bearings across their clearance that way (`Work.gradient_hessian`).
+        start: (B, n) optional, all unknowns of each pair at a nearby equilibrium (the
+        no-load limit with the stated stiffnesses): the no-load pairs of a system with
+        the roller law then start there and are solved at LAW_PROBE x probe.
         """
         model = self.model
         B = len(angle)
@@ -216,11 +226,14 @@ class ReducedSystem:
                 # Probe torques, from large to small when parts float in bearing clearances
                 # (each solve starts from the last), the last one the probe itself.
                 steps = self._probe_steps()
+                if start is not None:
+                    q_start = start[group][:, self.N]
                 path = []
                 for k, scale in enumerate(steps):
                     loads = np.full(group.size, probe * scale)
                     q_start, conv, its = self._solve_group(
-                        group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
+                        group, angle, f0, pin_b, brg_off, c_half, loads,
+                        first_count if q_start is None else None,
                         bearing_direction if q_start is None else None, q_start)
                     iterations += its
                     if self.nl_bearings.size and k >= len(steps) - 2:
@@ -228,10 +241,15 @@ class ReducedSystem:
                                                            loads, q_start)
                         iterations += its
                     path.append((probe * scale, q_start))
-                qn[group], refined, its = self._back_to_zero(group, angle, f0, pin_b, brg_off,
-                                                             c_half, path[-2:])
-                conv = conv & refined
-                iterations += its
+                if self.rollers and not self.clearance:
+                    # the roller law's windup vanishes as load^0.9, which a step back along
+                    # the tangent would not undo: the solution at LAW_PROBE x probe is the limit
+                    qn[group] = q_start
+                else:
+                    qn[group], refined, its = self._back_to_zero(group, angle, f0, pin_b, brg_off,
+                                                                 c_half, path[-2:])
+                    conv = conv & refined
+                    iterations += its
             else:
                 qn[group], conv, its = self._solve_group(
                     group, angle, f0, pin_b, brg_off, c_half, loads, first_count, bearing_direction,
@@ -257,6 +275,8 @@ class ReducedSystem:
 
     def _probe_steps(self):
         """The probe multiples of the no-load solves, large to small, the probe itself last."""
+        if self.rollers and not self.clearance:
+            return (LAW_PROBE,)
         return CONTINUATION if self.nl_bearings.size else (1.0,)
 
     def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
@@ -441,8 +461,9 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     mesh_force = np.empty((B, model.design.n_c))
     converged = np.empty(B, dtype=bool)
     iterations = 0
-    for pairs, nonlinear, rollers in _routes(model, clearance, tau_load):
-        system = ReducedSystem(model, nonlinear, rollers)
+    for pairs, nonlinear, rollers, then_law in _routes(model, clearance, tau_load):
+        system = ReducedSystem(model, nonlinear, rollers, bool(clearance.any()))
+        law = ReducedSystem(model, model.bearing_law_a > 0.0, True) if then_law else None
         count, toward = _nominal_guess(system, errors, sample[pairs], angle[pairs], tau_load[pairs],
                                        probe)
         for start in range(0, pairs.size, CHUNK):
@@ -451,6 +472,11 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
             eq = system.solve(errors, sample[at], angle[at], tau_load[at], half, probe,
                               None if count is None else count[part],
                               None if toward is None else toward[part])
+            if law is not None:
+                # the limit with the stated stiffnesses is within a fraction of an arcsec
+                # of that with the roller law, which starts there
+                eq = law.solve(errors, sample[at], angle[at], tau_load[at], half, probe,
+                               start=eq.q)
             q[at], pin_force[at], converged[at] = eq.q, eq.pin_force, eq.converged
             mesh_force[at] = eq.mesh_force
             iterations = max(iterations, eq.iterations)
@@ -460,17 +486,22 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
 
 
 def _routes(model, clearance, tau_load):
-    """[(pairs, nonlinear bearings, rollers)]: the bearings with clearance stay nonlinear
-    for every pair; the roller law holds under load only.  At no load (the rigid limit of
-    docs/model.md section 5, which no stiffness moves) the bearings that follow it are
-    springs of their stated stiffness, linear beyond any clearance: the probe loads of
-    the limit are far below where the law and its secant differ in what they give there."""
-    rollers = model.bearing_law_a > 0.0
+    """[(pairs, nonlinear bearings, rollers, then_law)]: how to solve which pairs.
+
+    The bearings with clearance are nonlinear for every pair, and under load so are
+    those that follow the roller law, with their law.  At no load the limit is found
+    with the stated stiffnesses first (kinematics, or the continuation with
+    clearance).  Without clearance it then moves to the roller law (then_law): the
+    over-constrained chain's self-stress and any preload from the errors are carried
+    by the law, which a single solve at LAW_PROBE x the probe, started from the limit
+    with the stated stiffnesses, finds (`solve_pairs`).  With clearance the law's
+    bearings stay linear beyond it at no load (docs/model.md section 6)."""
+    law = model.bearing_law_a > 0.0
+    if not law.any():
+        return [(np.arange(tau_load.size), clearance, False, False)]
     loaded = tau_load != 0.0
-    if not rollers.any():
-        return [(np.arange(tau_load.size), clearance, False)]
-    routes = [(np.flatnonzero(~loaded), clearance, False),
-              (np.flatnonzero(loaded), clearance | rollers, True)]
+    routes = [(np.flatnonzero(~loaded), clearance, False, not clearance.any()),
+              (np.flatnonzero(loaded), clearance | law, True, False)]
     return [route for route in routes if route[0].size]
 
 
