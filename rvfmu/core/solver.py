@@ -39,6 +39,8 @@ CONTINUATION = (1e3, 1e2, 1e1, 1.0)  # no load with bearing clearance: probe mul
 LAW_PROBE = 1e-3         # no load, no clearance, the roller law: one solve at this x probe, from the
                          # limit with the stated stiffnesses; the law's windup left there (it goes
                          # as load^0.9) is below 1e-3 arcsec on the RV-40E-121
+LAW_RELEASE_ROUNDS = 1   # ... and after the one solve of the roller law at no load (a second and
+                         # third move quick_mc's no-load TE by less than 1e-5 arcsec, none by 0.0012)
 RELEASE_ROUNDS = 3       # no load with bearing clearance: solves with the weak springs re-centred
 RELEASE_BELOW = 100.0    # loads up to this many probe torques get the same release
 TANGENT_AGREEMENT = 3.0  # with bearing clearance: back to zero load along the tangent unless it turns
@@ -237,8 +239,9 @@ class ReducedSystem:
                         bearing_direction if q_start is None else None, q_start)
                     iterations += its
                     if self.nl_bearings.size and k >= len(steps) - 2:
-                        q_start, conv, its = self._release(group, angle, f0, pin_b, brg_off, c_half,
-                                                           loads, q_start)
+                        q_start, conv, its = self._release(
+                            group, angle, f0, pin_b, brg_off, c_half, loads, q_start,
+                            LAW_RELEASE_ROUNDS if start is not None else RELEASE_ROUNDS)
                         iterations += its
                     path.append((probe * scale, q_start))
                 if self.rollers and not self.clearance:
@@ -291,12 +294,12 @@ class ReducedSystem:
         return self._elastic(a, f, pin_b[group], brg_off[group], c_half[group], direction, count, q0,
                              f_errors=f0[group], bearing_direction=toward)
 
-    def _release(self, group, angle, f0, pin_b, brg_off, c_half, loads, q):
-        """The weak springs let go of the floating parts: RELEASE_ROUNDS solves of the pairs
+    def _release(self, group, angle, f0, pin_b, brg_off, c_half, loads, q, rounds=RELEASE_ROUNDS):
+        """The weak springs let go of the floating parts: `rounds` solves of the pairs
         `group` under `loads`, each from the last with the springs centred on it (at
         convergence they pull on nothing).  Returns (q_N, converged, iterations)."""
         iterations = 0
-        for _ in range(RELEASE_ROUNDS):
+        for _ in range(rounds):
             q, converged, its = self._solve_group(group, angle, f0, pin_b, brg_off, c_half, loads,
                                                   None, None, q, centre=q)
             iterations += its
