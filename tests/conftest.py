@@ -1,8 +1,9 @@
 """Shared fixtures: the presets and the seed 002 error set.
 
 `rv40` is the RV-40E-121 as the seeds and the formulas give it (the preset before its
-calibration to the catalogue, `RV-40E-121-estimate`): the tests of the physics were built
-on that geometry and those stiffnesses.  The calibrated presets and the series compliance
+calibration to the catalogue, `RV-40E-121-estimate`), its crank bearings linear springs of
+their stated stiffness: the tests of the physics were built on that geometry and those
+stiffnesses.  The calibrated presets and the series compliance
 that calibration adds are tested on their own (test_catalogue.py), exactly.  `rv40_rollers` is
 `rv40` with the rollers of its crank bearings ([sources]): those bearings follow the roller
 law under load (rvfmu/core/roller_law.py).
@@ -23,18 +24,27 @@ ROOT = Path(__file__).resolve().parent.parent
 
 @pytest.fixture(scope="session")
 def rv40():
-    return preset("RV-40E-121-estimate")
+    return linear_bearings(preset("RV-40E-121-estimate"))
+
+
+def linear_bearings(design):
+    """`design` with its crank bearings as linear springs of their stated stiffness (no
+    rollers given: no roller law)."""
+    return design.with_fields(needle_rollers=0, tapered_rollers=0)
 
 
 def with_rollers(design, name="RV-40E-121"):
-    """`design` with the crank bearings' rollers of preset `name`'s [sources]: the needle
-    and tapered roller bearings then follow the roller law."""
-    src = preset_file(name)["sources"]
+    """`design` with the crank bearings' rollers of preset `name` (where the preset does not
+    give them, those of its [sources]): the needle and tapered roller bearings then follow
+    the roller law."""
+    values = preset_file(name)
+    given = values if values["needle_rollers"] else values["sources"]   # the estimate's inputs
     return design.with_fields(
-        needle_rollers=src["needle_rollers"], needle_roller_length=src["needle_roller_length_mm"] * 1e-3,
-        tapered_rollers=src["tapered_rollers"],
-        tapered_roller_length=src["tapered_roller_length_mm"] * 1e-3,
-        tapered_contact_angle=math.radians(src["tapered_contact_angle_deg"]))
+        needle_rollers=given["needle_rollers"],
+        needle_roller_length=given["needle_roller_length_mm"] * 1e-3,
+        tapered_rollers=given["tapered_rollers"],
+        tapered_roller_length=given["tapered_roller_length_mm"] * 1e-3,
+        tapered_contact_angle=math.radians(given["tapered_contact_angle_deg"]))
 
 
 @pytest.fixture(scope="session")

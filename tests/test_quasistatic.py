@@ -420,8 +420,8 @@ def test_a_stated_stiffness_its_rollers_cannot_reach_is_refused(rv40):
     assert info.value.field == "crank_disc_bearing_stiffness_N_per_m"
     assert "secant stiffness of its rollers alone" in str(info.value)
     with pytest.raises(InputError) as info:
-        rv40.with_fields(needle_rollers=12)
+        rv40.with_fields(needle_rollers=12, needle_roller_length=0.0)
     assert info.value.field == "needle_roller_length_mm"
     with pytest.raises(InputError) as info:
-        rv40.with_fields(tapered_rollers=14, tapered_roller_length=6e-3)
+        rv40.with_fields(tapered_rollers=14, tapered_roller_length=6e-3, tapered_contact_angle=0.0)
     assert info.value.field == "tapered_contact_angle_deg"
