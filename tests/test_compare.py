@@ -107,8 +107,9 @@ def test_another_models_record_shows_exactly_the_two_models_difference(tmp_path,
     assert any(order == c.orders[k] for order, *_ in c.by_order(count=40))
 
 
-def test_cli_prints_json_and_writes_the_plot_and_csv(tmp_path, rv20, errors, capsys):
-    data = record(tmp_path / "bench.csv", rv20, errors, 50.0)
+def test_cli_prints_json_and_writes_the_plot_and_csv(tmp_path, capsys):
+    shipped = preset("RV-20E")   # the design the command line names below
+    data = record(tmp_path / "bench.csv", shipped, load_errors(ERRORS, shipped), 50.0)
     png, out = tmp_path / "cmp.png", tmp_path / "cmp.csv"
     code = main(["compare", "RV-20E", str(data), "--errors", str(ERRORS), "--load", "50",
                  "--points", str(POINTS), "--plot", str(png), "--csv", str(out), "--json"])
