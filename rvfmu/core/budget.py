@@ -98,15 +98,13 @@ class ComplianceBudget:
         return float(1.0 / (0.5 * slope.sum() / ARCMIN))
 
 
-def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q,
-                     rollers=None) -> dict:
-    """Strain energy [J] of each kind of element at the equilibria q (B, n) of the pairs
+def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q) -> dict:
+    """Strain energy [J] of each kind of element at the equilibria q (B, n) of loaded pairs
     (sample[b], angle[b]): {element name: (B,)}, the terms of the solver's energy.
 
-    The bearings `rollers` (nb,) bool (default: all that have a roller law; the solver
-    takes them as linear springs at no load) follow the roller law; where the law has a
-    spring in series (the crank bent at its cams, behind the needles), that spring's
-    energy is an element of its own."""
+    The bearings that have a roller law follow it; where the law has a spring in series
+    (the crank bent at its cams, behind the needles), that spring's energy is an element
+    of its own."""
     d = model.design
     n_c = d.n_c
     lin_b, brg_b, pin_b = model.offsets(errors, sample, angle)
@@ -118,7 +116,7 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q,
     over = np.maximum(s - c_half, 0.0)
     brg_energy = 0.5 * model.bearing_k * over * over                               # (B, nb)
     series_energy = np.zeros_like(brg_energy)     # the springs in series with roller bearings
-    rollers = model.bearing_law_a > 0.0 if rollers is None else rollers
+    rollers = model.bearing_law_a > 0.0
     if np.any(rollers):
         compliance = model.bearing_law_compliance[rollers]
         energy, force, _ = radial_law(s[:, rollers], c_half[:, rollers],

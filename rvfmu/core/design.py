@@ -105,7 +105,7 @@ DESIGN_FIELDS = (
 )
 
 _BY_KEY = {spec.file_key: spec for spec in DESIGN_FIELDS}
-INTEGER_KINDS = ("int", "count")
+INTEGER_MINIMUM = {"int": 1, "count": 0}   # the whole-number kinds and their least value
 PRESET_NAMES = ("RV-40E-121", "RV-40E-81", "RV-20E", "RV-110E")
 # A preset by its name is calibrated against its frame's catalogue figures (the [calibration]
 # table of its file); the same name with this suffix is the estimate from the seeds and the
@@ -217,20 +217,20 @@ class RVDesign:
         values = {"name": self.name}
         for spec in DESIGN_FIELDS:
             value = getattr(self, spec.field)
-            values[spec.file_key] = value if spec.kind in INTEGER_KINDS else value / spec.scale
+            values[spec.file_key] = value if spec.kind in INTEGER_MINIMUM else value / spec.scale
         return values
 
 
 def in_file_units(fields: dict) -> dict:
     """{file key: value in file units} of some SI design fields {field: value}."""
     specs = {spec.field: spec for spec in DESIGN_FIELDS}
-    return {specs[k].file_key: v if specs[k].kind in INTEGER_KINDS else v / specs[k].scale
+    return {specs[k].file_key: v if specs[k].kind in INTEGER_MINIMUM else v / specs[k].scale
             for k, v in fields.items()}
 
 
 def _checked(spec: FieldSpec, value, where: str):
-    if spec.kind in INTEGER_KINDS:
-        return integer(spec.file_key, value, 1 if spec.kind == "int" else 0, where=where)
+    if spec.kind in INTEGER_MINIMUM:
+        return integer(spec.file_key, value, INTEGER_MINIMUM[spec.kind], where=where)
     # Checks are made on the file value so that the message shows what the user wrote.
     shown = value / spec.scale if isinstance(value, (int, float)) and not isinstance(value, bool) else value
     if spec.kind == "positive":
@@ -338,9 +338,8 @@ def design_from_file_values(values: dict, where: str = "design") -> RVDesign:
     fields = {}
     for spec in DESIGN_FIELDS:
         raw = merged.get(spec.file_key, spec.default)
-        if spec.kind in INTEGER_KINDS:
-            fields[spec.field] = integer(spec.file_key, raw, 1 if spec.kind == "int" else 0,
-                                         where=where)
+        if spec.kind in INTEGER_MINIMUM:
+            fields[spec.field] = integer(spec.file_key, raw, INTEGER_MINIMUM[spec.kind], where=where)
         else:
             fields[spec.field] = finite_number(spec.file_key, raw, where) * spec.scale
     return RVDesign(name=str(name), **fields)

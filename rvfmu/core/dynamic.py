@@ -162,8 +162,8 @@ class DynamicModel:
         self.elements = Elements(
             self.linear_c, np.ascontiguousarray(self.half_clearance, dtype=float), self.bearing_k,
             self.bearing_c,
-            np.ascontiguousarray(np.stack([self.bearing_k, probe.bearing_law_a,
-                                           probe.bearing_law_compliance], axis=-1)),
+            np.ascontiguousarray(np.stack([probe.bearing_law_a, probe.bearing_law_compliance],
+                                          axis=-1)),
             np.ascontiguousarray(np.stack([TABLE_E, TABLE_DE])),
             np.asarray(self.pin_dofs, dtype=np.int64), float(self.pin_k),
             float(self.pin_c), contact == "impact", float(self.impact_k), IMPACT_EXPONENT,
@@ -289,11 +289,11 @@ class DynamicModel:
         d = np.sum(g.B[a] * q[g.bearing_cols][:, None, :], axis=-1) + g.bearing_offset[a]
         r = np.sqrt((d ** 2).sum(axis=1))
         stretch = np.maximum(r - self.half_clearance, 0.0)
-        rollers = self.elements.bearing_law[:, 1] > 0.0
+        law = self.elements.bearing_law
+        rollers = law[:, 0] > 0.0
         elastic += 0.5 * np.sum((self.bearing_k * stretch ** 2)[~rollers])
-        elastic += np.sum(radial_law(r[rollers], self.half_clearance[rollers],
-                                     self.elements.bearing_law[rollers, 1],
-                                     self.elements.bearing_law[rollers, 2])[0])
+        elastic += np.sum(radial_law(r[rollers], self.half_clearance[rollers], law[rollers, 0],
+                                     law[rollers, 1])[0])
         for j in range(2):
             pin = np.maximum(g.P[a, j] @ q[self.pin_dofs[j]] + g.pin_offset[a, j], 0.0)
             elastic += 0.5 * self.pin_k * np.sum(pin ** 2)

@@ -53,7 +53,8 @@ Elements = namedtuple("Elements", [
     "half_clearance",  # (nb,) free radial play of each bearing [m]
     "bearing_k",       # (nb,) [N/m]
     "bearing_c",       # (nb,) [N s/m]
-    "bearing_law",     # (nb, 3): k, roller-law constant a (0: the linear spring k), series compliance
+    "bearing_law",     # (nb, 2): roller-law constant a (0: the linear spring bearing_k), series
+                       # compliance [m/N]
     "law_table",       # (2, T): the roller law's table (roller_law.TABLE_E, TABLE_DE)
     "pin_dofs",        # (2, 3) unknowns of each disc: x, y, rotation
     "pin_k",           # linear pin law stiffness [N/m]
@@ -145,14 +146,14 @@ def element_forces(el, g, a, q, v, f, K, C):
             continue                                   # inside its play; a tight one always holds
         k, c = el.bearing_k[b], el.bearing_c[b]
         ux, uy = (dx / r, dy / r) if r > 0.0 else (0.0, 0.0)
-        if el.bearing_law[b, 1] == 0.0:
+        if el.bearing_law[b, 0] == 0.0:
             # force k (r - half) u: F' = k along u, F / r = k (1 - half / r) across it
             radial = k
             across = k * (1.0 - half / r) if half > 0.0 else k
         else:
             # the roller law (rvfmu/core/roller_law.py): F(r) along u
             _, force, radial = roller_law(el.law_table[0], el.law_table[1], r, half,
-                                          el.bearing_law[b, 1], el.bearing_law[b, 2])
+                                          el.bearing_law[b, 0], el.bearing_law[b, 1])
             across = force / r if r > 0.0 else 0.0
         fx, fy = across * dx + c * vx, across * dy + c * vy
         sxx = across + (radial - across) * ux * ux

@@ -37,11 +37,12 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
     is the carrier: the last unknown repeats the carrier's rotation).
 
     A bearing that follows the roller law (`model.bearing_law_a` > 0; with
-    `rollers` False none, as in the solver's no-load limit: the linear spring of its
-    stated stiffness) has its energy integrated over its rollers here (Gauss-Legendre over the loaded
-    arc, `_roller_energy`), and its series spring, where it has one, is a spring
-    of its own: two more unknowns, its deflection, between the bearing and the
-    part (`roller_law` instead tabulates the energy and eliminates the spring).
+    `rollers` False none: the linear spring of its stated stiffness, as in the first
+    stage of the solver's no-load limit) has its energy integrated over its rollers
+    here (Gauss-Legendre over the loaded arc, `_roller_energy`), and its series spring,
+    where it has one, is a spring of its own: two more unknowns, its deflection, between
+    the bearing and the part (`roller_law` instead tabulates the energy and eliminates
+    the spring).
     """
     lin_b, brg_b, pin_b = model.offsets(errors, np.array([sample]), np.array([angle]))
     lin_rows, lin_k = model.linear_rows[angle], model.linear_k
@@ -52,6 +53,7 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
     law = (model.bearing_law_a > 0) & rollers
     law_a, law_c = model.bearing_law_a, model.bearing_law_compliance
     springs = np.flatnonzero(law & (law_c > 0))                      # bearings with a series spring
+    slot = {b: k for k, b in enumerate(springs)}                     # each one's two unknowns
     g = model.load_vector() * tau_load
     reg = 1e-8 * pin_k
     compliance = model.design.series_compliance
@@ -89,10 +91,10 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
         force = d * (brg_k * over / np.maximum(norm, 1e-300))[:, None]
         # roller bearings: their rollers carry d less the series spring's deflection
         series_grad = np.zeros_like(series)
-        for i, b in enumerate(np.flatnonzero(law)):
+        for b in np.flatnonzero(law):
             rollers_d = d[b].copy()
-            if b in springs:
-                k = springs.tolist().index(b)
+            k = slot.get(b)
+            if k is not None:
                 rollers_d -= series[k]
                 e += 0.5 * series[k] @ series[k] / law_c[b]
                 series_grad[k] += series[k] / law_c[b]
@@ -101,8 +103,8 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
             e += energy_r
             pull = force_r * rollers_d / max(s, 1e-300)
             force[b] += pull
-            if b in springs:
-                series_grad[springs.tolist().index(b)] -= pull
+            if k is not None:
+                series_grad[k] -= pull
         grad += np.einsum("pxn,px->n", brg_rows, force)
         delta = np.maximum(np.einsum("jkx,jx->jk", pin_rows, q[dofs]) + pin_b[0], 0.0)
         e += 0.5 * pin_k * np.sum(delta * delta)

@@ -75,19 +75,15 @@ class ReducedSystem:
     `nonlinear` (nb,) bool says which bearings stay nonlinear (those with a clearance
     somewhere in the batch, and under load those that follow the roller law); the
     others join the linear springs with their stated stiffness.  With `rollers` False
-    (the no-load limit) no bearing follows the roller law: the nonlinear ones are
-    linear beyond their clearance.  `clearance`: some bearing has a clearance in the
-    batch (the no-load limit then takes the continuation route).
+    (the no-load limit with the stated stiffnesses, `_routes`) no bearing follows the
+    roller law: the nonlinear ones are linear beyond their clearance.
     """
 
-    def __init__(self, model: EquivalentModel, nonlinear: np.ndarray, rollers: bool = True,
-                 clearance: bool = False):
+    def __init__(self, model: EquivalentModel, nonlinear: np.ndarray, rollers: bool = True):
         self.model = model
         n = model.n_dof
         A = model.pose.theta_in.size
         self.nonlinear = np.asarray(nonlinear, dtype=bool)
-        self.rollers = rollers and bool(np.any(model.bearing_law_a[self.nonlinear] > 0.0))
-        self.clearance = clearance          # some bearing has a clearance in the batch
         lin_b = np.flatnonzero(~self.nonlinear)
         # Linear rows: meshes, sun support, bearings without clearance (x and y rows).
         brg_rows = model.bearing_rows[:, lin_b].reshape(A, -1, n)
@@ -229,7 +225,7 @@ class ReducedSystem:
                 # (each solve starts from the last), the last one the probe itself.
                 steps = self._probe_steps()
                 if start is not None:
-                    q_start = start[group][:, self.N]
+                    steps, q_start = (LAW_PROBE,), start[group][:, self.N]
                 path = []
                 for k, scale in enumerate(steps):
                     loads = np.full(group.size, probe * scale)
@@ -244,7 +240,7 @@ class ReducedSystem:
                             LAW_RELEASE_ROUNDS if start is not None else RELEASE_ROUNDS)
                         iterations += its
                     path.append((probe * scale, q_start))
-                if self.rollers and not self.clearance:
+                if start is not None:
                     # the roller law's windup vanishes as load^0.9, which a step back along
                     # the tangent would not undo: the solution at LAW_PROBE x probe is the limit
                     qn[group] = q_start
@@ -278,8 +274,6 @@ class ReducedSystem:
 
     def _probe_steps(self):
         """The probe multiples of the no-load solves, large to small, the probe itself last."""
-        if self.rollers and not self.clearance:
-            return (LAW_PROBE,)
         return CONTINUATION if self.nl_bearings.size else (1.0,)
 
     def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
@@ -465,7 +459,7 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     converged = np.empty(B, dtype=bool)
     iterations = 0
     for pairs, nonlinear, rollers, then_law in _routes(model, clearance, tau_load):
-        system = ReducedSystem(model, nonlinear, rollers, bool(clearance.any()))
+        system = ReducedSystem(model, nonlinear, rollers)
         law = ReducedSystem(model, model.bearing_law_a > 0.0, True) if then_law else None
         count, toward = _nominal_guess(system, errors, sample[pairs], angle[pairs], tau_load[pairs],
                                        probe)

@@ -294,9 +294,7 @@ def roller_secant(a, load_at_rated):
     50-100 % of its load at rated torque (closed form: s = (F / (a E(0)))^(1/n))."""
     from .roller_law import N, TABLE_E
 
-    low, high = (f * load_at_rated for f in RATED_RANGE)
-    deflection = lambda f: (f / (a * TABLE_E[0])) ** (1.0 / N)  # noqa: E731
-    return (high - low) / (deflection(high) - deflection(low))
+    return _secant_over_rated(lambda f: (f / (a * TABLE_E[0])) ** (1.0 / N), load_at_rated)
 
 
 def roller_laws(design) -> dict:
