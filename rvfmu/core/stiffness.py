@@ -263,11 +263,11 @@ def estimate_from_sources(values: dict) -> dict:
         "mesh_stiffness_N_per_m": iso6336_mesh_stiffness(
             values["z_s"], values["z_pl"], module, alpha, gear),
         "crank_disc_bearing_stiffness_N_per_m": crank_disc_stiffness_estimate(
-            T, n_c, a, src["needle_rollers"], src["needle_roller_length_mm"] * mm, crank, span,
-            width, E),
+            T, n_c, a, values["needle_rollers"], values["needle_roller_length_mm"] * mm, crank,
+            span, width, E),
         "crank_carrier_bearing_stiffness_N_per_m": crank_carrier_stiffness_estimate(
-            T, n_c, a, src["tapered_rollers"], src["tapered_roller_length_mm"] * mm,
-            math.radians(src["tapered_contact_angle_deg"])),
+            T, n_c, a, values["tapered_rollers"], values["tapered_roller_length_mm"] * mm,
+            math.radians(values["tapered_contact_angle_deg"])),
         "main_bearing_stiffness_N_per_m": (src["main_bearing_reference_N_per_m"]
                                            * values["R_p_mm"] / src["main_bearing_reference_R_p_mm"]),
         "sun_support_stiffness_N_per_m": cantilever_stiffness(
