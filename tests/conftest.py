@@ -5,8 +5,8 @@ calibration to the catalogue, `RV-40E-121-estimate`), its crank bearings linear 
 their stated stiffness: the tests of the physics were built on that geometry and those
 stiffnesses.  The calibrated presets and the series compliance
 that calibration adds are tested on their own (test_catalogue.py), exactly.  `rv40_rollers` is
-`rv40` with the rollers of its crank bearings ([sources]): those bearings follow the roller
-law under load (rvfmu/core/roller_law.py).
+`rv40` with the rollers of its crank bearings, as the preset gives them: those bearings follow
+the roller law (rvfmu/core/roller_law.py).
 """
 
 from pathlib import Path
@@ -34,11 +34,9 @@ def linear_bearings(design):
 
 
 def with_rollers(design, name="RV-40E-121"):
-    """`design` with the crank bearings' rollers of preset `name` (where the preset does not
-    give them, those of its [sources]): the needle and tapered roller bearings then follow
-    the roller law."""
-    values = preset_file(name)
-    given = values if values["needle_rollers"] else values["sources"]   # the estimate's inputs
+    """`design` with the crank bearings' rollers of preset `name`: the needle and tapered
+    roller bearings then follow the roller law."""
+    given = preset_file(name)
     return design.with_fields(
         needle_rollers=given["needle_rollers"],
         needle_roller_length=given["needle_roller_length_mm"] * 1e-3,

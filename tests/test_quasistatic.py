@@ -287,7 +287,7 @@ def test_no_load_te_with_a_preloaded_needle_bearing_lies_between_small_loads(rv4
 def _complete_study_reducers(rows):
     """Reducers of the complete study's Sobol sample (studies/rv40e_121_full.toml, N = 1024),
     on RV-40E-121-estimate, the design the study ran on when these rows were picked (its
-    20 um tip and root clearance; the calibrated preset's 5.3 um preloads other rows)."""
+    20 um tip and root clearance; the calibrated preset's 4.8 um preloads other rows)."""
     from tolerance import sobol
     from tolerance.sampling import errors_from_unit
     from tolerance.study import load_study
@@ -374,8 +374,8 @@ def test_the_roller_law_winds_up_as_its_stated_stiffness_under_load_and_softer_n
 def test_with_the_roller_law_the_no_load_te_is_the_limit_of_vanishing_loads():
     """Without clearance the no-load limit moves from the stated stiffnesses to the roller
     law: the calibrated RV-40E-121 with seed 002's errors is preloaded at no load (its
-    5.3 um tip clearance), and the law carries that preload differently (the no-load TE
-    moves by tenths of an arcsec).  It must be the limit of the law's TE under resisting
+    4.8 um tip clearance), and the law carries that preload differently (the no-load TE
+    moves by up to about 1 arcsec).  It must be the limit of the law's TE under resisting
     loads that shrink to zero, and agree with the reference's solve of all unknowns at a
     load of 1e-7 x rated."""
     from conftest import with_rollers
