@@ -3,7 +3,7 @@
 The study files of this folder use `RV-40E-121`, the preset as shipped,
 calibrated to the catalogue: the estimate from geometry (`RV-40E-121-estimate`)
 with a series output compliance (which leaves te_pp as it is) and a tip and
-root clearance scaled to 0.26 of the estimate's (which changes the no-load TE
+root clearance scaled to 0.24 of the estimate's (which changes the no-load TE
 under errors and the lost motion).  This runs the Sobol job of both study
 files as they are and with `design = "RV-40E-121-estimate"` (a copy of each
 beside its output), on the same Saltelli rows, and prints every metric's
