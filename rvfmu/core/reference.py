@@ -23,12 +23,13 @@ from .design import RVDesign
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .quasistatic import NO_LOAD_PROBE
+from .solver import LAW_PROBE  # the solver's small load of the law at no load: a definition, not machinery
 
 SCALE = 1e-6  # the optimiser works in micrometres
 
 
 def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int, angle: int,
-                          tau_load: float, rollers: bool = True) -> np.ndarray:
+                          tau_load: float, rollers: bool = True, weak: float = 1.0) -> np.ndarray:
     """Unknowns q (n + 1,) at one (reducer, angle) under tau_load [N*m], by L-BFGS-B.
 
     The last unknown is the output flange's rotation (arc length at R_p, as the
@@ -43,6 +44,11 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
     where it has one, is a spring of its own: two more unknowns, its deflection, between
     the bearing and the part (`roller_law` instead tabulates the energy and eliminates
     the spring).
+
+    Every unknown carries a weak spring (1e-8 x the pin stiffness, times `weak`) that
+    holds the parts the load leaves free.  Below the no-load probe load it must shrink
+    with the load (weak = load / probe), or it would hold the free mechanism short of
+    the contacts that the load closes.
     """
     lin_b, brg_b, pin_b = model.offsets(errors, np.array([sample]), np.array([angle]))
     lin_rows, lin_k = model.linear_rows[angle], model.linear_k
@@ -55,7 +61,7 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
     springs = np.flatnonzero(law & (law_c > 0))                      # bearings with a series spring
     slot = {b: k for k, b in enumerate(springs)}                     # each one's two unknowns
     g = model.load_vector() * tau_load
-    reg = 1e-8 * pin_k
+    reg = 1e-8 * pin_k * weak
     compliance = model.design.series_compliance
     # Torsional spring N*m/rad between carrier and flange, on arc-length unknowns: k / R_p^2.
     flange_k = 0.0 if compliance == 0.0 else 1.0 / compliance / model.scale ** 2
@@ -77,7 +83,7 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
         else:
             e -= g @ q
             grad[:n] -= g
-        return e, grad * SCALE
+        return e / weak, grad * (SCALE / weak)   # energies shrink with the load: keep L-BFGS-B's scale
 
     def _element_energy(q, series):
         lin = lin_rows @ q + lin_b[0]
@@ -146,7 +152,12 @@ def te_reference(design: RVDesign, errors: ErrorSet, theta_in, tau_load: float,
                  sample: int = 0) -> np.ndarray:
     """TE [rad] of the output flange at each input angle, one scipy solve per angle.
 
-    Zero load: two probe loads and a straight line back to zero (the no-load limit).
+    Zero load, the no-load limit of docs/model.md section 5: where bearings follow the
+    roller law and no bearing has clearance, one solve with the law under a resisting
+    load of LAW_PROBE x the probe (the law's windup goes as load^0.9, which a straight
+    line back to zero would not undo; what is left of it there is below 0.001 arcsec);
+    otherwise, as the solver at no load with clearance, the stated stiffnesses: two
+    probe loads and a straight line back to zero.
     """
     theta_in = np.atleast_1d(theta_in)
     model = EquivalentModel(design, theta_in, flank=1 if tau_load <= 0 else -1)
@@ -154,8 +165,12 @@ def te_reference(design: RVDesign, errors: ErrorSet, theta_in, tau_load: float,
     # The probe of the solver's no-load solves: a larger one bends the straight line back to
     # zero where a contact changes between the two probe loads (0.03 arcsec at 10x, seed 002).
     probe = NO_LOAD_PROBE * design.rated_torque
+    law = bool(np.any(model.bearing_law_a > 0)) and not np.any(model.clearance_halves(errors) > 0)
     for a in range(theta_in.size):
-        if tau_load == 0.0:
+        if tau_load == 0.0 and law:
+            te[a] = equilibrium_reference(model, errors, sample, a, -LAW_PROBE * probe,
+                                          weak=LAW_PROBE)[-1] / model.scale
+        elif tau_load == 0.0:
             one = equilibrium_reference(model, errors, sample, a, -probe, rollers=False)[-1]
             two = equilibrium_reference(model, errors, sample, a, -2 * probe, rollers=False)[-1]
             te[a] = (2.0 * one - two) / model.scale
