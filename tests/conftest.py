@@ -5,8 +5,8 @@ calibration to the catalogue, `RV-40E-121-estimate`), its crank bearings linear 
 their stated stiffness: the tests of the physics were built on that geometry and those
 stiffnesses.  The calibrated presets and the series compliance
 that calibration adds are tested on their own (test_catalogue.py), exactly.  `rv40_rollers` is
-`rv40` with the rollers of its crank bearings, as the preset gives them: those bearings follow
-the roller law (rvfmu/core/roller_law.py).
+the estimate as shipped, its crank bearings' rollers given: those bearings follow the roller
+law (rvfmu/core/roller_law.py).
 """
 
 from pathlib import Path
@@ -14,9 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import math
-
-from rvfmu.core.design import preset, preset_file
+from rvfmu.core.design import preset
 from rvfmu.core.errors import load_errors
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -33,21 +31,9 @@ def linear_bearings(design):
     return design.with_fields(needle_rollers=0, tapered_rollers=0)
 
 
-def with_rollers(design, name="RV-40E-121"):
-    """`design` with the crank bearings' rollers of preset `name`: the needle and tapered
-    roller bearings then follow the roller law."""
-    given = preset_file(name)
-    return design.with_fields(
-        needle_rollers=given["needle_rollers"],
-        needle_roller_length=given["needle_roller_length_mm"] * 1e-3,
-        tapered_rollers=given["tapered_rollers"],
-        tapered_roller_length=given["tapered_roller_length_mm"] * 1e-3,
-        tapered_contact_angle=math.radians(given["tapered_contact_angle_deg"]))
-
-
 @pytest.fixture(scope="session")
-def rv40_rollers(rv40):
-    return with_rollers(rv40)
+def rv40_rollers():
+    return preset("RV-40E-121-estimate")
 
 
 @pytest.fixture(scope="session")

@@ -381,9 +381,7 @@ def test_with_the_roller_law_the_no_load_te_is_the_limit_of_vanishing_loads():
     moves by up to about 1 arcsec).  It must be the limit of the law's TE under resisting
     loads that shrink to zero, and agree with the reference's no-load TE (its solve of all
     unknowns with the law at a load of 1e-7 x rated)."""
-    from conftest import with_rollers
-
-    design = with_rollers(preset("RV-40E-121"))
+    design = preset("RV-40E-121")
     errors = load_errors(ROOT / "studies" / "seed002_errors.toml", design)
     theta_in = input_angles(design, 180)
     probe = NO_LOAD_PROBE * design.rated_torque
@@ -418,12 +416,11 @@ def test_with_the_roller_law_and_clearances_the_no_load_te_is_the_rigid_limit(rv
     assert checked >= 12
 
 
-def test_a_stated_stiffness_its_rollers_cannot_reach_is_refused(rv40):
+def test_a_stated_stiffness_its_rollers_cannot_reach_is_refused(rv40, rv40_rollers):
     from rvfmu.core.checks import InputError
-    from conftest import with_rollers
 
     with pytest.raises(InputError) as info:
-        with_rollers(rv40.with_fields(crank_disc_bearing_stiffness=2e9))
+        rv40_rollers.with_fields(crank_disc_bearing_stiffness=2e9)
     assert info.value.field == "crank_disc_bearing_stiffness_N_per_m"
     assert "secant stiffness of its rollers alone" in str(info.value)
     with pytest.raises(InputError) as info:
