@@ -36,12 +36,12 @@ class StiffnessReport:
             f"compliance budget  shares of the windup between {b.torque_low:g} and "
             f"{b.torque_high:g} N*m (element strain energy / output work; "
             f"{b.torsional_rigidity_Nm_per_arcmin:.1f} N*m/arcmin there)",
-            f"  {'element':<28} {'count':>5} {'stiffness each':>16}  {'share':>6}",
+            f"  {'element':<36} {'count':>5} {'stiffness each':>16}  {'share':>6}",
         ]
         for e in sorted(b.elements, key=lambda e: -e.share):
             k = "rigid" if math.isinf(e.stiffness) else f"{e.stiffness:.4g} {e.unit}"
-            lines.append(f"  {e.name:<28} {e.count:>5} {k:>16}  {100 * e.share:>5.1f} %")
-        lines.append(f"  {'sum':<28} {'':>5} {'':>16}  {100 * b.share_sum:>5.1f} %")
+            lines.append(f"  {e.name:<36} {e.count:>5} {k:>16}  {100 * e.share:>5.1f} %")
+        lines.append(f"  {'sum':<36} {'':>5} {'':>16}  {100 * b.share_sum:>5.1f} %")
         if not b.converged or not self.windup.converged.all():
             lines.append("warning            the equilibrium did not converge at some positions")
         return "\n".join(lines)

@@ -38,7 +38,7 @@ How it is answered, and why so:
   `crank_carrier_bearing_stiffness`; R_pd, the cylindrical roller (needle)
   bearing between a cam and its disc, is the bearing inside
   `crank_disc_bearing_stiffness`, which the presets take as that bearing in
-  series with the crank bent between its supports (docs/model.md section 6,
+  series with the crank bent and sheared between its supports (docs/model.md section 6,
   `rvfmu.core.stiffness`).  Fitting R_pd therefore sets
   crank_disc_bearing_stiffness = series(R_pd, crank bending at its cams) with the crank's
   diameter and span from the design's [sources] table (or its preset's): the
@@ -272,7 +272,8 @@ def crank_bending_stiffness(design: RVDesign, sources: dict | None) -> float:
                          "crank_disc_bearing_stiffness itself")
     diameter = positive("sources.crank_diameter_mm", sources["crank_diameter_mm"]) * MM
     span = positive("sources.crank_span_mm", sources["crank_span_mm"]) * MM
-    return compliance.crank_bending_stiffness(design.youngs_modulus, diameter, span,
+    return compliance.crank_bending_stiffness(design.youngs_modulus, design.poisson_ratio,
+                                              diameter, span,
                                               cam_positions(span, design.disc_width))
 
 

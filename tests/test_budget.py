@@ -7,7 +7,7 @@ import pytest
 
 from conftest import ROOT
 from rvfmu import api
-from rvfmu.core.budget import compliance_budget
+from rvfmu.core.budget import WEAK_SPRINGS, compliance_budget
 from rvfmu.core.checks import InputError
 from rvfmu.core.design import preset
 from rvfmu.core.quasistatic import windup
@@ -23,7 +23,11 @@ def test_shares_add_up_to_the_work_of_the_output_torque(rv40, seed002):
     assert abs(budget.share_sum - 1.0) < 1e-6
     # the solver's weak springs hold a millionth, no element's
     assert 0.0 <= budget.regularisation / budget.work < 1e-5
-    assert sum(e.share for e in budget.elements) == pytest.approx(budget.share_sum, abs=1e-5)
+    assert budget.elements[-1].name == WEAK_SPRINGS
+    assert budget.elements[-1].share == pytest.approx(budget.regularisation / budget.work,
+                                                      rel=1e-12)
+    # so the table's shares add up to one as the energies do
+    assert sum(e.share for e in budget.elements) == pytest.approx(budget.share_sum, abs=1e-12)
 
 
 def _with_clearances(errors):
@@ -56,7 +60,7 @@ def test_series_compliance_share_is_its_part_of_the_compliance():
     for name, compliance in (("output series compliance", design.output_compliance),
                              ("carrier pillars", design.carrier_compliance)):
         expected = compliance / ARCMIN * budget.torsional_rigidity_Nm_per_arcmin
-        assert 0.05 < expected < 0.5
+        assert 0.01 < expected < 0.5
         assert shares[name] == pytest.approx(expected, rel=2e-3)
 
 
@@ -132,7 +136,7 @@ def test_with_the_roller_law_shares_still_add_up_and_the_crank_bending_is_its_ow
     assert budget.torsional_rigidity_Nm_per_arcmin == pytest.approx(
         windup(rv40_rollers, errors).torsional_rigidity_Nm_per_arcmin()[0], rel=1e-9)
     rows = {e.name: e for e in budget.elements}
-    bending, needles = rows["crank bending at the cams"], rows["crank-disc needle bearings"]
+    bending, needles = rows["crank bending and shear at the cams"], rows["crank-disc needle bearings"]
     assert 1.0 / bending.stiffness + 1.0 / needles.stiffness == pytest.approx(
         1.0 / rv40_rollers.crank_disc_bearing_stiffness, rel=1e-12)
     assert bending.share > 0.05 and needles.share > 0.05

@@ -120,13 +120,13 @@ def test_seed003_names_map_onto_the_design_and_r_pd_sits_in_series_with_the_cran
     assert ca.value == rv20.main_bearing_stiffness and b.value == rv20.crank_carrier_bearing_stiffness
     # the preset's crank-disc value is the needle bearing (Palmgren with its roller load
     # distribution, 11 rollers of 6 mm, secant between 50 % and 100 % of 167 / (2 * 2 * a))
-    # in series with the crank bent at its cams (13 mm, span 34 mm, cams at 13 and 21 mm)
+    # in series with the crank bent and sheared at its cams (13 mm, span 34 mm, cams at 13 and 21 mm)
     a = rv20.crank_circle_radius
     needle = compliance.secant_stiffness(lambda f: compliance.bearing_deflection(f, 11, 6e-3),
                                          0.5 * 167.0 / (4 * a), 167.0 / (4 * a))
     assert pd.value == pytest.approx(needle, rel=0.005)
     assert pd.series_with == pytest.approx(
-        compliance.crank_bending_stiffness(211e9, 13e-3, 34e-3, (13e-3, 21e-3)), rel=1e-9)
+        compliance.crank_bending_stiffness(211e9, 0.29, 13e-3, 34e-3, (13e-3, 21e-3)), rel=1e-9)
     assert pd.field_values(1.1e10)[pd.field] == pytest.approx(series(1.1e10, pd.series_with))
     assert pd.field_values(pd.value)[pd.field] == pytest.approx(rv20.crank_disc_bearing_stiffness)
 

@@ -99,7 +99,7 @@ def test_each_preset_meets_its_frames_catalogue_and_its_estimate_does_not(name):
         frame.torsional_rigidity_Nm_per_arcmin, rel=0.02)
     assert calibrated.lost_motion_arcmin <= frame.lost_motion_max_arcmin
     # what the calibration was for: the estimate from geometry is stiffer than the frame (by
-    # 13-41 %, docs/model.md section 6), with too much lost motion
+    # 2-26 %, docs/model.md section 6), with too much lost motion
     assert before.torsional_rigidity_Nm_per_arcmin > frame.torsional_rigidity_Nm_per_arcmin
     assert before.lost_motion_arcmin > frame.lost_motion_max_arcmin
     # the file records the figures before and after
@@ -112,9 +112,9 @@ def test_each_preset_meets_its_frames_catalogue_and_its_estimate_does_not(name):
 
 
 # The estimate from geometry against the catalogue (docs/model.md section 6): within the
-# issue's +-25 % for the RV-40E frames; the RV-20E and RV-110E estimates stay 34 % and 41 %
-# too stiff, a gap the docs name (the elastic bodies around the bearings; no drawings).
-ESTIMATE_BAND = {"RV-40E-121": 0.25, "RV-40E-81": 0.25, "RV-20E": 0.45, "RV-110E": 0.45}
+# issue's +-25 % for the RV-40E and RV-20E frames; the RV-110E estimate, the preset whose
+# geometry the seeds give least of, stays 26 % too stiff, a gap the docs name.
+ESTIMATE_BAND = {"RV-40E-121": 0.25, "RV-40E-81": 0.25, "RV-20E": 0.25, "RV-110E": 0.30}
 
 
 @pytest.mark.parametrize("name", PRESET_NAMES)
@@ -126,10 +126,11 @@ def test_the_estimate_from_geometry_is_near_the_catalogue_and_calibration_fits_a
     # the fitted series compliance's part of the calibrated reducer's compliance
     calibrated = preset(name)
     part = calibrated.output_compliance / ARCMIN * frame.torsional_rigidity_Nm_per_arcmin
-    assert part < (0.25 if ESTIMATE_BAND[name] <= 0.25 else 0.35)
+    assert part < 0.25
     # springs in series would give 1 - 1/ratio; the calibration's smaller modification pair
-    # engages more pins and stiffens the rest a little, so the fitted part is somewhat more
-    assert 1.0 - 1.0 / ratio < part < 1.25 * (1.0 - 1.0 / ratio)
+    # engages more pins and stiffens the rest a little, so the fitted part is a little more
+    # (0.6-2.4 points of the total on the presets)
+    assert 1.0 - 1.0 / ratio < part < 1.0 - 1.0 / ratio + 0.04
 
 
 @pytest.mark.parametrize("name", PRESET_NAMES)
@@ -168,7 +169,7 @@ def test_unknown_preset_names_list_both_forms():
 
 def test_rvte_calibrate_fits_output_stiffness_and_modification_scale_to_a_catalogue(tmp_path, capsys):
     data = tmp_path / "frame.toml"
-    data.write_text("torsional_rigidity_Nm_per_arcmin = 120.0\nlost_motion_arcmin = 0.7\n")
+    data.write_text("torsional_rigidity_Nm_per_arcmin = 100.0\nlost_motion_arcmin = 0.7\n")
     out = tmp_path / "mine.toml"
     assert main(["calibrate", "RV-40E-121-estimate", str(data), "--fit",
                  "output_stiffness,modification_scale", "--target", "catalogue",
@@ -179,7 +180,7 @@ def test_rvte_calibrate_fits_output_stiffness_and_modification_scale_to_a_catalo
     assert fitted["modification_scale"]["sets"]["d_rp_mm"] == pytest.approx(
         -0.01 * fitted["modification_scale"]["value"], rel=1e-9)
     figures = catalogue.figures(load_design(out))
-    assert figures.torsional_rigidity_Nm_per_arcmin == pytest.approx(120.0, rel=0.02)
+    assert figures.torsional_rigidity_Nm_per_arcmin == pytest.approx(100.0, rel=0.02)
     assert figures.lost_motion_arcmin == pytest.approx(0.7, rel=0.02)
 
 

@@ -64,7 +64,8 @@ class Element:
 class ComplianceBudget:
     """Shares of the output windup between torque_low and torque_high [N*m], one reducer.
 
-    elements: the model's elastic elements, each with its share; energy: (E,) increase of
+    elements: the model's elastic elements, each with its share, the solver's weak springs
+    last (their share is `regularisation` / `work`); energy: (E,) increase of
     each element's strain energy [J], regularisation: that of the solver's weak springs [J],
     and work: the output torque's work over the same loading [J], all summed over the
     positions and both senses; windup_low, windup_high:
@@ -103,8 +104,8 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q)
     (sample[b], angle[b]): {element name: (B,)}, the terms of the solver's energy.
 
     The bearings that have a roller law follow it; where the law has a spring in series
-    (the crank bent at its cams, behind the needles), that spring's energy is an element
-    of its own."""
+    (the crank bent and sheared at its cams, behind the needles), that spring's energy is an
+    element of its own."""
     d = model.design
     n_c = d.n_c
     lin_b, brg_b, pin_b = model.offsets(errors, sample, angle)
@@ -133,12 +134,17 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q)
         "main bearing": brg_energy[:, -1],
     }
     if d.roller_laws.get("crank_disc", (0.0, 0.0))[1] > 0.0:
-        parts["crank bending at the cams"] = series_energy[:, n_c:3 * n_c].sum(axis=1)
+        parts["crank bending and shear at the cams"] = series_energy[:, n_c:3 * n_c].sum(axis=1)
     return parts
 
 
-def _elements(design: RVDesign, shares: dict) -> tuple[Element, ...]:
-    """The element table: name, count, stiffness and unit of each kind, with its share."""
+WEAK_SPRINGS = "weak springs (numerical)"
+
+
+def _elements(design: RVDesign, shares: dict, weak_stiffness: float) -> tuple[Element, ...]:
+    """The element table: name, count, stiffness and unit of each kind, with its share; last
+    the solver's weak springs (`solver.REGULARISATION` x the pin stiffness on every reduced
+    unknown), whose share is the rest of the work, about 1e-6 of it."""
     d = design
     def per_arcmin(compliance):
         return np.inf if compliance == 0.0 else ARCMIN / compliance
@@ -156,7 +162,8 @@ def _elements(design: RVDesign, shares: dict) -> tuple[Element, ...]:
     if series > 0.0:
         # the stated stiffness splits into the needles' own secant and the crank's bending
         table[4] = ("crank-disc needle bearings", 2 * d.n_c, 1.0 / (1.0 / needles - series), "N/m")
-        table.insert(5, ("crank bending at the cams", 2 * d.n_c, 1.0 / series, "N/m"))
+        table.insert(5, ("crank bending and shear at the cams", 2 * d.n_c, 1.0 / series, "N/m"))
+    table.append((WEAK_SPRINGS, 1, weak_stiffness, "N/m"))
     return tuple(Element(name, count, float(k), unit, float(shares[name]))
                  for name, count, k, unit in table)
 
@@ -208,6 +215,7 @@ def compliance_budget(design: RVDesign, errors: ErrorSet | None = None, torque: 
                  + design.series_compliance * tau[t]).reshape(levels, positions)
         work += float(np.sum(0.5 * (tau[1:] + tau[:-1])[:, None] * np.diff(theta, axis=0)))
         ends.append((theta[0], theta[-1]))
-    shares = dict(zip(names, energy / work))
-    return ComplianceBudget(design, low, high, _elements(design, shares), energy, weak, work,
+    shares = dict(zip(names, energy / work), **{WEAK_SPRINGS: weak / work})
+    elements = _elements(design, shares, system.reg)
+    return ComplianceBudget(design, low, high, elements, energy, weak, work,
                             np.array([e[0] for e in ends]), np.array([e[1] for e in ends]), converged)

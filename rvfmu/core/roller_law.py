@@ -21,8 +21,8 @@ force is the exact derivative of the interpolated energy.  A tapered roller pair
 contact angle alpha (to the radial plane) has the same form with a = 2 Z K_n cos^(n+1)
 alpha / (2 pi).
 
-A linear spring of compliance C in series (the crankshaft bent at its cams behind the
-needle bearing) makes the element's energy that of the pair at equilibrium: the bearing
+A linear spring of compliance C in series (the crankshaft bent and sheared at its cams
+behind the needle bearing) makes the element's energy that of the pair at equilibrium: the bearing
 deflects u where u + C F(u) = s (Newton's method from u = s, monotone because F is convex),
 Psi(s) = Phi(u) + C F(u)^2 / 2, force F(u), stiffness F'(u) / (1 + C F'(u)).
 

@@ -160,7 +160,6 @@ def cantilever_stiffness(youngs_modulus, diameter, length):
 RATED_RANGE = (0.5, 1.0)             # the catalogue's rigidity range, x rated torque
 PILLAR_DIAMETER_PER_CRANK_RADIUS = 0.5
 PILLAR_EXTRA_LENGTH = 2e-3           # m beyond the two discs' widths
-CIRCLE_SHEAR_COEFFICIENT = lambda nu: 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu)  # noqa: E731 (Cowper)
 
 
 def cam_positions(span, disc_width):
@@ -196,18 +195,19 @@ def pin_stiffness_estimate(rated_torque, R_p, r_rp, e, z_p, disc_width, groove_c
 
 
 def crank_disc_stiffness_estimate(rated_torque, n_c, crank_radius, rollers, roller_length,
-                                  crank_diameter, span, disc_width, youngs_modulus):
-    """A cam's needle bearing in series with the crankshaft bent at its cams [N/m].
+                                  crank_diameter, span, disc_width, youngs_modulus, poisson_ratio):
+    """A cam's needle bearing in series with the crankshaft bent and sheared at its cams [N/m].
 
     Needle bearing: Palmgren's law with the roller load distribution, no clearance (the
     clearance is an error, docs/model.md section 4), at T / (2 n_c a); crank: simply
-    supported by its two bearings, both cams loaded alike (`compliance.crank_bending_stiffness`).
+    supported by its two bearings, bent and sheared, both cams loaded alike
+    (`compliance.crank_bending_stiffness`).
     """
     from .compliance import bearing_deflection, crank_bending_stiffness
 
     needle = _secant_over_rated(lambda f: bearing_deflection(f, rollers, roller_length),
                                 rated_torque / (2.0 * n_c * crank_radius))
-    bending = crank_bending_stiffness(youngs_modulus, crank_diameter, span,
+    bending = crank_bending_stiffness(youngs_modulus, poisson_ratio, crank_diameter, span,
                                       cam_positions(span, disc_width))
     return series(needle, bending)
 
@@ -235,13 +235,14 @@ def carrier_compliance_estimate(n_c, crank_radius, disc_width, span, youngs_modu
                                 poisson_ratio):
     """Windup [rad] per output torque [N*m] of the carrier's far flange turning on its
     pillars (`compliance.carrier_torsional_compliance`), pillars by the rule above."""
-    from .compliance import carrier_torsional_compliance, end_plate_share, guided_beam_stiffness
+    from .compliance import (carrier_torsional_compliance, end_plate_share, guided_beam_stiffness,
+                             round_shear_coefficient)
 
     diameter = PILLAR_DIAMETER_PER_CRANK_RADIUS * crank_radius
     length = 2.0 * disc_width + PILLAR_EXTRA_LENGTH
     pillar = guided_beam_stiffness(youngs_modulus, poisson_ratio, math.pi * diameter ** 4 / 64.0,
                                    math.pi * diameter ** 2 / 4.0, length,
-                                   CIRCLE_SHEAR_COEFFICIENT(poisson_ratio))
+                                   round_shear_coefficient(poisson_ratio))
     share = end_plate_share(cam_positions(span, disc_width), span)
     return carrier_torsional_compliance(n_c, pillar, crank_radius, share)
 
@@ -264,7 +265,7 @@ def estimate_from_sources(values: dict) -> dict:
             values["z_s"], values["z_pl"], module, alpha, gear),
         "crank_disc_bearing_stiffness_N_per_m": crank_disc_stiffness_estimate(
             T, n_c, a, values["needle_rollers"], values["needle_roller_length_mm"] * mm, crank,
-            span, width, E),
+            span, width, E, nu),
         "crank_carrier_bearing_stiffness_N_per_m": crank_carrier_stiffness_estimate(
             T, n_c, a, values["tapered_rollers"], values["tapered_roller_length_mm"] * mm,
             math.radians(values["tapered_contact_angle_deg"])),
@@ -282,8 +283,8 @@ def estimate_from_sources(values: dict) -> dict:
 # A design states one stiffness per bearing: its secant over the rated range, the stiffness
 # every linear part of the model uses (docs/model.md section 6).  Where it also gives the
 # rollers, the bearing follows their law (`roller_law`) and the rest of the stated
-# compliance is a linear spring in series (for the needle bearing: the crank bent at its
-# cams): 1 / k_stated = 1 / (the rollers' own secant) + C.  So the law and the stated
+# compliance is a linear spring in series (for the needle bearing: the crank bent and sheared
+# at its cams): 1 / k_stated = 1 / (the rollers' own secant) + C.  So the law and the stated
 # stiffness wind up alike between 50 % and 100 % of the rated torque.
 
 SERIES_ROUNDING = 1e-3   # a stated stiffness this much above the rollers' own secant: no series spring
