@@ -96,3 +96,42 @@ def test_the_error_template_command_writes_a_file_that_loads_back_to_zero(tmp_pa
     assert printed.count("\npin_pitch = [") == 1 and "docs/model.md section 4" in printed
     assert cli.main(["errors", "--template", "RV-40E-121", "-o", str(tmp_path / "e.txt")]) == 2
     assert "output = " in capsys.readouterr().err
+
+
+IMPORT_FIRST = """
+import importlib, pkgutil, sys
+import rvfmu, rvfmu.core
+names = ["rvfmu.core." + m.name for m in pkgutil.iter_modules(rvfmu.core.__path__)]
+names += ["rvfmu." + m.name for m in pkgutil.iter_modules(rvfmu.__path__) if m.name != "core"]
+failed = []
+for name in names:
+    for loaded in [k for k in sys.modules if k == "rvfmu" or k.startswith("rvfmu.")]:
+        del sys.modules[loaded]
+    try:
+        importlib.import_module(name)
+    except Exception as exc:
+        failed.append(f"{name}: {exc!r}")
+for loaded in [k for k in sys.modules if k == "rvfmu" or k.startswith("rvfmu.")]:
+    del sys.modules[loaded]
+from rvfmu.core.design import preset
+preset("RV-40E-121")
+print(len(names), "modules;", "; ".join(failed) or "none failed")
+"""
+
+
+def test_every_module_imports_first_in_a_fresh_interpreter():
+    """Whatever a script imports first works: a newcomer's `from rvfmu.core.design import
+    preset` must not depend on another module having been imported before (an import cycle
+    once broke exactly that)."""
+    import os
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run([sys.executable, "-c", IMPORT_FIRST], capture_output=True, text=True,
+                          env=env, cwd=ROOT, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().endswith("none failed"), proc.stdout
+    assert int(proc.stdout.split()[0]) > 30

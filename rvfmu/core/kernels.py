@@ -15,38 +15,12 @@ stiffnesses and external forces at a run of time steps, axis 0 the step).
 
 from __future__ import annotations
 
-import os
 from collections import namedtuple
 
 import numpy as np
 
-
-def _numba():
-    if os.environ.get("RVTE_NUMBA", "1") == "0":
-        return None
-    try:
-        import numba
-    except ImportError:
-        return None
-    return numba
-
-
-_NUMBA = _numba()
-COMPILED = _NUMBA is not None
-
-
-def kernel(function):
-    """`function` compiled by numba (cached on disk where its folder allows), or as it is."""
-    if _NUMBA is None:
-        return function
-    try:
-        return _NUMBA.njit(cache=True, nogil=True)(function)
-    except RuntimeError:    # no writable cache location (e.g. a read-only install)
-        return _NUMBA.njit(nogil=True)(function)
-
-
-# The roller law is compiled with `kernel` too: imported once `kernel` exists.
-from .roller_law import roller_law  # noqa: E402
+from .compiled import COMPILED, kernel  # noqa: F401 (COMPILED: what tests and benchmarks ask)
+from .roller_law import roller_law
 
 Elements = namedtuple("Elements", [
     "linear_c",        # (m,) dashpots of the meshes and sun support [N s/m]

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kernels import kernel
+from .compiled import kernel
 from .roller_law import roller_law
 
 

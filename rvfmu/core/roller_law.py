@@ -26,7 +26,7 @@ behind the needle bearing) makes the element's energy that of the pair at equili
 deflects u where u + C F(u) = s (Newton's method from u = s, monotone because F is convex),
 Psi(s) = Phi(u) + C F(u)^2 / 2, force F(u), stiffness F'(u) / (1 + C F'(u)).
 
-The functions here are compiled by numba where it is installed (`kernels.kernel`) and are
+The functions here are compiled by numba where it is installed (`compiled.kernel`) and are
 called one bearing at a time; `radial_law` evaluates arrays of bearings in numpy.
 """
 
@@ -37,7 +37,7 @@ import math
 import numpy as np
 
 from .compliance import LINE_EXPONENT
-from .kernels import kernel
+from .compiled import kernel
 
 N = LINE_EXPONENT
 INTERVALS = 1024                  # of the rho table
