@@ -146,10 +146,10 @@ def _crank_torsion_against_the_mesh(design, sources):
     """k_mesh / k_torsion: the crank's torsion (not an element of the model) as a spring along
     the line of action, G J / (L r_b^2), L = crank span + gear width (more than the length
     between the cams and the planet), over the mesh's stiffness."""
-    from rvfmu.core.compliance import shaft_torsion_stiffness
+    from rvfmu.core.compliance import shaft_torsion_stiffness, shear_modulus
 
     d, span = sources["crank_diameter_mm"] * 1e-3, sources["crank_span_mm"] * 1e-3
-    g = design.youngs_modulus / (2.0 * (1.0 + design.poisson_ratio))
+    g = shear_modulus(design.youngs_modulus, design.poisson_ratio)
     torsion = shaft_torsion_stiffness(g, d, span + design.gear_width) / design.planet_base_radius ** 2
     return design.mesh_stiffness / torsion
 

@@ -138,6 +138,11 @@ def beam_shear_influence(span, at, load_at, shear_modulus, area, shear_coefficie
     return x * (span - z) / (span * shear_coefficient * shear_modulus * area)
 
 
+def shear_modulus(youngs_modulus, poisson_ratio) -> float:
+    """G = E / (2 (1 + nu)) of an isotropic material [Pa]."""
+    return youngs_modulus / (2.0 * (1.0 + poisson_ratio))
+
+
 def round_shear_coefficient(poisson_ratio) -> float:
     """Cowper's shear coefficient of a solid circular section, 6 (1 + nu) / (7 + 6 nu)."""
     return 6.0 * (1.0 + poisson_ratio) / (7.0 + 6.0 * poisson_ratio)
@@ -150,12 +155,11 @@ def crank_bending_stiffness(youngs_modulus, poisson_ratio, diameter, span, cam_p
     on the presets, and shear adds about 30 % to its bending there):
     1 / (sum over cams of the influence at the most flexible cam)."""
     inertia, area = math.pi * diameter ** 4 / 64.0, math.pi * diameter ** 2 / 4.0
-    shear_modulus = youngs_modulus / (2.0 * (1.0 + poisson_ratio))
-    kappa = round_shear_coefficient(poisson_ratio)
+    g, kappa = shear_modulus(youngs_modulus, poisson_ratio), round_shear_coefficient(poisson_ratio)
 
     def influence(x, z):
         return (beam_influence(span, x, z, youngs_modulus, inertia)
-                + beam_shear_influence(span, x, z, shear_modulus, area, kappa))
+                + beam_shear_influence(span, x, z, g, area, kappa))
     return 1.0 / max(sum(influence(x, z) for z in cam_positions) for x in cam_positions)
 
 
@@ -168,9 +172,8 @@ def guided_beam_stiffness(youngs_modulus, poisson_ratio, second_moment, area, le
                           shear_coefficient) -> float:
     """Transverse stiffness [N/m] of a beam clamped at both ends, one end sliding
     square to the axis: bending 12 E I / L^3 in series with shear k G A / L (Timoshenko)."""
-    shear_modulus = youngs_modulus / (2.0 * (1.0 + poisson_ratio))
     bending = 12.0 * youngs_modulus * second_moment / length ** 3
-    shear = shear_coefficient * shear_modulus * area / length
+    shear = shear_coefficient * shear_modulus(youngs_modulus, poisson_ratio) * area / length
     return 1.0 / (1.0 / bending + 1.0 / shear)
 
 
