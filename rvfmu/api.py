@@ -223,7 +223,7 @@ class SimulationReport:
 
 def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
              duration: float | None = None, revolutions: float | None = None,
-             contact: str = "linear", mesh: str = "varying", step: float | None = None,
+             contact: str | None = None, mesh: str = "varying", step: float | None = None,
              csv_path: str | Path | None = None, plot_path: str | Path | None = None,
              progress=None, load_step: tuple[float, float] | None = None,
              load_csv: str | Path | None = None,

@@ -169,8 +169,9 @@ def build_parser() -> argparse.ArgumentParser:
     length.add_argument("--duration", type=float, help="seconds at constant speed after the ramp")
     length.add_argument("--revolutions", type=float,
                         help="output revolutions at constant speed (default 1)")
-    p.add_argument("--contact", choices=("linear", "impact"), default="linear",
-                   help="pin-disc contact law (impact: k*delta^e with ramped damping)")
+    p.add_argument("--contact", choices=("linear", "hertz", "impact"),
+                   help="pin-disc contact law (default: the design's own, hertz where it gives "
+                   "the pins' groove, else linear; impact: k*delta^e with ramped damping)")
     p.add_argument("--mesh", choices=("varying", "constant"), default="varying",
                    help="sun-planet mesh stiffness over the mesh cycle")
     p.add_argument("--step", type=float, help="time step [s] (default: 20 per period of the "

@@ -1,12 +1,13 @@
 """Shared fixtures: the presets and the seed 002 error set.
 
 `rv40` is the RV-40E-121 as the seeds and the formulas give it (the preset before its
-calibration to the catalogue, `RV-40E-121-estimate`), its crank bearings linear springs of
-their stated stiffness: the tests of the physics were built on that geometry and those
-stiffnesses.  The calibrated presets and the series compliance
+calibration to the catalogue, `RV-40E-121-estimate`), its crank bearings and its pins linear
+springs of their stated stiffness: the tests of the physics were built on that geometry and
+those stiffnesses.  The calibrated presets and the series compliance
 that calibration adds are tested on their own (test_catalogue.py), exactly.  `rv40_rollers` is
-the estimate as shipped, its crank bearings' rollers given: those bearings follow the roller
-law (rvfmu/core/roller_law.py).
+the estimate with its crank bearings' rollers given, its pins linear: those bearings follow
+the roller law (rvfmu/core/roller_law.py).  `rv40_hertz` is the estimate as shipped, its
+pins' groove given too: the pins follow the Hertz law (rvfmu/core/pin_law.py).
 """
 
 from pathlib import Path
@@ -26,13 +27,23 @@ def rv40():
 
 
 def linear_bearings(design):
-    """`design` with its crank bearings as linear springs of their stated stiffness (no
-    rollers given: no roller law)."""
-    return design.with_fields(needle_rollers=0, tapered_rollers=0)
+    """`design` with its crank bearings and its pins as linear springs of their stated
+    stiffness (no rollers and no pin groove given: no roller law, no Hertz law)."""
+    return linear_pins(design).with_fields(needle_rollers=0, tapered_rollers=0)
+
+
+def linear_pins(design):
+    """`design` with its pins as linear springs of their stated stiffness (no groove given)."""
+    return design.with_fields(pin_groove_clearance=0.0)
 
 
 @pytest.fixture(scope="session")
 def rv40_rollers():
+    return linear_pins(preset("RV-40E-121-estimate"))
+
+
+@pytest.fixture(scope="session")
+def rv40_hertz():
     return preset("RV-40E-121-estimate")
 
 

@@ -303,8 +303,12 @@ def test_an_unreachable_target_gives_the_best_yield_and_the_binding_bounds(alloc
     strict = small_study(path.parent, spec=4.0, name="strict")   # same study, same output folder
     result = tolerance.allocate(strict, 0.99, n=512, progress=False)
     assert not result.feasible
-    assert [f.binding for f in result.factors] == ["lower", "lower"]
-    assert [f.allocated for f in result.factors] == pytest.approx([f.lower for f in result.factors])
+    # the cam position decides the TE: it binds at its tightest; the pin band hardly moves the
+    # TE (the test above), so whether its bound binds at the best yield is the surrogate's call,
+    # but it is never opened beyond the current band for a target out of reach
+    cam, band = result.factors
+    assert cam.binding == "lower" and cam.allocated == pytest.approx(cam.lower)
+    assert band.binding in ("lower", "none") and band.allocated <= band.current + 1e-9
     assert result.yield_allocated.estimate < 0.99 and result.yield_allocated.n == 512
     assert "OUT OF REACH" in result.table()
 

@@ -44,9 +44,11 @@ def test_curves_give_back_the_stiffnesses_that_made_them(tmp_path, rv20, errors,
                  '[[dataset]]\nname = "50 Nm"\ndata = "r50.csv"\nload_Nm = 50.0\n'
                  '[[dataset]]\nname = "167 Nm"\ndata = "r167.csv"\nload_Nm = 167.0\n')
     out = tmp_path / "calibrated.toml"
-    # the crank-disc bearing is fitted as a linear spring (a bearing on the roller law is not)
+    # the crank-disc bearing is fitted as a linear spring (a bearing on the roller law is not);
+    # the pins are linear as the truth's
     design = write(tmp_path / "rv20e_linear.toml",
-                   'preset = "RV-20E"\nname = "RV-20E"\nneedle_rollers = 0\ntapered_rollers = 0\n')
+                   'preset = "RV-20E"\nname = "RV-20E"\nneedle_rollers = 0\ntapered_rollers = 0\n'
+                   'pin_groove_clearance_mm = 0\n')
     report = api.calibrate(str(design), [data], list(TRUTH), output=out, **BUDGET)
     cal = report.calibration
     assert cal.problem.target == "curve"

@@ -143,16 +143,20 @@ def test_superposition_of_small_errors_under_load(rv40, seed002):
 @pytest.mark.parametrize("rollers, tau_fraction, clearances", [
     (False, 0.0, False), (False, -1.0, False), (False, -0.25, True),
     (True, 0.0, False), (True, -1.0, False), (True, -0.03, False), (True, 0.5, False),
-    (True, -0.25, True)])
-def test_agrees_with_a_straightforward_scipy_solve(rv40, rv40_rollers, seed002, rollers, tau_fraction,
-                                                  clearances):
+    (True, -0.25, True),
+    ("hertz", 0.0, False), ("hertz", -1.0, False), ("hertz", -0.03, False), ("hertz", 0.5, False),
+    ("hertz", -0.25, True)])
+def test_agrees_with_a_straightforward_scipy_solve(rv40, rv40_rollers, rv40_hertz, seed002, rollers,
+                                                  tau_fraction, clearances):
     """With the roller law (rollers) the reference integrates the rollers' energy over the
     loaded arc and carries the crank's bending as a spring with unknowns of its own
     (rvfmu/core/reference.py); the solver tabulates the energy and eliminates the spring
-    (rvfmu/core/roller_law.py).  At no load without clearance both take the limit with the
-    law (seed 002's errors preload the estimate's discs nowhere, so there it is the
-    kinematic pose: the law must not move it)."""
-    design = rv40_rollers if rollers else rv40
+    (rvfmu/core/roller_law.py).  With the pins' Hertz law too ("hertz") the reference inverts
+    it by scipy's Lambert W, the solver by its own Newton iteration (rvfmu/core/pin_law.py).
+    At no load without clearance both take the limit with the law (seed 002's errors preload
+    the estimate's discs nowhere, so there it is the kinematic pose: the law must not move
+    it)."""
+    design = {False: rv40, True: rv40_rollers, "hertz": rv40_hertz}[rollers]
     errors = _with_clearances(seed002, 6.0, 4.0, 10.0) if clearances else seed002
     theta_in = input_angles(design, 6) + 0.3
     tau = tau_fraction * design.rated_torque

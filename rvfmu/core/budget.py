@@ -39,6 +39,7 @@ from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .limits import check_load
 from .newton import pin_delta
+from .pin_law import contacts
 from .roller_law import radial_law
 from .quasistatic import (NO_LOAD_PROBE, RIGIDITY_FRACTIONS, WINDUP_POSITIONS, _checked_errors,
                           windup_positions)
@@ -103,7 +104,7 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q)
     """Strain energy [J] of each kind of element at the equilibria q (B, n) of loaded pairs
     (sample[b], angle[b]): {element name: (B,)}, the terms of the solver's energy.
 
-    The bearings that have a roller law follow it; where the law has a spring in series
+    The pins follow their law (`pin_law`); the bearings that have a roller law follow it; where the law has a spring in series
     (the crank bent and sheared at its cams, behind the needles), that spring's energy is an
     element of its own."""
     d = model.design
@@ -124,9 +125,9 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q)
                                       model.bearing_law_a[rollers], compliance)
         series_energy[:, rollers] = 0.5 * compliance * force * force
         brg_energy[:, rollers] = energy - series_energy[:, rollers]
-    delta = np.maximum(pin_delta(model.pin_rows[angle], q[:, model.pin_dofs], pin_b), 0.0)
+    delta = pin_delta(model.pin_rows[angle], q[:, model.pin_dofs], pin_b)
     parts = {
-        "pin-disc contacts": 0.5 * model.pin_k * (delta * delta).sum(axis=(1, 2)),
+        "pin-disc contacts": contacts(delta, model.pin_law)[0].sum(axis=(1, 2)),
         "sun-planet meshes": lin_energy[:, :n_c].sum(axis=1),
         "sun support": lin_energy[:, n_c:].sum(axis=1),
         "crank-carrier bearings": brg_energy[:, :n_c].sum(axis=1),

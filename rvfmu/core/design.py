@@ -94,6 +94,10 @@ DESIGN_FIELDS = (
               "effective contact length of a tapered roller", 0.0),
     FieldSpec("tapered_contact_angle", "tapered_contact_angle_deg", DEG, "non_negative",
               "contact angle of the tapered rollers, from the axis (seed 003: 80 deg)", 0.0),
+    FieldSpec("pin_groove_clearance", "pin_groove_clearance_mm", MM, "non_negative",
+              "radius of the pins' housing grooves less the pin radius: with it the pins follow "
+              "the Hertz law of two line contacts in series (docs/model.md section 6); 0 = the "
+              "linear spring pin_disc_stiffness", 0.0),
     FieldSpec("carrier_compliance", "carrier_compliance_arcsec_per_Nm", ARCSEC, "non_negative",
               "torsional compliance of the carrier in series with the output: its far flange "
               "turning on its pillars, windup per output torque (estimated from geometry); "
@@ -160,6 +164,7 @@ class RVDesign:
     tapered_rollers: int = 0
     tapered_roller_length: float = 0.0
     tapered_contact_angle: float = 0.0
+    pin_groove_clearance: float = 0.0
     carrier_compliance: float = 0.0
     output_compliance: float = 0.0
 
@@ -168,6 +173,7 @@ class RVDesign:
             object.__setattr__(self, spec.field, _checked(spec, getattr(self, spec.field), self.name))
         _check_relations(self)
         self.roller_laws  # noqa: B018 (a stated stiffness its rollers cannot reach is refused now)
+        self.pin_law  # noqa: B018 (and a groove the pin cannot lie in)
 
     # -- derived quantities (docs/model.md section 2) --------------------------------
     @property
@@ -202,6 +208,14 @@ class RVDesign:
         from .stiffness import roller_laws
 
         return roller_laws(self)
+
+    @functools.cached_property
+    def pin_law(self) -> tuple:
+        """(k [N/m], b [m/N], F* [N]) of the pins' contact law (`pin_law.contact`): b = 0 the
+        linear spring k, without the pins' groove (`stiffness.pin_law`)."""
+        from .stiffness import pin_law
+
+        return pin_law(self)
 
     @property
     def tip_root_clearance(self) -> float:
@@ -290,6 +304,10 @@ def _check_relations(d: RVDesign) -> None:
         if rollers and not length > 0.0:
             raise InputError(f"{name}_roller_length_mm", length / MM,
                              f"must be > 0 with {name}_rollers = {rollers}", where)
+    if d.pin_groove_clearance > d.r_rp:
+        raise InputError("pin_groove_clearance_mm", d.pin_groove_clearance / MM,
+                         f"must not exceed the pin radius {d.r_rp / MM:.4g} mm: a groove that "
+                         "wide does not hold its pin", where)
     if d.tapered_rollers and not 0.0 < d.tapered_contact_angle < math.pi / 2.0:
         raise InputError("tapered_contact_angle_deg", math.degrees(d.tapered_contact_angle),
                          "must be between 0 and 90 deg (from the axis) with tapered rollers", where)

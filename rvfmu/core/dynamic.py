@@ -19,9 +19,12 @@ angular accelerations during a speed ramp) times its mass.
 
     M q'' + C(q) q' + f(q, t) = F_load(t) + F_nominal(t)
 
-- Pin-disc contacts are unilateral: `linear` spring-damper, or the IMPACT law
-  of seeds 000/001/004 (k delta^e with the damping ramped from 0 to c_max
-  over the penetration d_max); bearing clearances are dead zones; the
+- Pin-disc contacts are unilateral: a spring-damper, its spring the stated
+  stiffness (`linear`) or the Hertz law of the pin between its disc and its groove
+  (`hertz`, `pin_law`: the quasi-static model's law where the design gives the
+  groove; the default follows the design), or the IMPACT law of seeds
+  000/001/004 (k delta^e with the damping ramped from 0 to c_max over the
+  penetration d_max); bearing clearances are dead zones; the
   sun-planet meshes are bilateral springs on the loaded flank.
 - The mesh stiffness varies over the mesh cycle (`mesh_stiffness_factor`):
   single pair c' and double pair 1.75 c', whose mean over the cycle is ISO
@@ -46,6 +49,7 @@ from .design import RVDesign
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .kernels import Elements, Geometry, element_forces, gather, touched_columns
+from .pin_law import contacts
 from .stiffness import transverse_contact_ratio
 from .roller_law import TABLE_DE, TABLE_E, radial_law
 
@@ -54,7 +58,7 @@ DOUBLE_PAIR = 1.75         # double-pair / single-pair mesh stiffness: ISO 6336-
 IMPACT_EXPONENT = 1.5      # IMPACT law exponent e (Hertz-like, seeds 000/001)
 IMPACT_PENETRATION = 1e-6  # d_max [m]: the damping reaches c_max over 1 um of penetration
 CHUNK = 512                # time steps whose geometry is built at once
-CONTACT_LAWS = ("linear", "impact")
+CONTACT_LAWS = ("linear", "hertz", "impact")
 MESH_MODELS = ("varying", "constant")
 
 
@@ -115,6 +119,21 @@ def mesh_stiffness_factor(design: RVDesign, theta_in, theta_out, model: str = "v
     return np.where(phase < eps - 1.0, DOUBLE_PAIR * single, single)
 
 
+def contact_law(design: RVDesign, contact: str | None) -> str:
+    """The pin contact law of a dynamic run: `contact` checked, or by default the design's own
+    ("hertz" where it gives the pins' groove, else "linear")."""
+    from .checks import InputError
+
+    if contact is None:
+        return "hertz" if design.pin_law[1] > 0.0 else "linear"
+    if contact not in CONTACT_LAWS:
+        raise InputError("contact", contact, f"must be one of {', '.join(CONTACT_LAWS)}")
+    if contact == "hertz" and design.pin_law[1] == 0.0:
+        raise InputError("contact", contact, "needs the pins' groove: the design's "
+                         "pin_groove_clearance_mm must be > 0", design.name)
+    return contact
+
+
 class DynamicModel:
     """Masses, loads and element forces of one reducer over a prescribed input motion.
 
@@ -123,10 +142,11 @@ class DynamicModel:
     meshes (+1: the sun drives, -1: the load drives; default from the load's sign).
     """
 
-    def __init__(self, design: RVDesign, errors: ErrorSet, contact: str = "linear",
+    def __init__(self, design: RVDesign, errors: ErrorSet, contact: str | None = None,
                  mesh: str = "varying", flank: int = 1):
         if errors.samples != 1:
             raise ValueError("the dynamic model simulates one reducer at a time")
+        contact = contact_law(design, contact)
         self.design, self.errors = design, errors
         self.contact, self.mesh, self.flank = contact, mesh, flank
         # a few generic input angles, to find which unknowns each element touches
@@ -165,7 +185,8 @@ class DynamicModel:
             np.ascontiguousarray(np.stack([probe.bearing_law_a, probe.bearing_law_compliance],
                                           axis=-1)),
             np.ascontiguousarray(np.stack([TABLE_E, TABLE_DE])),
-            np.asarray(self.pin_dofs, dtype=np.int64), float(self.pin_k),
+            np.asarray(self.pin_dofs, dtype=np.int64),
+            np.array(design.pin_law if contact == "hertz" else (self.pin_k, 0.0, 0.0), dtype=float),
             float(self.pin_c), contact == "impact", float(self.impact_k), IMPACT_EXPONENT,
             IMPACT_PENETRATION, int(self.sun_rot), self.shaft_k / s2, self.shaft_c / s2)
         counts = {"crank": design.n_c, "disc": 2}
@@ -282,7 +303,8 @@ class DynamicModel:
         return f, K, C
 
     def energy(self, step: int, q: np.ndarray, v: np.ndarray) -> float:
-        """Kinetic plus elastic energy [J] at a step (linear pin law; for energy checks)."""
+        """Kinetic plus elastic energy [J] at a step (the linear or Hertz pin law, not
+        IMPACT's; for energy checks)."""
         g, a = self.geometry(step)
         delta = np.sum(g.L[a] * q[g.linear_cols], axis=-1) + g.linear_offset[a]
         elastic = 0.5 * np.sum(g.linear_k[a] * delta ** 2)
@@ -295,8 +317,8 @@ class DynamicModel:
         elastic += np.sum(radial_law(r[rollers], self.half_clearance[rollers], law[rollers, 0],
                                      law[rollers, 1])[0])
         for j in range(2):
-            pin = np.maximum(g.P[a, j] @ q[self.pin_dofs[j]] + g.pin_offset[a, j], 0.0)
-            elastic += 0.5 * self.pin_k * np.sum(pin ** 2)
+            pin = g.P[a, j] @ q[self.pin_dofs[j]] + g.pin_offset[a, j]
+            elastic += float(np.sum(contacts(pin, self.elements.pin_law)[0]))
         elastic += 0.5 * self.shaft_k * (q[self.sun_rot] / self.scale) ** 2
         return float(0.5 * np.sum(self.mass * v * v) + elastic)
 
@@ -327,7 +349,7 @@ def compile_kernels() -> list:
     if not kernels.COMPILED:
         return []
     design = preset("RV-20E")
-    for contact in CONTACT_LAWS:
+    for contact in ("linear", "impact"):    # hertz passes the same types as linear
         model = DynamicModel(design, zero_errors(design), contact)
         model.prepare(ramp_motion(np.array([0.0, 1e-4]), 10.0, 0.0))
         NewmarkStepper.starting_at(model, np.zeros(model.n)).advance(1)

@@ -32,7 +32,7 @@ class DynamicReducer:
     name = "dynamic"
 
     def __init__(self, design, errors: ErrorSet, internal_step: float = DEFAULT_INTERNAL_STEP,
-                 contact: str = "linear", mesh: str = "varying"):
+                 contact: str | None = None, mesh: str = "varying"):
         if not (math.isfinite(internal_step) and internal_step > 0):
             raise ValueError(f"internal_step = {internal_step}: must be a number > 0")
         self.design, self.errors = design, errors

@@ -260,6 +260,7 @@ class EquivalentModel:
         lever = arm[..., 0] * normal[..., 1] - arm[..., 1] * normal[..., 0]         # (A, 2, z_p)
         self.pin_rows = np.concatenate([normal, (lever / self.scale)[..., None]], axis=-1)
         self.pin_k = d.pin_disc_stiffness
+        self.pin_law = np.array(d.pin_law, dtype=float)     # (k, b, F*): `pin_law.contact`
         radial = _unit(pin_angle)
         radial_dot = normal[..., 0] * radial[:, 0] + normal[..., 1] * radial[:, 1]   # n . e_k
         tangent_dot = normal[..., 1] * radial[:, 0] - normal[..., 0] * radial[:, 1]  # n . t_k

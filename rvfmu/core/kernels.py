@@ -20,6 +20,7 @@ from collections import namedtuple
 import numpy as np
 
 from .compiled import COMPILED, kernel  # noqa: F401 (COMPILED: what tests and benchmarks ask)
+from .pin_law import contact
 from .roller_law import roller_law
 
 Elements = namedtuple("Elements", [
@@ -31,7 +32,7 @@ Elements = namedtuple("Elements", [
                        # compliance [m/N]
     "law_table",       # (2, T): the roller law's table (roller_law.TABLE_E, TABLE_DE)
     "pin_dofs",        # (2, 3) unknowns of each disc: x, y, rotation
-    "pin_k",           # linear pin law stiffness [N/m]
+    "pin_law",         # (3,) the pins' law unless IMPACT (`pin_law.contact`: k [N/m], b, F*)
     "pin_c",           # pin dashpot (IMPACT: its c_max) [N s/m]
     "impact",          # True: IMPACT law, False: linear
     "impact_k",        # IMPACT stiffness [N/m^e]
@@ -162,8 +163,9 @@ def element_forces(el, g, a, q, v, f, K, C):
                 k = e * el.impact_k * delta ** (e - 1.0) + el.pin_c * dramp * rate
                 c = el.pin_c * ramp
             else:
-                normal = el.pin_k * delta + el.pin_c * rate
-                k, c = el.pin_k, el.pin_c
+                _, spring, k = contact(delta, el.pin_law)
+                normal = spring + el.pin_c * rate
+                c = el.pin_c
             if normal <= 0.0:
                 continue                                   # a separating dashpot pulls nothing
             for x in range(3):

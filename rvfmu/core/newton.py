@@ -21,6 +21,7 @@ from functools import cached_property
 import numpy as np
 
 from . import kernels
+from .pin_law import contacts
 from .roller_law import TABLE_DE, TABLE_E, radial_law
 
 MAX_ITERATIONS = 400
@@ -62,7 +63,7 @@ def newton_compiled(work, first_active, q0=None):
     newton_pairs(
         c(work.K, dtype=float), c(sys.mode_stiffness[work.angle], dtype=float), c(work.f, dtype=float),
         c(work.rows, dtype=float), c(work.pin_b, dtype=float), c(sys.pin_local, dtype=np.int64),
-        float(sys.model.pin_k), c(brg_rows, dtype=float), c(brg_off, dtype=float),
+        c(sys.model.pin_law, dtype=float), c(brg_rows, dtype=float), c(brg_off, dtype=float),
         c(c_half, dtype=float), c(np.stack([sys.brg_k, sys.brg_law_a, sys.brg_law_compliance],
                                           axis=-1), dtype=float),
         c(np.stack([TABLE_E, TABLE_DE])), c(toward, dtype=float),
@@ -87,7 +88,8 @@ def newton_batched(work, first_active, q0=None):
     warm = q0 is not None
     q = np.zeros((B, nN)) if q0 is None else q0.copy()
     energy, _ = work.energy(q)
-    smooth = work.brg_rows is None  # piecewise quadratic: a consistent active set is exact
+    # piecewise quadratic (linear pins, no bearing with clearance): a consistent active set is exact
+    smooth = work.brg_rows is None and work.system.model.pin_law[1] == 0.0
     iterations = 0
     for iterations in range(1, MAX_ITERATIONS + 1):
         first = iterations == 1 and not warm
@@ -179,8 +181,7 @@ class Work:
         kq = np.matmul(self.K, q[..., None])[..., 0]
         e = np.einsum("bi,bi->b", q, 0.5 * kq + self.f)
         delta = self.delta(q)
-        pos = np.maximum(delta, 0.0)
-        e += 0.5 * sys.model.pin_k * np.einsum("bjk,bjk->b", pos, pos)
+        e += contacts(delta, sys.model.pin_law)[0].sum(axis=(1, 2))
         if self.brg_rows is not None:
             e += bearing_law(self._bearing(q), self.c_half, sys)[0].sum(axis=1)
         return e, delta
@@ -189,8 +190,8 @@ class Work:
         """Gradient (B, nN) of the true energy at q: its out-of-balance force."""
         sys = self.system
         grad = np.matmul(self.K, q[..., None])[..., 0] + self.f
-        force = np.maximum(self.delta(q), 0.0)
-        gen = np.matmul(force[:, :, None, :], self.rows)[:, :, 0] * sys.model.pin_k   # (B, 2, 3)
+        force = contacts(self.delta(q), sys.model.pin_law)[1]
+        gen = np.matmul(force[:, :, None, :], self.rows)[:, :, 0]                     # (B, 2, 3)
         for j in range(2):
             grad[:, sys.pin_local[j]] += gen[:, j]
         if self.brg_rows is not None:
@@ -213,20 +214,23 @@ class Work:
         kp = sys.model.pin_k
         base = np.matmul(self.K, q[..., None])[..., 0] + self.f
         delta = self.delta(q)
-        touching = delta > 0
+        _, law_force, law_tangent = contacts(delta, sys.model.pin_law)
         if active is None:
-            # A pin exactly at contact (where an exact line search stops) counts as touching:
-            # that choice of the generalised Jacobian keeps the mechanism mode held.
+            # A pin exactly at contact (where an exact line search stops) counts as touching,
+            # with the stated stiffness: that choice of the generalised Jacobian keeps the
+            # mechanism mode held.
             active = delta > -GAP_TOLERANCE
-            force = np.where(touching, delta, 0.0)
-            true_force = force
+            force = true_force = law_force
+            stiffness = np.where(delta > 0.0, law_tangent, kp) * active
         else:
-            force = delta * active
-            true_force = np.where(touching, delta, 0.0)
+            # the guessed pins bonded at their real gaps by the stated stiffness
+            force = kp * delta * active
+            true_force = law_force
+            stiffness = kp * active
         grad = base.copy()
-        gen = np.matmul(force[:, :, None, :], self.rows)[:, :, 0] * kp                # (B, 2, 3)
+        gen = np.matmul(force[:, :, None, :], self.rows)[:, :, 0]                     # (B, 2, 3)
         hess = self.K + sys.mode_stiffness[self.angle]
-        upper = np.matmul((active * kp)[:, :, None, :], self.products)[:, :, 0]      # (B, 2, 6)
+        upper = np.matmul(stiffness[:, :, None, :], self.products)[:, :, 0]          # (B, 2, 6)
         blocks = upper[..., _SYMMETRIC]                                                # (B, 2, 3, 3)
         for j in range(2):
             idx = sys.pin_local[j]
@@ -236,7 +240,7 @@ class Work:
             true_grad = grad.copy()
         else:
             true_grad = base.copy()
-            true_gen = np.matmul(true_force[:, :, None, :], self.rows)[:, :, 0] * kp
+            true_gen = np.matmul(true_force[:, :, None, :], self.rows)[:, :, 0]
             for j in range(2):
                 true_grad[:, sys.pin_local[j]] += true_gen[:, j]
         if self.brg_rows is not None:
@@ -264,7 +268,7 @@ class Work:
         """Exact minimiser of the energy along `step`, (B,) step lengths.
 
         Along the line the energy is a convex 1-D function whose derivative is
-        piecewise linear in the pins (and smooth in the bearings); a safeguarded
+        piecewise linear in linear pins (and smooth in Hertz pins and the bearings); a safeguarded
         Newton iteration on that derivative, inside a bracket, finds its zero.
         Its pieces are computed once, so each trial costs a few elementwise operations.
         """
@@ -275,7 +279,7 @@ class Work:
                         step)
         delta0 = self.delta(q)
         ddelta = pin_delta(self.rows, self._local(step), 0.0)
-        kp = sys.model.pin_k
+        law = sys.model.pin_law
         if self.brg_rows is not None:
             d0 = self._bearing(q)
             dd = np.einsum("bpxn,bn->bpx", self.brg_rows, step)
@@ -283,10 +287,9 @@ class Work:
         def slope(alpha, t):
             """(first, second) derivative of the energy along the line at alpha, pairs t."""
             a = alpha[:, None, None]
-            delta = delta0[t] + a * ddelta[t]
-            on = delta > 0
-            d1 = quad[t] * alpha + lin[t] + kp * np.einsum("bjk,bjk->b", np.where(on, delta, 0.0), ddelta[t])
-            d2 = quad[t] + kp * np.einsum("bjk,bjk->b", on * ddelta[t], ddelta[t])
+            _, force, tangent = contacts(delta0[t] + a * ddelta[t], law)
+            d1 = quad[t] * alpha + lin[t] + np.einsum("bjk,bjk->b", force, ddelta[t])
+            d2 = quad[t] + np.einsum("bjk,bjk->b", tangent * ddelta[t], ddelta[t])
             if self.brg_rows is not None:
                 d = d0[t] + a * dd[t]
                 _, force, tangent = bearing_law(d, self.c_half[t], sys)

@@ -18,7 +18,8 @@ with clearance (p may be 0):
 K, Kh: (B, nN, nN) reduced stiffness, and what the Hessian adds (the mode
 stiffness); f: (B, nN); rows: (B, 2, K, 3); pin_b: (B, 2, K); pin_local: (2, 3);
 brg_rows: (B, p, 2, nN); brg_off: (B, p, 2); c_half: (B, p); brg_law: (p, 3), each bearing's
-stiffness k, roller-law constant a (0: linear) and series compliance; table: (2, T) the
+stiffness k, roller-law constant a (0: linear) and series compliance; pin_law: (3,) the pins'
+law (`pin_law.contact`: stated stiffness k, b, F*); table: (2, T) the
 roller law's table (`roller_law.TABLE_E`, `TABLE_DE`);
 toward: (B, p, 2); guess: (B, 2, K) bool; q: (B, nN), the start, overwritten
 by the solution.
@@ -29,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from .compiled import kernel
+from .pin_law import contact
 from .roller_law import roller_law
 
 
@@ -82,7 +84,7 @@ def _bearing(dx, dy, c_half, law, table):
 
 
 @kernel
-def _energy(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_law, table, q, delta,
+def _energy(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table, q, delta,
             d):
     """Reduced energy of one pair at q [J] (up to a constant); pin deflections into delta
     (2, K) and bearing deflections into d (p, 2)."""
@@ -94,12 +96,9 @@ def _energy(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_law
             kq += K[i, j] * q[j]
         e += q[i] * (0.5 * kq + f[i])
     _deflections(rows, pin_b, pin_local, q, delta)
-    pins = 0.0
     for j in range(2):
         for k in range(delta.shape[1]):
-            if delta[j, k] > 0.0:
-                pins += delta[j, k] * delta[j, k]
-    e += 0.5 * kp * pins
+            e += contact(delta[j, k], pin_law)[0]
     _bearing_deflections(brg_rows, brg_off, q, d)
     for b in range(d.shape[0]):
         e += _radial(np.sqrt(d[b, 0] ** 2 + d[b, 1] ** 2), c_half[b], brg_law[b], table)[0]
@@ -107,12 +106,13 @@ def _energy(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_law
 
 
 @kernel
-def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_law,
+def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law,
                       table, toward, has_toward, gap_tolerance, q, guess, use_guess, engaged,
                       grad, hess, true_grad, used, delta, d):
     """`newton.Work.gradient_hessian` for one pair, into grad, hess, true_grad (nN,) / (nN, nN)
     and used (2, K); delta and d are work space."""
     n = q.size
+    kp = pin_law[0]
     for i in range(n):
         s = f[i]
         for j in range(n):
@@ -125,21 +125,24 @@ def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c
         loc = pin_local[j]
         for k in range(rows.shape[1]):
             dk = delta[j, k]
-            if use_guess:
+            _, true_force, tangent = contact(dk, pin_law)
+            if use_guess:                   # bonded at its real gap by the stated stiffness
                 act = guess[j, k]
-                force = dk if act else 0.0
-            else:
+                force = kp * dk if act else 0.0
+                tangent = kp
+            else:                           # at contact exactly: touching, the stated stiffness
                 act = dk > -gap_tolerance
-                force = dk if dk > 0.0 else 0.0
-            true_force = dk if dk > 0.0 else 0.0
+                force = true_force
+                if dk <= 0.0:
+                    tangent = kp
             used[j, k] = act
             for x in range(3):
-                grad[loc[x]] += kp * force * rows[j, k, x]
-                true_grad[loc[x]] += kp * true_force * rows[j, k, x]
+                grad[loc[x]] += force * rows[j, k, x]
+                true_grad[loc[x]] += true_force * rows[j, k, x]
             if act:
                 for x in range(3):
                     for y in range(3):
-                        hess[loc[x], loc[y]] += kp * rows[j, k, x] * rows[j, k, y]
+                        hess[loc[x], loc[y]] += tangent * rows[j, k, x] * rows[j, k, y]
     if brg_rows.shape[0] == 0:
         return
     _bearing_deflections(brg_rows, brg_off, q, d)
@@ -199,16 +202,15 @@ def _solve_spd(A, b, L, x):
 
 
 @kernel
-def _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table):
+def _slope(alpha, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table):
     """(first, second) derivative of one pair's energy along its line at alpha."""
     d1 = quad * alpha + lin
     d2 = quad
     for j in range(2):
         for k in range(delta0.shape[1]):
-            dk = delta0[j, k] + alpha * ddelta[j, k]
-            if dk > 0.0:
-                d1 += kp * dk * ddelta[j, k]
-                d2 += kp * ddelta[j, k] * ddelta[j, k]
+            _, force, tangent = contact(delta0[j, k] + alpha * ddelta[j, k], pin_law)
+            d1 += force * ddelta[j, k]
+            d2 += tangent * ddelta[j, k] * ddelta[j, k]
     for b in range(d0.shape[0]):
         fx, fy, txx, txy, tyy = _bearing(d0[b, 0] + alpha * dd[b, 0], d0[b, 1] + alpha * dd[b, 1],
                                          c_half[b], brg_law[b], table)
@@ -218,7 +220,7 @@ def _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table)
 
 
 @kernel
-def _line_search(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_law, table, q, step,
+def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table, q, step,
                  delta0, ddelta, d0, dd, zero_b, zero_d):
     """`newton.Work.line_search` for one pair: the exact minimiser of the energy along step."""
     n = q.size
@@ -234,15 +236,15 @@ def _line_search(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, br
     _deflections(rows, zero_b, pin_local, step, ddelta)
     _bearing_deflections(brg_rows, brg_off, q, d0)
     _bearing_deflections(brg_rows, zero_d, step, dd)
-    d1_0, _ = _slope(0.0, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table)
+    d1_0, _ = _slope(0.0, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table)
     lo, hi = 0.0, 1.0
-    d1, d2 = _slope(hi, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table)
+    d1, d2 = _slope(hi, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table)
     for _ in range(60):                     # bracket: grow hi until the derivative is >= 0
         if d1 >= 0.0:
             break
         lo = hi
         hi *= 4.0
-        d1, d2 = _slope(hi, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table)
+        d1, d2 = _slope(hi, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table)
     alpha = hi
     if d1_0 >= 0.0:
         return 0.0                          # no descent left: the pair is at its minimum
@@ -259,14 +261,14 @@ def _line_search(K, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, br
             alpha = trial
         else:
             alpha = 0.5 * (lo + hi)
-        d1, d2 = _slope(alpha, quad, lin, delta0, ddelta, kp, d0, dd, c_half, brg_law, table)
+        d1, d2 = _slope(alpha, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table)
         if abs(d1) <= tolerance or hi - lo <= 1e-15 * hi:
             break
     return alpha
 
 
 @kernel
-def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half, brg_law, table,
+def newton_pairs(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table,
                  toward, has_toward, guess, q, warm, max_iterations, step_tolerance,
                  gap_tolerance, converged, iterations):
     """Solve every pair; q (B, nN) holds the starts and receives the solutions, converged (B,)
@@ -274,7 +276,8 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half
     B, n = q.shape
     p = brg_rows.shape[1]
     Kp = rows.shape[2]
-    smooth = p == 0                         # piecewise quadratic: a consistent active set is exact
+    # piecewise quadratic (no bearing with clearance, linear pins): a consistent active set is exact
+    smooth = p == 0 and pin_law[1] == 0.0
     grad, true_grad = np.empty(n), np.empty(n)
     hess = np.empty((n, n))
     used = np.empty((2, Kp), dtype=np.bool_)
@@ -287,13 +290,13 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half
         qs = q[s]
         Ks, fs, rs, bs = K[s], f[s], rows[s], pin_b[s]
         Bs, os_, cs = brg_rows[s], brg_off[s], c_half[s]
-        energy = _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_law, table, qs, delta, d)
+        energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, qs, delta, d)
         done = False
         it = 0
         while it < max_iterations:
             it += 1
             first = it == 1 and not warm
-            _gradient_hessian(Ks, Kh[s], fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_law, table,
+            _gradient_hessian(Ks, Kh[s], fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table,
                               toward[s], has_toward, gap_tolerance, qs, guess[s], first, first,
                               grad, hess, true_grad, used, delta, d)
             if _solve_spd(hess, grad, factor, step):
@@ -303,7 +306,7 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half
                 step[:] = -np.linalg.solve(hess, grad)
             for i in range(n):
                 trial_q[i] = qs[i] + step[i]
-            trial = _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_law, table, trial_q,
+            trial = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, trial_q,
                             delta_trial, d_trial)
             slope = 0.0
             for i in range(n):
@@ -311,14 +314,14 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, kp, brg_rows, brg_off, c_half
             full = trial <= energy + 1e-4 * slope + 1e-13 * abs(energy)
             alpha = 1.0
             if not full:
-                alpha = _line_search(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_law, table, qs, step,
+                alpha = _line_search(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, qs, step,
                                      delta, ddelta, d, dd, zero_b, zero_d)
             largest_move, largest_q = 0.0, 0.0
             for i in range(n):
                 qs[i] += alpha * step[i]
                 largest_move = max(largest_move, abs(alpha * step[i]))
                 largest_q = max(largest_q, abs(qs[i]))
-            energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, kp, Bs, os_, cs, brg_law,
+            energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law,
                                                 table, qs, delta, d)
             # Done when a step no longer moves (a guessed first step says nothing of that), or,
             # piecewise quadratic, when a full step landed where exactly the pins it assumed touch.

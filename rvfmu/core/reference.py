@@ -113,8 +113,9 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
                 series_grad[k] -= pull
         grad += np.einsum("pxn,px->n", brg_rows, force)
         delta = np.maximum(np.einsum("jkx,jx->jk", pin_rows, q[dofs]) + pin_b[0], 0.0)
-        e += 0.5 * pin_k * np.sum(delta * delta)
-        pin_gen = pin_k * np.einsum("jk,jkx->jx", delta, pin_rows)
+        energy_p, force_p = _pin_energy(delta, model.pin_law)
+        e += energy_p
+        pin_gen = np.einsum("jk,jkx->jx", force_p, pin_rows)
         np.add.at(grad, dofs, pin_gen)
         e += 0.5 * reg * q @ q
         grad += reg * q
@@ -129,6 +130,28 @@ def equilibrium_reference(model: EquivalentModel, errors: ErrorSet, sample: int,
 
 
 _ARC_NODES, _ARC_WEIGHTS = np.polynomial.legendre.leggauss(64)
+
+
+def _pin_energy(delta, law):
+    """(energy [J], force (..) [N]) of pins pressed by delta >= 0 (..): the linear spring k
+    of law = (k, b, F*) where b = 0, else the Hertz law delta = b F ln(F*/F) inverted by
+    Lambert's W (its lower branch: F = F* exp(W_-1(-delta / (b F*)))), the energy
+    integrated from it, b F^2 (ln(F*/F) - 1/2) / 2; beyond F* e^-2 its tangent there."""
+    from scipy.special import lambertw
+
+    k, b, f_star = law
+    if b == 0.0:
+        return 0.5 * k * np.sum(delta * delta), k * delta
+    y = delta / (b * f_star)
+    limit = 2.0 * np.exp(-2.0)                  # y at F = F* e^-2
+    inside = np.minimum(y, limit)
+    x = np.where(inside > 0.0, np.exp(lambertw(-np.maximum(inside, 1e-300), -1).real), 0.0)
+    force = f_star * x
+    with np.errstate(divide="ignore", invalid="ignore"):
+        energy = np.where(x > 0.0, 0.5 * b * force * force * (np.log(1.0 / x) - 0.5), 0.0)
+    over = (y - inside) * b * f_star            # beyond the law: its tangent 1 / b continued
+    energy = energy + force * over + 0.5 * over * over / b
+    return float(np.sum(energy)), force + over / b
 
 
 def _roller_energy(s, c, a):

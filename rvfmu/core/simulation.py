@@ -17,7 +17,7 @@ import numpy as np
 
 from .checks import InputError, finite_number, fits_in_memory, positive
 from .design import RVDesign
-from .dynamic import CONTACT_LAWS, MESH_MODELS, DynamicModel, Motion, ramp_motion
+from .dynamic import MESH_MODELS, DynamicModel, Motion, contact_law, ramp_motion
 from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
 from .limits import check_load
@@ -176,7 +176,7 @@ def sampled_motion(time, angle: Sampled, tau_load) -> Motion:
 
 def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float | None = 1600.0,
              load: float | Sampled = 0.0, duration: float | None = None,
-             revolutions: float | None = None, contact: str = "linear", mesh: str = "varying",
+             revolutions: float | None = None, contact: str | None = None, mesh: str = "varying",
              step: float | None = None, ramp: float | None = None, method: str = "newmark",
              progress=None, input_angle: Sampled | None = None) -> Simulation:
     """Dynamic TE of one reducer at a constant input speed after a start ramp, or along
@@ -195,8 +195,7 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     errors = zero_errors(design) if errors is None else errors.check(design)
     if errors.samples != 1:
         raise InputError("errors", errors.samples, "the dynamic model simulates one reducer")
-    if contact not in CONTACT_LAWS:
-        raise InputError("contact", contact, f"must be one of {', '.join(CONTACT_LAWS)}")
+    contact = contact_law(design, contact)
     if method not in METHODS:
         raise InputError("method", method, f"must be one of {', '.join(METHODS)}")
     if mesh not in MESH_MODELS:

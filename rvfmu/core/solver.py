@@ -31,6 +31,7 @@ import numpy as np
 from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
 from .newton import GAP_TOLERANCE, Work, newton, pin_delta
+from .pin_law import contacts
 
 CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
 REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
@@ -269,7 +270,7 @@ class ReducedSystem:
         delta = pin_delta(model.pin_rows[angle], qn[:, self.pin_local], pin_b)
         n_c = model.design.n_c
         mesh = np.einsum("bmn,bn->bm", model.linear_rows[angle][:, :n_c], q) + lin_b[:, :n_c]
-        return Equilibrium(q, model.pin_k * np.maximum(delta, 0.0), model.linear_k[:n_c] * mesh,
+        return Equilibrium(q, contacts(delta, model.pin_law)[1], model.linear_k[:n_c] * mesh,
                            converged, iterations)
 
     def _probe_steps(self):

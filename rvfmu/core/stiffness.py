@@ -155,7 +155,7 @@ def cantilever_stiffness(youngs_modulus, diameter, length):
 # (cams at span/2 -+ disc_width/2); n_c pillars of diameter a/2 on the crank
 # circle, as long as the two discs plus 2 mm, clamped in both flanges; pins lying in housing
 # grooves along their whole length (no pin bending), the groove radius larger than the pin's
-# by `pin_groove_clearance_mm`.
+# by the design's `pin_groove_clearance_mm`.
 
 RATED_RANGE = (0.5, 1.0)             # the catalogue's rigidity range, x rated torque
 PILLAR_DIAMETER_PER_CRANK_RADIUS = 0.5
@@ -176,22 +176,56 @@ def _secant_over_rated(approach, load_at_rated):
     return secant_stiffness(approach, low, high)
 
 
+def pin_contact_loads(rated_torque, R_p, e, z_p):
+    """(low, high) [N]: the largest pin force at 50 % and 100 % of rated torque (half the
+    torque per disc), the range over which a pin's stated stiffness is its law's secant."""
+    force = largest_pin_force(rated_torque / 2.0, R_p, e, z_p)
+    return tuple(f * force for f in RATED_RANGE)
+
+
+def pin_law_constants(R_p, r_rp, e, z_p, disc_width, groove_clearance, youngs_modulus,
+                      poisson_ratio):
+    """(b0 [m/N], F* [N]) of one pin between its disc and its housing groove
+    (`pin_law.law_constants`): the disc's radius of curvature where the lever is largest,
+    the groove's radius the pin's plus `groove_clearance`."""
+    from .pin_law import law_constants
+
+    disc_radius = disc_curvature_radius_at_largest_lever(R_p, r_rp, e, z_p)
+    return law_constants(r_rp, disc_radius, -(r_rp + groove_clearance), disc_width,
+                         youngs_modulus, poisson_ratio)
+
+
 def pin_stiffness_estimate(rated_torque, R_p, r_rp, e, z_p, disc_width, groove_clearance,
                            youngs_modulus, poisson_ratio):
     """One pin between a disc and its housing groove, along the contact normal [N/m]:
     the pin-disc and the pin-groove Hertz line contacts in series (each Radzimovsky's
-    approach), secant over the rated range at the largest pin force (half the torque per
-    disc)."""
-    force = largest_pin_force(rated_torque / 2.0, R_p, e, z_p)
-    disc_radius = disc_curvature_radius_at_largest_lever(R_p, r_rp, e, z_p)
-    groove_radius = -(r_rp + groove_clearance)
+    approach, `pin_law`), secant over the rated range at the largest pin force (half the
+    torque per disc)."""
+    from .pin_law import approach
 
-    def approach(f):
-        return (hertz_line_contact_approach(f, disc_width, r_rp, disc_radius, youngs_modulus,
-                                            poisson_ratio)
-                + hertz_line_contact_approach(f, disc_width, r_rp, groove_radius, youngs_modulus,
-                                              poisson_ratio))
-    return _secant_over_rated(approach, force)
+    b0, f_star = pin_law_constants(R_p, r_rp, e, z_p, disc_width, groove_clearance,
+                                   youngs_modulus, poisson_ratio)
+    low, high = pin_contact_loads(rated_torque, R_p, e, z_p)
+    return (high - low) / float(approach(high, b0, f_star) - approach(low, b0, f_star))
+
+
+def pin_law(design) -> tuple:
+    """(k [N/m], b [m/N], F* [N]) of the pins of `design` (`pin_law.contact`): where it gives
+    the pins' groove, the Hertz law whose secant over 50-100 % of the rated pin force is the
+    stated pin stiffness; else b = F* = 0, the linear spring.
+
+    F* is some four orders of magnitude above the rated pin force for any steel pin (the law
+    holds up to F* e^-2, `pin_law.U_LIMIT`)."""
+    from .pin_law import scaled_law
+
+    k = design.pin_disc_stiffness
+    if design.pin_groove_clearance == 0.0:
+        return (k, 0.0, 0.0)
+    _, f_star = pin_law_constants(design.R_p, design.r_rp, design.e, design.z_p,
+                                  design.disc_width, design.pin_groove_clearance,
+                                  design.youngs_modulus, design.poisson_ratio)
+    low, high = pin_contact_loads(design.rated_torque, design.R_p, design.e, design.z_p)
+    return (k, scaled_law(k, f_star, low, high), f_star)
 
 
 def crank_disc_stiffness_estimate(rated_torque, n_c, crank_radius, rollers, roller_length,
@@ -260,7 +294,7 @@ def estimate_from_sources(values: dict) -> dict:
     crank, span = src["crank_diameter_mm"] * mm, src["crank_span_mm"] * mm
     return {
         "pin_disc_stiffness_N_per_m": pin_stiffness_estimate(
-            T, R_p, r_rp, e, values["z_p"], width, src["pin_groove_clearance_mm"] * mm, E, nu),
+            T, R_p, r_rp, e, values["z_p"], width, values["pin_groove_clearance_mm"] * mm, E, nu),
         "mesh_stiffness_N_per_m": iso6336_mesh_stiffness(
             values["z_s"], values["z_pl"], module, alpha, gear),
         "crank_disc_bearing_stiffness_N_per_m": crank_disc_stiffness_estimate(

@@ -10,7 +10,7 @@ plausibility check, not a reproduction.  The peak frequencies are kinematics
 match.  Nothing is tuned to the seeds' figures.
 
     python studies/seed000_dynamic/run_seed000.py [--load 540] [--revolutions 1]
-        [--contact linear impact]
+        [--contact hertz impact]
 """
 
 import argparse
@@ -41,9 +41,10 @@ def main():
     parser.add_argument("--load", type=float, default=540.0,
                         help="resisting output torque [N*m] (default: half of rated, moderate)")
     parser.add_argument("--revolutions", type=float, default=1.0)
-    parser.add_argument("--contact", nargs="+", choices=("linear", "impact"),
-                        default=["linear", "impact"],
-                        help="pin contact laws to run (default both; seeds 000/001 use IMPACT)")
+    parser.add_argument("--contact", nargs="+", choices=("hertz", "linear", "impact"),
+                        default=["hertz", "impact"],
+                        help="pin contact laws to run (default: the preset's own, the pins' Hertz "
+                        "law, and IMPACT, which seeds 000/001 use; linear: the stated stiffness)")
     parser.add_argument("--output", type=Path, default=HERE / "output")
     args = parser.parse_args()
     args.output.mkdir(parents=True, exist_ok=True)

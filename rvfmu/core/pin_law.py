@@ -1,0 +1,144 @@
+"""The pins' contact law as the solvers use it: energy, force and tangent stiffness of a pin
+pressed by delta into its disc and its housing groove.
+
+A pin lies in a groove of the housing and the disc's tooth presses it there: two Hertz
+line contacts in series, pin-disc and pin-groove.  Radzimovsky's closed form of a line
+contact's approach (`stiffness.hertz_line_contact_approach`) is linear in the load but for
+a logarithm of it:
+
+    delta_i = b_i F (2/3 + ln(4 rho_1 |rho_2| / h^2)),   h^2 = 4 F R* / (pi E* l)
+            = b_i F ln(F_i* / F),   b_i = 2 (1 - nu^2) / (pi E l),
+                                    F_i* = e^(2/3) pi E* l rho_1 |rho_2| / R*,
+
+so the two contacts in series are
+
+    delta(F) = b F ln(F* / F),   b = 2 b_i,   F* = sqrt(F_1* F_2*),
+
+one law of two constants: softer than its secant at small loads, stiffer at large ones.
+A design states one pin stiffness, the secant that every linear part of the model uses
+and the catalogue's rigidity test sees (50-100 % of the largest pin force at rated
+torque, `stiffness.pin_stiffness_estimate`); where it also gives the pins' groove, the
+pins follow this law with F* from its geometry and b such that the law's secant over that
+range is the stated stiffness.  With the estimate's own stiffness b is exactly 2 b_i.
+
+The solvers need the law the other way round, at a deflection: with x = F / F* and
+y = delta / (b F*), y = -x ln x, whose root u = ln x < -1 solves u + ln(-u) = ln y (it is
+Lambert's W_-1; `reference.py` takes scipy's).  Newton's method from u0 = ln y - ln(-ln y),
+which lies right of the root, lands left of it and then rises to it monotonically (the
+function is increasing and concave); SOLVE_STEPS steps reach round-off for every y the
+law admits.  The law holds while F < F* e^-2 (u = -2, four orders of magnitude above any
+reducer's pin force); beyond, a trial step of an iteration meets the tangent there
+continued linearly, so the energy stays convex and finite.
+
+    energy   Phi(F) = b F^2 (ln(F*/F) - 1/2) / 2
+    tangent  dF/d delta = 1 / (b (ln(F*/F) - 1))
+
+`contact` is compiled by numba where it is installed (`compiled.kernel`) and takes one pin;
+`contacts` is the same in numpy for arrays.  A law of b = 0 is the linear spring k.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .compiled import kernel
+
+U_LIMIT = -2.0          # ln(F / F*) where the law continues as its tangent
+SOLVE_STEPS = 6         # Newton steps on u + ln(-u) = ln y (round-off from any start, tests)
+
+
+def law_constants(pin_radius, disc_radius, groove_radius, width, youngs_modulus,
+                  poisson_ratio):
+    """(b0 [m/N], F* [N]) of the pin-disc and pin-groove Hertz line contacts in series, each
+    Radzimovsky's; radii [m] signed as `stiffness.hertz_line_contact_approach` takes them (a
+    concave surface negative)."""
+    e_star = youngs_modulus / (2.0 * (1.0 - poisson_ratio ** 2))
+    b_i = 2.0 * (1.0 - poisson_ratio ** 2) / (math.pi * youngs_modulus * width)
+    logs = []
+    for other in (disc_radius, groove_radius):
+        r_star = 1.0 / (1.0 / pin_radius + 1.0 / other)
+        if r_star <= 0:
+            raise ValueError("the concave radius must be larger than the convex one")
+        logs.append(2.0 / 3.0 + math.log(math.pi * e_star * width * pin_radius * abs(other)
+                                         / r_star))
+    return 2.0 * b_i, math.exp(0.5 * (logs[0] + logs[1]))
+
+
+def approach(force, b, f_star):
+    """delta [m] of the law at `force` [N] (array or number; below F* e^-2)."""
+    force = np.asarray(force, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(force > 0.0, b * force * np.log(f_star / np.maximum(force, 1e-300)), 0.0)
+
+
+def scaled_law(stated, f_star, low, high):
+    """b [m/N] of the law delta = b F ln(F*/F) whose secant between the forces `low` and
+    `high` [N] is `stated` [N/m]."""
+    spread = (high * math.log(f_star / high) - low * math.log(f_star / low)) / (high - low)
+    return 1.0 / (stated * spread)
+
+
+@kernel
+def _root(log_y):
+    """u = ln(F / F*) with u + ln(-u) = log_y, for log_y <= ln(-U_LIMIT) + U_LIMIT."""
+    u = log_y - math.log(-log_y)
+    for _ in range(SOLVE_STEPS):
+        u -= (u + math.log(-u) - log_y) / (1.0 + 1.0 / u)
+    return u
+
+
+@kernel
+def contact(delta, law):
+    """(energy [J], force [N], tangent stiffness [N/m]) of one pin pressed by delta [m];
+    law = (k, b, F*): b = 0 the linear spring k, else the Hertz law above.  Nothing for
+    delta <= 0."""
+    if delta <= 0.0:
+        return 0.0, 0.0, 0.0
+    b = law[1]
+    if b == 0.0:
+        return 0.5 * law[0] * delta * delta, law[0] * delta, law[0]
+    f_star = law[2]
+    y_limit = -U_LIMIT * math.exp(U_LIMIT)
+    y = delta / (b * f_star)
+    if y <= y_limit:
+        u = _root(math.log(y))
+        force = f_star * math.exp(u)
+        return 0.5 * b * force * force * (-u - 0.5), force, 1.0 / (b * (-u - 1.0))
+    # beyond the law's range: its tangent continued
+    f_limit = f_star * math.exp(U_LIMIT)
+    tangent = 1.0 / (b * (-U_LIMIT - 1.0))
+    over = (y - y_limit) * b * f_star
+    energy = 0.5 * b * f_limit * f_limit * (-U_LIMIT - 0.5)
+    return energy + f_limit * over + 0.5 * tangent * over * over, f_limit + tangent * over, tangent
+
+
+def contacts(delta, law):
+    """`contact` for an array of deflections: (energy, force, tangent), each delta's shape."""
+    delta = np.asarray(delta, dtype=float)
+    k, b, f_star = (float(v) for v in law)
+    pos = np.maximum(delta, 0.0)
+    if b == 0.0:
+        on = delta > 0.0
+        return 0.5 * k * pos * pos, k * pos, np.where(on, k, 0.0)
+    y_limit = -U_LIMIT * math.exp(U_LIMIT)
+    y = pos / (b * f_star)
+    inside = (y > 0.0) & (y <= y_limit)
+    log_y = np.log(np.where(inside, y, 0.5 * y_limit))
+    u = log_y - np.log(-log_y)
+    for _ in range(SOLVE_STEPS):
+        u = u - (u + np.log(-u) - log_y) / (1.0 + 1.0 / u)
+    force = f_star * np.exp(u)
+    energy = 0.5 * b * force * force * (-u - 0.5)
+    tangent = 1.0 / (b * (-u - 1.0))
+    f_limit = f_star * math.exp(U_LIMIT)
+    t_limit = 1.0 / (b * (-U_LIMIT - 1.0))
+    over = (y - y_limit) * b * f_star
+    beyond = y > y_limit
+    e_limit = 0.5 * b * f_limit * f_limit * (-U_LIMIT - 0.5)
+    energy = np.where(inside, energy, np.where(beyond, e_limit + f_limit * over
+                                               + 0.5 * t_limit * over * over, 0.0))
+    force = np.where(inside, force, np.where(beyond, f_limit + t_limit * over, 0.0))
+    tangent = np.where(inside, tangent, np.where(beyond, t_limit, 0.0))
+    return energy, force, tangent
