@@ -44,11 +44,14 @@ def test_at_slow_speed_the_dynamic_te_is_the_quasi_static_te(rv40, seed002):
     assert np.max(np.abs(dynamic - static)) < 0.05 * pp
 
 
-def test_with_the_roller_law_the_slow_dynamic_te_is_the_quasi_static_te(rv40_rollers):
-    """The crank bearings follow the roller law in both models (rvfmu/core/roller_law.py)."""
+@pytest.mark.parametrize("name", ["rv40_rollers", "rv40_hertz"])
+def test_with_the_roller_law_the_slow_dynamic_te_is_the_quasi_static_te(request, name):
+    """The crank bearings follow the roller law in both models (rvfmu/core/roller_law.py), and
+    in `rv40_hertz` the pins their Hertz law (rvfmu/core/pin_law.py)."""
     from rvfmu.core.errors import load_errors
     from conftest import ROOT
 
+    rv40_rollers = request.getfixturevalue(name)
     errors = load_errors(ROOT / "studies" / "seed002_errors.toml", rv40_rollers)
     sim = simulate(rv40_rollers, errors, speed_rpm=5.0, load=300.0, revolutions=0.02,
                    mesh="constant", ramp=0.5)

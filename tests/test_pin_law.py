@@ -149,21 +149,6 @@ def test_the_compiled_and_numpy_iterations_agree_on_the_law(rv40_hertz, seed002_
     np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-8)
 
 
-def test_the_slow_dynamic_te_is_the_quasi_static_te_with_the_law(rv40_hertz, seed002_hertz):
-    from rvfmu.core.simulation import simulate
-    from rvfmu.core.units import rad_to_arcsec
-
-    sim = simulate(rv40_hertz, seed002_hertz, speed_rpm=5.0, load=300.0, revolutions=0.02,
-                   mesh="constant", ramp=0.5)
-    assert sim.failed_steps == 0
-    theta = sim.theta_in[sim.steady:][::5]
-    dynamic = sim.steady_te_arcsec()[::5]
-    te, _, _ = equilibrium_te(rv40_hertz, seed002_hertz, theta, [-300.0])
-    static = rad_to_arcsec(te[0, 0])
-    assert np.ptp(static) > 5.0
-    assert np.max(np.abs(dynamic - static)) < 0.01 * np.ptp(static)
-
-
 def test_the_dynamic_tangent_is_the_derivative_of_the_law(rv40_hertz, seed002_hertz):
     from rvfmu.core.dynamic import DynamicModel, ramp_motion
     from rvfmu.core.simulation import _quasi_static_start
