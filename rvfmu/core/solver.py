@@ -1,8 +1,10 @@
 """Static equilibrium of the equivalent model for many (reducer, angle) pairs at once.
 
 The equilibrium minimises a convex energy: quadratic in the linear springs,
-piecewise quadratic in the unilateral pin contacts, (|d| - c)_+^2 in the
-bearings with clearance, minus the work of the output torque.  An active-set
+in the unilateral pin contacts that of their law (`pin_law`: the linear spring,
+piecewise quadratic, or the Hertz law), in the bearings with clearance or with
+rollers that of the linear spring beyond the clearance or of the roller law
+(`roller_law`), minus the work of the output torque.  An active-set
 Newton method on that energy (`newton.py`) finds it; which pins touch is found
 by the iteration, never assumed.
 
