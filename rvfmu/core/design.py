@@ -173,7 +173,6 @@ class RVDesign:
             object.__setattr__(self, spec.field, _checked(spec, getattr(self, spec.field), self.name))
         _check_relations(self)
         self.roller_laws  # noqa: B018 (a stated stiffness its rollers cannot reach is refused now)
-        self.pin_law  # noqa: B018 (and a groove the pin cannot lie in)
 
     # -- derived quantities (docs/model.md section 2) --------------------------------
     @property

@@ -26,7 +26,7 @@ y = delta / (b F*), y = -x ln x, whose root u = ln x < -1 solves u + ln(-u) = ln
 Lambert's W_-1; `reference.py` takes scipy's).  Newton's method from u0 = ln y - ln(-ln y),
 which lies right of the root, lands left of it and then rises to it monotonically (the
 function is increasing and concave); SOLVE_STEPS steps reach round-off for every y the
-law admits.  The law holds while F < F* e^-2 (u = -2, four orders of magnitude above any
+law admits.  The law holds while F < F* e^-2 (u = -2, three orders of magnitude above any
 reducer's pin force); beyond, a trial step of an iteration meets the tangent there
 continued linearly, so the energy stays convex and finite.
 
@@ -46,6 +46,7 @@ import numpy as np
 from .compiled import kernel
 
 U_LIMIT = -2.0          # ln(F / F*) where the law continues as its tangent
+Y_LIMIT = -U_LIMIT * math.exp(U_LIMIT)   # delta / (b F*) there
 SOLVE_STEPS = 6         # Newton steps on u + ln(-u) = ln y (round-off from any start, tests)
 
 
@@ -100,16 +101,15 @@ def contact(delta, law):
     if b == 0.0:
         return 0.5 * law[0] * delta * delta, law[0] * delta, law[0]
     f_star = law[2]
-    y_limit = -U_LIMIT * math.exp(U_LIMIT)
     y = delta / (b * f_star)
-    if y <= y_limit:
+    if y <= Y_LIMIT:
         u = _root(math.log(y))
         force = f_star * math.exp(u)
         return 0.5 * b * force * force * (-u - 0.5), force, 1.0 / (b * (-u - 1.0))
     # beyond the law's range: its tangent continued
     f_limit = f_star * math.exp(U_LIMIT)
     tangent = 1.0 / (b * (-U_LIMIT - 1.0))
-    over = (y - y_limit) * b * f_star
+    over = (y - Y_LIMIT) * b * f_star
     energy = 0.5 * b * f_limit * f_limit * (-U_LIMIT - 0.5)
     return energy + f_limit * over + 0.5 * tangent * over * over, f_limit + tangent * over, tangent
 
@@ -122,10 +122,9 @@ def contacts(delta, law):
     if b == 0.0:
         on = delta > 0.0
         return 0.5 * k * pos * pos, k * pos, np.where(on, k, 0.0)
-    y_limit = -U_LIMIT * math.exp(U_LIMIT)
     y = pos / (b * f_star)
-    inside = (y > 0.0) & (y <= y_limit)
-    log_y = np.log(np.where(inside, y, 0.5 * y_limit))
+    inside = (y > 0.0) & (y <= Y_LIMIT)
+    log_y = np.log(np.where(inside, y, 0.5 * Y_LIMIT))
     u = log_y - np.log(-log_y)
     for _ in range(SOLVE_STEPS):
         u = u - (u + np.log(-u) - log_y) / (1.0 + 1.0 / u)
@@ -134,8 +133,8 @@ def contacts(delta, law):
     tangent = 1.0 / (b * (-u - 1.0))
     f_limit = f_star * math.exp(U_LIMIT)
     t_limit = 1.0 / (b * (-U_LIMIT - 1.0))
-    over = (y - y_limit) * b * f_star
-    beyond = y > y_limit
+    over = (y - Y_LIMIT) * b * f_star
+    beyond = y > Y_LIMIT
     e_limit = 0.5 * b * f_limit * f_limit * (-U_LIMIT - 0.5)
     energy = np.where(inside, energy, np.where(beyond, e_limit + f_limit * over
                                                + 0.5 * t_limit * over * over, 0.0))

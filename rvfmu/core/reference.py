@@ -23,6 +23,7 @@ from .design import RVDesign
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .quasistatic import NO_LOAD_PROBE
+from .pin_law import U_LIMIT, Y_LIMIT  # where the pins' law continues as its tangent: a definition
 from .solver import LAW_PROBE  # the solver's small load of the law at no load: a definition, not machinery
 
 SCALE = 1e-6  # the optimiser works in micrometres
@@ -143,15 +144,15 @@ def _pin_energy(delta, law):
     if b == 0.0:
         return 0.5 * k * np.sum(delta * delta), k * delta
     y = delta / (b * f_star)
-    limit = 2.0 * np.exp(-2.0)                  # y at F = F* e^-2
-    inside = np.minimum(y, limit)
+    inside = np.minimum(y, Y_LIMIT)             # the law's range: a definition, not machinery
     x = np.where(inside > 0.0, np.exp(lambertw(-np.maximum(inside, 1e-300), -1).real), 0.0)
     force = f_star * x
     with np.errstate(divide="ignore", invalid="ignore"):
         energy = np.where(x > 0.0, 0.5 * b * force * force * (np.log(1.0 / x) - 0.5), 0.0)
-    over = (y - inside) * b * f_star            # beyond the law: its tangent 1 / b continued
-    energy = energy + force * over + 0.5 * over * over / b
-    return float(np.sum(energy)), force + over / b
+    over = (y - inside) * b * f_star            # beyond the law: its tangent there continued
+    tangent = 1.0 / (b * (-U_LIMIT - 1.0))
+    energy = energy + force * over + 0.5 * tangent * over * over
+    return float(np.sum(energy)), force + tangent * over
 
 
 def _roller_energy(s, c, a):
