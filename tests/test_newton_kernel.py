@@ -8,6 +8,7 @@ without bearing clearances (the continuation), resisting and driving, and the
 pairs re-solved on all pins.
 """
 
+import os
 from pathlib import Path
 from unittest import mock
 
@@ -117,3 +118,39 @@ def test_with_the_roller_law_the_compiled_and_numpy_equilibria_agree(rv40_roller
         compiled, plain = both(lambda: te_curve(design, errors, tau_load=tau, points=240))
         assert compiled.converged.all() and plain.converged.all()
         np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-6)
+
+
+def test_a_changed_callee_in_another_file_is_recompiled_not_loaded_stale(tmp_path):
+    """numba's disk cache keys a kernel by its own file: one that calls pin_law's `contact`
+    would keep the old contact after pin_law.py changed.  The core's cache is dropped whole
+    when any of its sources changes (`compiled.SOURCES_STAMP`)."""
+    import shutil
+    import subprocess
+    import sys
+
+    package = tmp_path / "rvfmu"
+    shutil.copytree(ROOT / "rvfmu", package, ignore=shutil.ignore_patterns("__pycache__"))
+    (package / "core" / "probe.py").write_text(
+        "from .compiled import kernel\nfrom .pin_law import contact\n\n\n"
+        "@kernel\ndef force(delta, law):\n    return contact(delta, law)[1]\n")
+    script = ("import sys; sys.path.insert(0, sys.argv[1])\n"
+              "import numpy as np\nfrom rvfmu.core.probe import force\n"
+              "print(repr(force(1e-6, np.array([2e8, 5.5e-10, 3.05e6]))))\n")
+
+    def run():
+        proc = subprocess.run([sys.executable, "-c", script, str(tmp_path)], capture_output=True,
+                              text=True, timeout=600, env={**os.environ, "NUMBA_DEBUG_CACHE": "1"})
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        lines = proc.stdout.splitlines()
+        return float(lines[-1]), any(line.startswith("[cache] data loaded") for line in lines)
+
+    first, loaded = run()
+    assert not loaded and first > 0.0
+    again, loaded = run()
+    assert loaded and again == first                       # unchanged sources: the cache serves
+    law = package / "core" / "pin_law.py"
+    text = law.read_text()
+    assert text.count("force = delta / (b * v)") == 1
+    law.write_text(text.replace("force = delta / (b * v)", "force = 2.0 * delta / (b * v)"))
+    changed, loaded = run()
+    assert not loaded and changed == pytest.approx(2.0 * first, rel=1e-15)

@@ -4,11 +4,22 @@ The compiled functions of the model (`kernels`, `newton_kernel`, `roller_law`) a
 `kernel` from here, so that none of them has to import another to get it.  Without numba
 (a host Python that lacks it, or RVTE_NUMBA=0) `kernel` returns the function as it is:
 the same results, as plain numpy, several times slower.
+
+numba keys a cached function by the file that defines it, not by the files of the
+functions it calls: newton_kernel's iteration, which inlines pin_law's `contact`, would
+keep the old contact after pin_law.py changed.  So the cache of this folder is one unit:
+`SOURCES_STAMP` holds the digest of every source file here, and when that digest changes
+every cached kernel of the folder goes before any is loaded.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
+from pathlib import Path
+
+FOLDER = Path(__file__).parent
+SOURCES_STAMP = FOLDER / "__pycache__" / "kernels.sources"
 
 
 def _numba():
@@ -21,8 +32,34 @@ def _numba():
     return numba
 
 
+def sources_digest() -> str:
+    """sha256 of this folder's source files, in name order."""
+    digest = hashlib.sha256()
+    for path in sorted(FOLDER.glob("*.py")):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
+def _drop_stale_cache():
+    digest = sources_digest()
+    try:
+        if SOURCES_STAMP.read_text() == digest:
+            return
+    except OSError:
+        pass
+    try:
+        for path in SOURCES_STAMP.parent.glob("*.nb[ic]"):
+            path.unlink(missing_ok=True)
+        SOURCES_STAMP.parent.mkdir(exist_ok=True)
+        SOURCES_STAMP.write_text(digest)
+    except OSError:     # a read-only install: numba compiles without a cache there
+        pass
+
+
 _NUMBA = _numba()
 COMPILED = _NUMBA is not None
+if COMPILED:
+    _drop_stale_cache()
 
 
 def kernel(function):

@@ -337,11 +337,13 @@ class DynamicModel:
 def compile_kernels() -> list:
     """Compile the dynamic model's kernels (numba, `kernels.COMPILED`) for the types a run
     gives them, unless numba's disk cache already holds them, and return the cache files
-    ([] without numba).  The FMU bundles these files: the same kernels.py in its resources
-    then loads them instead of compiling on a host's first dynamic step."""
+    and the stamp of the sources they were compiled from ([] without numba).  The FMU bundles
+    these files: the same kernels.py in its resources then loads them instead of compiling
+    on a host's first dynamic step."""
     from pathlib import Path
 
     from . import kernels
+    from .compiled import SOURCES_STAMP
     from .design import preset
     from .errors import zero_errors
     from .newmark import NewmarkStepper
@@ -358,4 +360,4 @@ def compile_kernels() -> list:
     for function in (kernels.element_forces, kernels.newmark_steps):
         line = function.py_func.__code__.co_firstlineno        # numba names its files by it
         files += folder.glob(f"kernels.{function.__name__}-{line}.*.nb[ic]")
-    return sorted(files)
+    return sorted(files) + [SOURCES_STAMP]

@@ -22,16 +22,18 @@ pins follow this law with F* from its geometry and b such that the law's secant 
 range is the stated stiffness.  With the estimate's own stiffness b is exactly 2 b_i.
 
 The solvers need the law the other way round, at a deflection: with x = F / F* and
-y = delta / (b F*), y = -x ln x, whose root u = ln x < -1 solves u + ln(-u) = ln y (it is
-Lambert's W_-1; `reference.py` takes scipy's).  Newton's method from u0 = ln y - ln(-ln y),
-which lies right of the root, lands left of it and then rises to it monotonically (the
-function is increasing and concave); SOLVE_STEPS steps reach round-off for every y the
-law admits.  The law holds while F < F* e^-2 (u = -2, three orders of magnitude above any
-reducer's pin force); beyond, a trial step of an iteration meets the tangent there
-continued linearly, so the energy stays convex and finite.
+y = delta / (b F*), y = -x ln x, so v = -ln x > 1 solves v - ln v = c, c = -ln y (it is
+Lambert's W_-1; `reference.py` takes scipy's), and the force is F = delta / (b v).  Newton's
+method from de Bruijn's v0 = c + ln c + ln c / c converges from the right (the function is
+increasing and convex); it stops when a step is below 1e-8 v, after which the error is
+below round-off (Newton's error after a step s is at most s^2 / (2 v (v - 1))): two steps
+for the pin forces of a reducer (v > 8), four near the law's limit, MAX_STEPS at most.
+The law holds while F < F* e^-2 (v = 2, three orders of magnitude above any reducer's pin
+force); beyond, a trial step of an iteration meets the tangent there continued linearly,
+so the energy stays convex and finite.
 
-    energy   Phi(F) = b F^2 (ln(F*/F) - 1/2) / 2
-    tangent  dF/d delta = 1 / (b (ln(F*/F) - 1))
+    energy   Phi(F) = b F^2 (ln(F*/F) - 1/2) / 2 = b F^2 (v - 1/2) / 2
+    tangent  dF/d delta = 1 / (b (ln(F*/F) - 1)) = 1 / (b (v - 1))
 
 `contact` is compiled by numba where it is installed (`compiled.kernel`) and takes one pin;
 `contacts` is the same in numpy for arrays.  A law of b = 0 is the linear spring k.
@@ -47,7 +49,8 @@ from .compiled import kernel
 
 U_LIMIT = -2.0          # ln(F / F*) where the law continues as its tangent
 Y_LIMIT = -U_LIMIT * math.exp(U_LIMIT)   # delta / (b F*) there
-SOLVE_STEPS = 6         # Newton steps on u + ln(-u) = ln y (round-off from any start, tests)
+MAX_STEPS = 6           # Newton steps on v - ln v = c at most (four reach round-off, tests)
+STEP_TOLERANCE = 1e-8   # relative step after which v is at round-off
 
 
 def law_constants(pin_radius, disc_radius, groove_radius, width, youngs_modulus,
@@ -82,12 +85,16 @@ def scaled_law(stated, f_star, low, high):
 
 
 @kernel
-def _root(log_y):
-    """u = ln(F / F*) with u + ln(-u) = log_y, for log_y <= ln(-U_LIMIT) + U_LIMIT."""
-    u = log_y - math.log(-log_y)
-    for _ in range(SOLVE_STEPS):
-        u -= (u + math.log(-u) - log_y) / (1.0 + 1.0 / u)
-    return u
+def _root(c):
+    """v = ln(F* / F) with v - ln v = c, for c >= -ln Y_LIMIT."""
+    log_c = math.log(c)
+    v = c + log_c + log_c / c
+    for _ in range(MAX_STEPS):
+        step = (v - math.log(v) - c) * v / (v - 1.0)
+        v -= step
+        if abs(step) < STEP_TOLERANCE * v:
+            break
+    return v
 
 
 @kernel
@@ -103,9 +110,9 @@ def contact(delta, law):
     f_star = law[2]
     y = delta / (b * f_star)
     if y <= Y_LIMIT:
-        u = _root(math.log(y))
-        force = f_star * math.exp(u)
-        return 0.5 * b * force * force * (-u - 0.5), force, 1.0 / (b * (-u - 1.0))
+        v = _root(-math.log(y))
+        force = delta / (b * v)
+        return 0.5 * b * force * force * (v - 0.5), force, 1.0 / (b * (v - 1.0))
     # beyond the law's range: its tangent continued
     f_limit = f_star * math.exp(U_LIMIT)
     tangent = 1.0 / (b * (-U_LIMIT - 1.0))
@@ -124,13 +131,17 @@ def contacts(delta, law):
         return 0.5 * k * pos * pos, k * pos, np.where(on, k, 0.0)
     y = pos / (b * f_star)
     inside = (y > 0.0) & (y <= Y_LIMIT)
-    log_y = np.log(np.where(inside, y, 0.5 * Y_LIMIT))
-    u = log_y - np.log(-log_y)
-    for _ in range(SOLVE_STEPS):
-        u = u - (u + np.log(-u) - log_y) / (1.0 + 1.0 / u)
-    force = f_star * np.exp(u)
-    energy = 0.5 * b * force * force * (-u - 0.5)
-    tangent = 1.0 / (b * (-u - 1.0))
+    c = -np.log(np.where(inside, y, 0.5 * Y_LIMIT))
+    log_c = np.log(c)
+    v = c + log_c + log_c / c
+    for _ in range(MAX_STEPS):
+        step = (v - np.log(v) - c) * v / (v - 1.0)
+        v = v - step
+        if np.all(np.abs(step) < STEP_TOLERANCE * v):
+            break
+    force = pos / (b * v)
+    energy = 0.5 * b * force * force * (v - 0.5)
+    tangent = 1.0 / (b * (v - 1.0))
     f_limit = f_star * math.exp(U_LIMIT)
     t_limit = 1.0 / (b * (-U_LIMIT - 1.0))
     over = (y - Y_LIMIT) * b * f_star
