@@ -15,7 +15,6 @@ import os
 import shutil
 import subprocess
 import sys
-import sysconfig
 from pathlib import Path
 
 import fmpy
@@ -139,7 +138,10 @@ def test_fmpy_and_libcosim_agree_in_a_process_without_rvte_libpython_preload_or_
     assert "NEEDED" in needed and "python" not in needed.lower()
     script = tmp_path / "clean_host.py"
     script.write_text(CLEAN_HOST)
-    site = os.pathsep.join(dict.fromkeys(sysconfig.get_paths()[k] for k in ("purelib", "platlib")))
+    # every site-packages folder this interpreter reads (a venv's own, and the system's where
+    # the venv includes them), without the .pth files that run when site.py adds them
+    site = os.pathsep.join(dict.fromkeys(p for p in sys.path
+                                         if Path(p).name in ("site-packages", "dist-packages")))
     loads = [rv40.rated_torque, -0.5 * rv40.rated_torque]
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON") and k != "LD_PRELOAD"}
     work = tmp_path / "cwd"
