@@ -9,6 +9,9 @@ pairs re-solved on all pins.
 """
 
 import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 from unittest import mock
 
@@ -124,10 +127,6 @@ def test_a_changed_callee_in_another_file_is_recompiled_not_loaded_stale(tmp_pat
     """numba's disk cache keys a kernel by its own file: one that calls pin_law's `contact`
     would keep the old contact after pin_law.py changed.  The core's cache is dropped whole
     when any of its sources changes (`compiled.SOURCES_STAMP`)."""
-    import shutil
-    import subprocess
-    import sys
-
     package = tmp_path / "rvfmu"
     shutil.copytree(ROOT / "rvfmu", package, ignore=shutil.ignore_patterns("__pycache__"))
     (package / "core" / "probe.py").write_text(

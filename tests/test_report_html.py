@@ -2,9 +2,9 @@
 
 One toy study (the RV-40E-121 with linear pins and bearings at 64 points, the
 seed 002 fixed errors, 32 Monte Carlo reducers and a Sobol run of N = 16) is
-run once into its default output folder; every test reports on it or on a copy of it.  The browser test
-drives Debian's `chromium` over the DevTools protocol on a pipe
-(--remote-debugging-pipe: JSON messages ending in a NUL byte on file
+run once into its default output folder; every test reports on it or on a copy
+of it.  The browser test drives Debian's `chromium` over the DevTools protocol
+on a pipe (--remote-debugging-pipe: JSON messages ending in a NUL byte on file
 descriptors 3 and 4), which needs no Python package.
 """
 

@@ -360,4 +360,5 @@ def compile_kernels() -> list:
     for function in (kernels.element_forces, kernels.newmark_steps):
         line = function.py_func.__code__.co_firstlineno        # numba names its files by it
         files += folder.glob(f"kernels.{function.__name__}-{line}.*.nb[ic]")
-    return sorted(files) + [SOURCES_STAMP]
+    # the stamp is missing where the cache folder cannot be written, and then so are the kernels
+    return sorted(files) + ([SOURCES_STAMP] if files and SOURCES_STAMP.is_file() else [])
