@@ -34,15 +34,17 @@ How it is answered, and why so:
   like the stiffnesses.
 - Seed 003's names (its equations of the carrier, planets and discs):
   R_ca, the angular contact bearings of the carrier, is `main_bearing_stiffness`;
-  R_b, the tapered roller bearings of the crankshafts in the carrier, is
-  `crank_carrier_bearing_stiffness`; R_pd, the cylindrical roller (needle)
-  bearing between a cam and its disc, is the bearing inside
-  `crank_disc_bearing_stiffness`, which the presets take as that bearing in
-  series with the crank bent and sheared between its supports (docs/model.md section 6,
-  `rvfmu.core.stiffness`).  Fitting R_pd therefore sets
-  crank_disc_bearing_stiffness = series(R_pd, crank bending at its cams) with the crank's
-  diameter and span from the design's [sources] table (or its preset's): the
-  bearing is what seed 003 identifies, the crank's bending is geometry.
+  R_b, the tapered roller bearings of the crankshafts in the carrier, is the
+  pair inside `crank_carrier_bearing_stiffness`; R_pd, the cylindrical roller
+  (needle) bearing between a cam and its disc, is the bearing inside
+  `crank_disc_bearing_stiffness`.  The presets take each in series with its part
+  of the crankshaft bent and sheared between its supports (docs/model.md
+  section 6, `rvfmu.core.compliance.crank_split`).  Fitting R_pd therefore sets
+  crank_disc_bearing_stiffness = series(R_pd, the crank at a cam), and R_b
+  crank_carrier_bearing_stiffness = series(R_b, the crank's common part), with
+  the crank's diameter and span from the design's [sources] table (or its
+  preset's): the bearings are what seed 003 identifies, the crank is geometry.
+  The crank's tilt in its bearings takes the pair at the start of the fit.
 - Cheap evaluations: a data set's model costs its grid, `points` per output
   revolution, not its rows (`rvfmu.compare`); data sets at the same load are
   solved as one batch.  The default for peaks and curves, POINTS_PER_CRANK_TURN
@@ -89,8 +91,9 @@ _BY_NAME = {**{s.field: s for s in STIFFNESS_FIELDS}, **{s.file_key: s for s in 
 SEED003_NAMES = {"R_ca": "main_bearing_stiffness", "R_b": "crank_carrier_bearing_stiffness",
                  "R_pd": "crank_disc_bearing_stiffness"}
 SEED003_DOC = {"R_ca": "carrier angular contact bearings (seed 003)",
-               "R_b": "crank tapered roller bearings in the carrier (seed 003)",
-               "R_pd": "crank-disc needle bearing (seed 003), in series with the crank's bending"}
+               "R_b": "crank tapered roller bearings in the carrier (seed 003), in series with "
+                      "the crank's common part",
+               "R_pd": "crank-disc needle bearing (seed 003), in series with the crank at a cam"}
 
 # Default bounds: the starting value divided and multiplied by this.  Wide enough for an
 # estimate from a formula (the presets' bearing stiffnesses are within x3 of seed 003's
@@ -142,9 +145,9 @@ class Parameter:
 
     name: as reported (R_ca, R_b, R_pd, a design field, output_stiffness or
     modification_scale); field: the design field(s) it sets; value: the starting value
-    (of R_pd itself for R_pd); lower, upper: bounds; series_with: for R_pd, the crank's
-    bending stiffness [N/m] in series; unit: of value and bounds; base: for
-    modification_scale, the design's (d_rp, d_rrp) [m] that it scales.
+    (of the bearing itself for R_pd and R_b); lower, upper: bounds; series_with: for R_pd
+    and R_b, the crankshaft's stiffness [N/m] in series (`crank_parts`); unit: of value and
+    bounds; base: for modification_scale, the design's (d_rp, d_rrp) [m] that it scales.
     """
 
     name: str
@@ -259,22 +262,33 @@ def resolve_name(name: str) -> tuple[str, str]:
                      "(or their file keys, e.g. pin_disc_stiffness_N_per_m)")
 
 
-def crank_bending_stiffness(design: RVDesign, sources: dict | None) -> float:
-    """The crank bent between its supports at its two cams [N/m] (`rvfmu.core.compliance.
-    crank_bending_stiffness`, cams by `stiffness.cam_positions`), from [sources]
-    crank_diameter_mm and crank_span_mm and the design's disc width and Young's modulus; an
-    InputError if they are missing."""
+def crank_parts(design: RVDesign, sources: dict | None, name: str) -> tuple[float, float]:
+    """(at each cam, common to both cams) stiffnesses [N/m] of the crankshaft between its
+    bearings (`rvfmu.core.compliance.crank_split`, cams by `stiffness.cam_positions`): the
+    springs in series with R_pd and with R_b.  From [sources] crank_diameter_mm and
+    crank_span_mm and the design's disc width and Young's modulus; the tilt in the bearings
+    takes the tapered roller pair that the design's crank_carrier_bearing_stiffness holds
+    (its common part removed).  An InputError if the sources are missing or the stated
+    crank-carrier stiffness leaves no bearing behind the crank."""
     needed = ("crank_diameter_mm", "crank_span_mm")
     if not sources or any(k not in sources for k in needed):
-        raise InputError("fit", "R_pd", "needs the crank's bending stiffness in series with the "
-                         "needle bearing: the design file (or its preset) must have a [sources] "
+        raise InputError("fit", name, "needs the crankshaft's compliance in series with the "
+                         "bearing: the design file (or its preset) must have a [sources] "
                          "table with crank_diameter_mm and crank_span_mm; or fit "
-                         "crank_disc_bearing_stiffness itself")
+                         f"{SEED003_NAMES[name]} itself")
     diameter = positive("sources.crank_diameter_mm", sources["crank_diameter_mm"]) * MM
     span = positive("sources.crank_span_mm", sources["crank_span_mm"]) * MM
-    return compliance.crank_bending_stiffness(design.youngs_modulus, design.poisson_ratio,
-                                              diameter, span,
-                                              cam_positions(span, design.disc_width))
+    cams = cam_positions(span, design.disc_width)
+    influence = compliance.crank_influence(design.youngs_modulus, design.poisson_ratio,
+                                           diameter, span, cams)
+    tilt = (cams[1] - cams[0]) ** 2 / span ** 2
+    left = 1.0 / design.crank_carrier_bearing_stiffness - influence[0, 1]
+    if left <= 0.0:
+        raise InputError("crank_carrier_bearing_stiffness_N_per_m", design.crank_carrier_bearing_stiffness,
+                         f"must be below the crankshaft's common stiffness {1.0 / influence[0, 1]:.4g} "
+                         "N/m to hold a tapered roller pair in series with it")
+    at_cam, common = compliance.crank_split(influence, span, cams, (1.0 - tilt) / left)
+    return 1.0 / at_cam, 1.0 / common
 
 
 def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dict | None = None,
@@ -312,12 +326,12 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
                              "a linear spring")
         current = getattr(design, field)
         bending = None
-        if name == "R_pd":
-            bending = crank_bending_stiffness(design, sources)
+        if name in ("R_pd", "R_b"):
+            bending = crank_parts(design, sources, name)[0 if name == "R_pd" else 1]
             if current >= bending:
-                raise InputError("crank_disc_bearing_stiffness_N_per_m", current, f"must be below "
-                                 f"the crank's bending stiffness {bending:.4g} N/m to be a needle "
-                                 "bearing in series with it (R_pd)")
+                raise InputError(f"{field}_N_per_m", current, f"must be below the crankshaft's "
+                                 f"stiffness {bending:.4g} N/m in series with it to hold a "
+                                 f"bearing ({name})")
             current = 1.0 / (1.0 / current - 1.0 / bending)
         lower, upper = given.get(name, (current / factor, current * factor))
         out.append(Parameter(name, field, current, lower, upper, bending))
@@ -753,7 +767,7 @@ def setting(parameter: Parameter, value: float) -> str:
     """What the fitted `value` sets in the design, in file units, for reports."""
     p = parameter
     if p.series_with is not None:
-        return (f"{p.field} = series(R_pd, crank bending {p.series_with:.4g} N/m) = "
+        return (f"{p.field} = series({p.name}, crankshaft {p.series_with:.4g} N/m) = "
                 f"{p.field_values(value)[p.field]:.6g}")
     if p.name == OUTPUT_STIFFNESS:
         return f"output_compliance_arcsec_per_Nm = {p.field_values(value)['output_compliance'] / ARCSEC:.6g}"

@@ -243,10 +243,13 @@ def small_study(folder, spec=30.0, name="small"):
                         spec={"te_pp_arcsec": spec}, montecarlo={"n": 512}, tolerances=TOLERANCES)
 
 
+SPEC = 24.0   # te_pp, arcsec: the current tolerances miss it (yield 0.92 of 512)
+
+
 @pytest.fixture(scope="module")
 def allocated(tmp_path_factory):
     folder = tmp_path_factory.mktemp("allocate")
-    path = small_study(folder, spec=25.0)
+    path = small_study(folder, spec=SPEC)
     return path, tolerance.allocate(path, 0.95, progress=False)
 
 
@@ -267,13 +270,13 @@ def test_allocation_meets_its_target_in_the_verification_monte_carlo(allocated):
     assert "reducers that no step of the search saw" in text and "rvte mc" in text
     mc = run_mc(result.allocated_study_file, 512, plots=False)
     assert mc.computed.computed == 0
-    assert np.mean(mc.Y[:, 0] <= 25.0) == pytest.approx(result.yield_allocated.estimate)
+    assert np.mean(mc.Y[:, 0] <= SPEC) == pytest.approx(result.yield_allocated.estimate)
     assert load_study(result.allocated_study_file).seed != load_study(path).seed
     allocated_study = load_study(result.allocated_study_file)
     for factor, record in zip(allocated_study.factors, result.factors):
         assert costs.current_um(factor) == pytest.approx(record.allocated, abs=1e-9)
         assert record.lower <= record.allocated <= record.upper
-    assert path.read_text() == small_study(path.parent, spec=25.0).read_text()  # never overwritten
+    assert path.read_text() == small_study(path.parent, spec=SPEC).read_text()  # never overwritten
 
 
 def test_allocation_json_has_exactly_the_schema_the_report_reads(allocated):

@@ -123,12 +123,13 @@ def test_stiffness_command_checks_its_inputs_first(tmp_path):
 
 
 @pytest.mark.parametrize("clearances", [False, True], ids=["tight", "clearances"])
-def test_with_the_roller_law_shares_still_add_up_and_the_crank_bending_is_its_own_row(
+def test_with_the_roller_law_shares_still_add_up_and_the_crank_has_rows_of_its_own(
         rv40_rollers, seed002, clearances):
     """The roller law's energy is the integral of its force (rvfmu/core/roller_law.py): the
     shares add up to one as with linear springs, the rigidity is the windup test's, and
-    the spring in series with the needles (the crank bent at its cams) is a row of its own:
-    its stiffness and the needles' own secant make the stated stiffness in series."""
+    the springs in series with the needles and with the tapered roller pairs (the
+    crankshaft's two parts, compliance.crank_split) are rows of their own: each with its
+    bearing's own secant makes the stated stiffness in series."""
     errors = _with_clearances(seed002) if clearances else seed002
     budget = compliance_budget(rv40_rollers, errors)
     assert budget.converged
@@ -136,10 +137,15 @@ def test_with_the_roller_law_shares_still_add_up_and_the_crank_bending_is_its_ow
     assert budget.torsional_rigidity_Nm_per_arcmin == pytest.approx(
         windup(rv40_rollers, errors).torsional_rigidity_Nm_per_arcmin()[0], rel=1e-9)
     rows = {e.name: e for e in budget.elements}
-    bending, needles = rows["crank bending and shear at the cams"], rows["crank-disc needle bearings"]
-    assert 1.0 / bending.stiffness + 1.0 / needles.stiffness == pytest.approx(
-        1.0 / rv40_rollers.crank_disc_bearing_stiffness, rel=1e-12)
-    assert bending.share > 0.05 and needles.share > 0.05
+    for crank, bearing, stated in (
+            ("crank bending and tilt, each cam", "crank-disc needle bearings",
+             rv40_rollers.crank_disc_bearing_stiffness),
+            ("crank bending, both cams alike", "crank-carrier bearings",
+             rv40_rollers.crank_carrier_bearing_stiffness)):
+        assert 1.0 / rows[crank].stiffness + 1.0 / rows[bearing].stiffness == pytest.approx(
+            1.0 / stated, rel=1e-12)
+        assert rows[crank].share > 0.05 and rows[bearing].share > 0.05
+        assert rows[crank].count == rows[bearing].count
 
 
 def _crank_torsion_against_the_mesh(design, sources):

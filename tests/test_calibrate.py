@@ -8,6 +8,7 @@ defaults.
 """
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -19,7 +20,8 @@ from rvfmu.compare import model_grid
 from rvfmu.core.design import load_design
 from rvfmu.core.quasistatic import windup
 from rvfmu.core import compliance
-from rvfmu.core.stiffness import series
+from rvfmu.core.checks import InputError
+from rvfmu.core.stiffness import crank_carrier_stiffness_estimate, series
 from test_compare import ERRORS, POINTS, errors, record, rv20  # noqa: F401 (errors, rv20: fixtures)
 
 BUDGET = dict(points=POINTS, maxiter=4, popsize=5)
@@ -113,24 +115,36 @@ def test_a_stiffness_the_data_do_not_see_is_reported_not_identifiable(tmp_path):
     assert json.dumps(report.to_json(), allow_nan=False)    # inf as text: JSON has no inf
 
 
-def test_seed003_names_map_onto_the_design_and_r_pd_sits_in_series_with_the_crank(rv20):
+def test_seed003_names_map_onto_the_design_and_the_bearings_sit_in_series_with_the_crank(rv20):
     sources = design_sources("RV-20E")
     ca, b, pd = parameters(rv20, ["R_ca", "R_b", "R_pd"], sources=sources)
     assert (ca.field, b.field, pd.field) == ("main_bearing_stiffness",
                                             "crank_carrier_bearing_stiffness",
                                             "crank_disc_bearing_stiffness")
-    assert ca.value == rv20.main_bearing_stiffness and b.value == rv20.crank_carrier_bearing_stiffness
+    assert ca.value == rv20.main_bearing_stiffness
     # the preset's crank-disc value is the needle bearing (Palmgren with its roller load
     # distribution, 11 rollers of 6 mm, secant between 50 % and 100 % of 167 / (2 * 2 * a))
-    # in series with the crank bent and sheared at its cams (13 mm, span 34 mm, cams at 13 and 21 mm)
+    # in series with the crank at a cam, and its crank-carrier value the tapered roller pair
+    # (13 rollers of 5 mm at 10 deg, half of 167 / (2 a) each) in series with the crank's
+    # common part (13 mm, span 34 mm, cams at 13 and 21 mm: compliance.crank_split)
     a = rv20.crank_circle_radius
     needle = compliance.secant_stiffness(lambda f: compliance.bearing_deflection(f, 11, 6e-3),
                                          0.5 * 167.0 / (4 * a), 167.0 / (4 * a))
+    pair = crank_carrier_stiffness_estimate(167.0, 2, a, 13, 5e-3, math.radians(80.0))
+    influence = compliance.crank_influence(211e9, 0.29, 13e-3, 34e-3, (13e-3, 21e-3))
+    each, common = compliance.crank_split(influence, 34e-3, (13e-3, 21e-3), pair)
     assert pd.value == pytest.approx(needle, rel=0.005)
-    assert pd.series_with == pytest.approx(
-        compliance.crank_bending_stiffness(211e9, 0.29, 13e-3, 34e-3, (13e-3, 21e-3)), rel=1e-9)
-    assert pd.field_values(1.1e10)[pd.field] == pytest.approx(series(1.1e10, pd.series_with))
-    assert pd.field_values(pd.value)[pd.field] == pytest.approx(rv20.crank_disc_bearing_stiffness)
+    assert b.value == pytest.approx(pair, rel=0.005)
+    assert pd.series_with == pytest.approx(1.0 / each, rel=0.005)
+    assert b.series_with == pytest.approx(1.0 / common, rel=0.005)
+    for p, value in ((pd, 1.1e10), (b, 2e9)):
+        assert p.field_values(value)[p.field] == pytest.approx(series(value, p.series_with))
+        assert p.field_values(p.value)[p.field] == pytest.approx(getattr(rv20, p.field))
+    # without the crank's geometry neither bearing can be told from the crank
+    for name in ("R_b", "R_pd"):
+        with pytest.raises(InputError) as info:
+            parameters(rv20, [name], sources={})
+        assert info.value.field == "fit" and "crank_diameter_mm" in str(info.value)
 
 
 def test_a_bearing_on_the_roller_law_is_not_fitted_as_a_spring():

@@ -101,6 +101,37 @@ def test_beam_influence_reciprocity_and_the_central_load():
     assert two < c.crank_bending_stiffness(E, NU, d, span, [b])
 
 
+
+def test_the_crank_splits_into_like_and_opposite_cam_loads_as_the_half_beam_gives():
+    """Two cams at b from each support of a crank of span L, s = L - 2b apart.
+
+    Like loads P at both: at a cam b^2 (3L - 4b) / (6 E I) + b / (k G A) (Roark 8.1, 1e
+    twice), each bearing carrying P.  Opposite loads +-P: the midspan is an inflection
+    point that does not move, so each half is a simply supported beam of span L/2 with P
+    at b: P b^2 (s/2)^2 / (3 E I L/2) bent and P b (s/2) / ((L/2) k G A) sheared (Roark 8.1,
+    1e at its load).  The bearings, each k_1, react +-P s / L: the crank turns by
+    2 P s / (L^2 k_1) and a cam, s/2 from the middle, moves P s^2 / (L^2 k_1).  The model
+    gives like loads each + 2 common, opposite loads each."""
+    d, span, b = 0.016, 0.04, 0.015
+    s, half = span - 2 * b, span / 2
+    inertia, area = math.pi * d ** 4 / 64, math.pi * d ** 2 / 4
+    kga = c.round_shear_coefficient(NU) * c.shear_modulus(E, NU) * area
+    like = b * b * (3 * span - 4 * b) / (6 * E * inertia) + b / kga
+    opposite = b ** 2 * (s / 2) ** 2 / (3 * E * inertia * half) + b * (s / 2) / (half * kga)
+    influence = c.crank_influence(E, NU, d, span, (b, span - b))
+    assert influence.shape == (2, 2) and influence[0, 1] == pytest.approx(influence[1, 0], rel=1e-12)
+    rigid_each, rigid_common = c.crank_split(influence, span, (b, span - b), math.inf)
+    assert rigid_each == pytest.approx(opposite, rel=1e-12)
+    assert rigid_each + 2 * rigid_common == pytest.approx(like, rel=1e-12)
+    # the cams sit close: opposite loads bend the crank under a tenth as much as like loads
+    assert rigid_each < 0.1 * like
+    pair = 6e8                                                 # both bearings, each 3e8
+    each, common = c.crank_split(influence, span, (b, span - b), pair)
+    assert each - rigid_each == pytest.approx(s ** 2 / (span ** 2 * 0.5 * pair), rel=1e-12)
+    assert each + 2 * common == pytest.approx(like, rel=1e-12)  # like loads do not tilt it
+    with pytest.raises(ValueError, match="two cams"):
+        c.crank_split(influence[:1, :1], span, (b,), pair)
+
 def test_guided_beam_and_torsion_closed_forms():
     inertia, area = 1e-9, 1e-4
     slender = c.guided_beam_stiffness(E, NU, inertia, area, 0.3, 0.85)

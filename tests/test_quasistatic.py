@@ -341,15 +341,19 @@ def test_no_load_te_of_a_preloaded_reducer_without_bearing_clearance_is_the_limi
     there), and lie between the probe's TE and that under a small driving load on the
     same flank.  The crank bearings are linear springs here (`linear_bearings`): this is
     the no-load route of the stated stiffnesses, which a design on the roller law also
-    takes first.  The modification pair is the one these angles were found on (the
-    calibrated preset's of then, 2.63867 um): another pair preloads other angles."""
+    takes first.  The modification pair and the crank bearings' stiffnesses and the output
+    compliance are those these angles were found on (the calibrated preset's of then,
+    2.63867 um, 1.503e8 and 7.674e8 N/m, 0.0210337 arcsec/(N*m)): others preload other
+    angles, or change the contacts at none of these."""
     from conftest import linear_bearings
     from tolerance.montecarlo import sample
     from tolerance.sampling import errors_from_unit
     from tolerance.study import load_study
 
     study = load_study(ROOT / "studies" / "quick_mc.toml")
-    design = linear_bearings(study.design).with_fields(d_rp=-2.63867 * UM, d_rrp=2.63867 * UM)
+    design = linear_bearings(study.design).with_fields(
+        d_rp=-2.63867 * UM, d_rrp=2.63867 * UM, crank_disc_bearing_stiffness=1.503e8,
+        crank_carrier_bearing_stiffness=7.674e8, output_compliance=0.0210337 * ARCSEC)
     errors = errors_from_unit(study, sample(study, row + 1)[row:])
     theta_in = input_angles(design, 12480)[index - 6:index + 7]
     probe = NO_LOAD_PROBE * design.rated_torque

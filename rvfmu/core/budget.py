@@ -104,9 +104,10 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q)
     """Strain energy [J] of each kind of element at the equilibria q (B, n) of loaded pairs
     (sample[b], angle[b]): {element name: (B,)}, the terms of the solver's energy.
 
-    The pins follow their law (`pin_law`); the bearings that have a roller law follow it; where the law has a spring in series
-    (the crank bent and sheared at its cams, behind the needles), that spring's energy is an
-    element of its own."""
+    The pins follow their law (`pin_law`); the bearings that have a roller law follow it;
+    where the law has a spring in series (the crankshaft's part behind the needles and behind
+    its tapered roller pair, `compliance.crank_split`), that spring's energy is an element of
+    its own."""
     d = model.design
     n_c = d.n_c
     lin_b, brg_b, pin_b = model.offsets(errors, sample, angle)
@@ -134,12 +135,21 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q)
         "crank-disc needle bearings": brg_energy[:, n_c:3 * n_c].sum(axis=1),
         "main bearing": brg_energy[:, -1],
     }
-    if d.roller_laws.get("crank_disc", (0.0, 0.0))[1] > 0.0:
-        parts["crank bending and shear at the cams"] = series_energy[:, n_c:3 * n_c].sum(axis=1)
+    for kind, (name, _, columns) in CRANK_ROWS.items():
+        if d.roller_laws.get(kind, (0.0, 0.0))[1] > 0.0:
+            parts[name] = series_energy[:, columns(n_c)].sum(axis=1)
     return parts
 
 
 WEAK_SPRINGS = "weak springs (numerical)"
+# The springs in series with a roller law, the crankshaft's parts (`compliance.crank_split`):
+# {roller law kind: (row name, the bearing row it splits from, its bearing columns)}.
+CRANK_ROWS = {
+    "crank_disc": ("crank bending and tilt, each cam", "crank-disc needle bearings",
+                   lambda n_c: slice(n_c, 3 * n_c)),
+    "crank_carrier": ("crank bending, both cams alike", "crank-carrier bearings",
+                      lambda n_c: slice(0, n_c)),
+}
 
 
 def _elements(design: RVDesign, shares: dict, weak_stiffness: float) -> tuple[Element, ...]:
@@ -149,21 +159,22 @@ def _elements(design: RVDesign, shares: dict, weak_stiffness: float) -> tuple[El
     d = design
     def per_arcmin(compliance):
         return np.inf if compliance == 0.0 else ARCMIN / compliance
-    laws = d.roller_laws
-    needles = d.crank_disc_bearing_stiffness
     table = [("pin-disc contacts", 2 * d.z_p, d.pin_disc_stiffness, "N/m"),
              ("sun-planet meshes", d.n_c, d.mesh_stiffness, "N/m"),
              ("sun support", 1, d.sun_support_stiffness, "N/m"),
              ("crank-carrier bearings", d.n_c, d.crank_carrier_bearing_stiffness, "N/m"),
-             ("crank-disc needle bearings", 2 * d.n_c, needles, "N/m"),
+             ("crank-disc needle bearings", 2 * d.n_c, d.crank_disc_bearing_stiffness, "N/m"),
              ("main bearing", 1, d.main_bearing_stiffness, "N/m"),
              ("carrier pillars", 1, per_arcmin(d.carrier_compliance), "N*m/arcmin"),
              ("output series compliance", 1, per_arcmin(d.output_compliance), "N*m/arcmin")]
-    series = laws.get("crank_disc", (0.0, 0.0))[1]
-    if series > 0.0:
-        # the stated stiffness splits into the needles' own secant and the crank's bending
-        table[4] = ("crank-disc needle bearings", 2 * d.n_c, 1.0 / (1.0 / needles - series), "N/m")
-        table.insert(5, ("crank bending and shear at the cams", 2 * d.n_c, 1.0 / series, "N/m"))
+    for kind, (name, bearing, _) in CRANK_ROWS.items():
+        series = d.roller_laws.get(kind, (0.0, 0.0))[1]
+        if series > 0.0:
+            # the stated stiffness splits into the rollers' own secant and the crank's part
+            at = next(k for k, row in enumerate(table) if row[0] == bearing)
+            count, stated = table[at][1], table[at][2]
+            table[at] = (bearing, count, 1.0 / (1.0 / stated - series), "N/m")
+            table.insert(at + 1, (name, count, 1.0 / series, "N/m"))
     table.append((WEAK_SPRINGS, 1, weak_stiffness, "N/m"))
     return tuple(Element(name, count, float(k), unit, float(shares[name]))
                  for name, count, k, unit in table)

@@ -148,19 +148,46 @@ def round_shear_coefficient(poisson_ratio) -> float:
     return 6.0 * (1.0 + poisson_ratio) / (7.0 + 6.0 * poisson_ratio)
 
 
-def crank_bending_stiffness(youngs_modulus, poisson_ratio, diameter, span, cam_positions) -> float:
-    """Stiffness [N/m] of the crankshaft at one cam under equal, like-directed loads at every
-    cam (the torque-carrying part of the discs' loads), simply supported by its bearings at
-    0 and `span`, bent and sheared (Timoshenko: the crank is short, span/diameter 2.5-2.6
-    on the presets, and shear adds about 30 % to its bending there):
-    1 / (sum over cams of the influence at the most flexible cam)."""
+def crank_influence(youngs_modulus, poisson_ratio, diameter, span, cam_positions) -> np.ndarray:
+    """(n, n) deflection [m/N] at cam i under a unit load at cam k of the crankshaft simply
+    supported by its bearings at 0 and `span`, bent and sheared (Timoshenko: the crank is
+    short, span/diameter 2.5-2.6 on the presets, and shear adds about 30 % to its bending
+    there)."""
     inertia, area = math.pi * diameter ** 4 / 64.0, math.pi * diameter ** 2 / 4.0
     g, kappa = shear_modulus(youngs_modulus, poisson_ratio), round_shear_coefficient(poisson_ratio)
+    return np.array([[beam_influence(span, x, z, youngs_modulus, inertia)
+                      + beam_shear_influence(span, x, z, g, area, kappa)
+                      for z in cam_positions] for x in cam_positions])
 
-    def influence(x, z):
-        return (beam_influence(span, x, z, youngs_modulus, inertia)
-                + beam_shear_influence(span, x, z, g, area, kappa))
-    return 1.0 / max(sum(influence(x, z) for z in cam_positions) for x in cam_positions)
+
+def crank_bending_stiffness(youngs_modulus, poisson_ratio, diameter, span, cam_positions) -> float:
+    """Stiffness [N/m] of the crankshaft at one cam under equal, like-directed loads at every
+    cam, bent and sheared (`crank_influence`): 1 / (sum over cams of the influence at the
+    most flexible cam)."""
+    influence = crank_influence(youngs_modulus, poisson_ratio, diameter, span, cam_positions)
+    return 1.0 / float(influence.sum(axis=1).max())
+
+
+def crank_split(influence, span, cam_positions, bearing_pair) -> tuple[float, float]:
+    """(each cam, common) compliances [m/N] of a crankshaft with two cams between its two
+    bearings, as the model's elements carry it: a spring at each cam in series with one
+    spring at the crank's seat that carries both cams' loads.
+
+    The two discs, half a turn apart, load the cams with t + r and t - r: t the torque's
+    part, alike at both; r the cam's part of its disc's pin-force resultant, opposite on the
+    two discs (it is as large as t: |r|/|t| = 0.7-1.0 on the presets).  Like loads bend the
+    crank by b11 + b12 at a cam and load each bearing with t; opposite loads bend it by
+    b11 - b12 only and tilt it in its bearings, whose reactions are +-r s / L (s the cams'
+    spacing, L the span), so a cam moves by r s^2 / (L^2 k_1), k_1 = `bearing_pair` / 2.
+    The elements give like loads each + 2 common and opposite loads each, so
+    each = b11 - b12 + 2 s^2 / (L^2 k_pair) and common = b12 - s^2 / (L^2 k_pair)
+    (the pair's own compliance 1 / k_pair is the seat's bearing element)."""
+    if len(cam_positions) != 2:
+        raise ValueError("crank_split: a crankshaft of the model has two cams")
+    influence = np.asarray(influence, dtype=float)
+    own, cross = 0.5 * float(influence[0, 0] + influence[1, 1]), float(influence[0, 1])
+    tilt = (cam_positions[1] - cam_positions[0]) ** 2 / span ** 2 / bearing_pair
+    return own - cross + 2.0 * tilt, cross - tilt
 
 
 def shaft_torsion_stiffness(shear_modulus, diameter, length) -> float:

@@ -14,9 +14,10 @@ Why these formulas:
   stiffness c_gamma_alpha per unit face width);
 - rolling bearings use seed 003's formulas (cylindrical/needle: R_pd, tapered:
   R_b);
-- a crankshaft is slender: its bending between its support bearings is as soft
-  as the bearings themselves, so the crank-disc path is the needle bearing in
-  series with the crank bent as a simply supported beam.
+- a crankshaft is short and thick, yet its bending and shear between its
+  support bearings are as soft as the bearings themselves: the needle bearing
+  and the tapered roller pair are each in series with their part of it
+  (`compliance.crank_split`).
 """
 
 import math
@@ -148,7 +149,10 @@ def cantilever_stiffness(youngs_modulus, diameter, length):
 # rigidity test sees (docs/model.md section 5).  The loads come from statics with rigid
 # parts: the output torque T reaches the carrier through the n_c crank seats on the crank
 # circle a (T / (n_c a) each), each disc carrying half of it through its n_c cams
-# (T / (2 n_c a) each); the largest pin force is `largest_pin_force`.
+# (T / (2 n_c a) each); the largest pin force is `largest_pin_force`.  The crankshaft
+# between its bearings is split over the two elements that carry it
+# (`compliance.crank_split`): its compliance under opposite cam loads stays in each cam's
+# needle element, the rest in its seat's element, with the tapered roller pair.
 #
 # Geometry the [sources] of a preset do not give follows one rule for every frame
 # (docs/model.md section 6): the two discs side by side in the middle of the crank span
@@ -228,22 +232,30 @@ def pin_law(design) -> tuple:
     return (k, scaled_law(k, f_star, low, high), f_star)
 
 
+def crank_split_estimate(crank_diameter, span, disc_width, bearing_pair, youngs_modulus,
+                         poisson_ratio) -> tuple[float, float]:
+    """(each cam, common) compliances [m/N] of the crankshaft between its bearings
+    (`compliance.crank_split`), the cams by the rule above."""
+    from .compliance import crank_influence, crank_split
+
+    cams = cam_positions(span, disc_width)
+    return crank_split(crank_influence(youngs_modulus, poisson_ratio, crank_diameter, span, cams),
+                       span, cams, bearing_pair)
+
+
 def crank_disc_stiffness_estimate(rated_torque, n_c, crank_radius, rollers, roller_length,
-                                  crank_diameter, span, disc_width, youngs_modulus, poisson_ratio):
-    """A cam's needle bearing in series with the crankshaft bent and sheared at its cams [N/m].
+                                  crank_compliance):
+    """A cam's needle bearing in series with the crankshaft's compliance at that cam [N/m]
+    (`crank_split_estimate`'s first value).
 
     Needle bearing: Palmgren's law with the roller load distribution, no clearance (the
-    clearance is an error, docs/model.md section 4), at T / (2 n_c a); crank: simply
-    supported by its two bearings, bent and sheared, both cams loaded alike
-    (`compliance.crank_bending_stiffness`).
+    clearance is an error, docs/model.md section 4), at T / (2 n_c a).
     """
-    from .compliance import bearing_deflection, crank_bending_stiffness
+    from .compliance import bearing_deflection
 
     needle = _secant_over_rated(lambda f: bearing_deflection(f, rollers, roller_length),
                                 rated_torque / (2.0 * n_c * crank_radius))
-    bending = crank_bending_stiffness(youngs_modulus, poisson_ratio, crank_diameter, span,
-                                      cam_positions(span, disc_width))
-    return series(needle, bending)
+    return series(needle, 1.0 / crank_compliance)
 
 
 def crank_carrier_stiffness_estimate(rated_torque, n_c, crank_radius, rollers, roller_length,
@@ -292,17 +304,18 @@ def estimate_from_sources(values: dict) -> dict:
     a = module * (values["z_s"] + values["z_pl"]) / 2.0
     width, gear = values["disc_width_mm"] * mm, values["gear_width_mm"] * mm
     crank, span = src["crank_diameter_mm"] * mm, src["crank_span_mm"] * mm
+    pair = crank_carrier_stiffness_estimate(
+        T, n_c, a, values["tapered_rollers"], values["tapered_roller_length_mm"] * mm,
+        math.radians(values["tapered_contact_angle_deg"]))
+    at_cam, common = crank_split_estimate(crank, span, width, pair, E, nu)
     return {
         "pin_disc_stiffness_N_per_m": pin_stiffness_estimate(
             T, R_p, r_rp, e, values["z_p"], width, values["pin_groove_clearance_mm"] * mm, E, nu),
         "mesh_stiffness_N_per_m": iso6336_mesh_stiffness(
             values["z_s"], values["z_pl"], module, alpha, gear),
         "crank_disc_bearing_stiffness_N_per_m": crank_disc_stiffness_estimate(
-            T, n_c, a, values["needle_rollers"], values["needle_roller_length_mm"] * mm, crank,
-            span, width, E, nu),
-        "crank_carrier_bearing_stiffness_N_per_m": crank_carrier_stiffness_estimate(
-            T, n_c, a, values["tapered_rollers"], values["tapered_roller_length_mm"] * mm,
-            math.radians(values["tapered_contact_angle_deg"])),
+            T, n_c, a, values["needle_rollers"], values["needle_roller_length_mm"] * mm, at_cam),
+        "crank_carrier_bearing_stiffness_N_per_m": series(pair, 1.0 / common),
         "main_bearing_stiffness_N_per_m": (src["main_bearing_reference_N_per_m"]
                                            * values["R_p_mm"] / src["main_bearing_reference_R_p_mm"]),
         "sun_support_stiffness_N_per_m": cantilever_stiffness(
