@@ -82,23 +82,23 @@ def test_beam_influence_reciprocity_and_the_central_load():
     g, area = E / (2 * (1 + NU)), math.pi * d ** 2 / 4
     kappa = 6 * (1 + NU) / (7 + 6 * NU)
     assert c.round_shear_coefficient(NU) == pytest.approx(0.88558, rel=1e-4)
-    central = c.crank_bending_stiffness(E, NU, d, span, [0.02])
+    central = 1 / c.crank_influence(E, NU, d, span, [0.02])[0, 0]
     bending = simply_supported_beam_stiffness(E, d, span)
     assert 1 / central == pytest.approx(1 / bending + span / (4 * kappa * g * area), rel=1e-12)
     # the crank is short: shear adds a third to its bending here (2.18 (d/L)^2 = 0.35)
     assert bending / central - 1 == pytest.approx(0.75 * 2 * (1 + NU) / kappa * (d / span) ** 2,
                                                   rel=1e-12)
     # a slender shaft is Euler-Bernoulli's
-    assert c.crank_bending_stiffness(E, NU, 0.002, 0.4, [0.2]) == pytest.approx(
+    assert 1 / c.crank_influence(E, NU, 0.002, 0.4, [0.2])[0, 0] == pytest.approx(
         simply_supported_beam_stiffness(E, 0.002, 0.4), rel=1e-4)
     # two cams loaded alike at b from each support (Roark table 8.1, case 1e twice):
     # at a cam b^2 (3L - 4b) / (6 E I) bent, plus b / (k G A) sheared
     b = 0.015
-    two = c.crank_bending_stiffness(E, NU, d, span, [b, span - b])
-    assert 1 / two == pytest.approx(b * b * (3 * span - 4 * b) / (6 * E * inertia)
-                                    + b / (kappa * g * area), rel=1e-12)
+    two = c.crank_influence(E, NU, d, span, [b, span - b]).sum(axis=1)
+    assert two == pytest.approx(b * b * (3 * span - 4 * b) / (6 * E * inertia)
+                                + b / (kappa * g * area), rel=1e-12)
     # two cams loaded alike bend the crank more than one
-    assert two < c.crank_bending_stiffness(E, NU, d, span, [b])
+    assert two[0] > c.crank_influence(E, NU, d, span, [b])[0, 0]
 
 
 

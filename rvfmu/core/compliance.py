@@ -22,8 +22,9 @@ one pushes back.
 - A pin pressed between a disc and its housing groove is two Hertz line contacts
   in series (`stiffness.hertz_line_contact_approach`, Radzimovsky's form).
 - Shafts and pillars are beams: the crankshaft simply supported by its two
-  tapered roller bearings and loaded at its cams, twisted between its planet and
-  its cams; the carrier's pillars clamped in both flanges, bent and sheared
+  tapered roller bearings and loaded at its cams, alike by the torque and
+  oppositely by the two discs' pin forces (`crank_split`), twisted between its
+  planet and its cams; the carrier's pillars clamped in both flanges, bent and sheared
   (Timoshenko) when the flanges turn against each other (Roark's Formulas for
   Stress and Strain, 8th ed., table 8.1).
 """
@@ -158,14 +159,6 @@ def crank_influence(youngs_modulus, poisson_ratio, diameter, span, cam_positions
     return np.array([[beam_influence(span, x, z, youngs_modulus, inertia)
                       + beam_shear_influence(span, x, z, g, area, kappa)
                       for z in cam_positions] for x in cam_positions])
-
-
-def crank_bending_stiffness(youngs_modulus, poisson_ratio, diameter, span, cam_positions) -> float:
-    """Stiffness [N/m] of the crankshaft at one cam under equal, like-directed loads at every
-    cam, bent and sheared (`crank_influence`): 1 / (sum over cams of the influence at the
-    most flexible cam)."""
-    influence = crank_influence(youngs_modulus, poisson_ratio, diameter, span, cam_positions)
-    return 1.0 / float(influence.sum(axis=1).max())
 
 
 def crank_split(influence, span, cam_positions, bearing_pair) -> tuple[float, float]:

@@ -12,8 +12,9 @@ Why these formulas:
   line-contact approach);
 - the sun-planet mesh is ISO 6336-1 method B (single stiffness c' and mesh
   stiffness c_gamma_alpha per unit face width);
-- rolling bearings use seed 003's formulas (cylindrical/needle: R_pd, tapered:
-  R_b);
+- rolling bearings follow Palmgren's line contact with the rollers' load
+  distribution (`compliance.py`); seed 003's formulas (its R_pd, R_b) are kept
+  in `roller_bearing_stiffness`, no longer used;
 - a crankshaft is short and thick, yet its bending and shear between its
   support bearings are as soft as the bearings themselves: the needle bearing
   and the tapered roller pair are each in series with their part of it
