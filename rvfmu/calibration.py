@@ -281,13 +281,12 @@ def crank_parts(design: RVDesign, sources: dict | None, name: str) -> tuple[floa
     cams = cam_positions(span, design.disc_width)
     influence = compliance.crank_influence(design.youngs_modulus, design.poisson_ratio,
                                            diameter, span, cams)
-    tilt = (cams[1] - cams[0]) ** 2 / span ** 2
-    left = 1.0 / design.crank_carrier_bearing_stiffness - influence[0, 1]
-    if left <= 0.0:
+    pair = compliance.crank_pair(influence, span, cams, design.crank_carrier_bearing_stiffness)
+    if pair <= 0.0:
         raise InputError("crank_carrier_bearing_stiffness_N_per_m", design.crank_carrier_bearing_stiffness,
                          f"must be below the crankshaft's common stiffness {1.0 / influence[0, 1]:.4g} "
                          "N/m to hold a tapered roller pair in series with it")
-    at_cam, common = compliance.crank_split(influence, span, cams, (1.0 - tilt) / left)
+    at_cam, common = compliance.crank_split(influence, span, cams, pair)
     return 1.0 / at_cam, 1.0 / common
 
 
@@ -325,16 +324,16 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
                              f"its rollers; fit another value, or set {law[1]} = 0 to fit it as "
                              "a linear spring")
         current = getattr(design, field)
-        bending = None
+        crank = None
         if name in ("R_pd", "R_b"):
-            bending = crank_parts(design, sources, name)[0 if name == "R_pd" else 1]
-            if current >= bending:
+            crank = crank_parts(design, sources, name)[0 if name == "R_pd" else 1]
+            if current >= crank:
                 raise InputError(f"{field}_N_per_m", current, f"must be below the crankshaft's "
-                                 f"stiffness {bending:.4g} N/m in series with it to hold a "
+                                 f"stiffness {crank:.4g} N/m in series with it to hold a "
                                  f"bearing ({name})")
-            current = 1.0 / (1.0 / current - 1.0 / bending)
+            current = 1.0 / (1.0 / current - 1.0 / crank)
         lower, upper = given.get(name, (current / factor, current * factor))
-        out.append(Parameter(name, field, current, lower, upper, bending))
+        out.append(Parameter(name, field, current, lower, upper, crank))
     return tuple(out)
 
 

@@ -129,6 +129,10 @@ def test_the_crank_splits_into_like_and_opposite_cam_loads_as_the_half_beam_give
     each, common = c.crank_split(influence, span, (b, span - b), pair)
     assert each - rigid_each == pytest.approx(s ** 2 / (span ** 2 * 0.5 * pair), rel=1e-12)
     assert each + 2 * common == pytest.approx(like, rel=1e-12)  # like loads do not tilt it
+    # the seat's element is the pair in series with the common part, and gives the pair back
+    seat = 1 / (1 / pair + common)
+    assert c.crank_pair(influence, span, (b, span - b), seat) == pytest.approx(pair, rel=1e-12)
+    assert c.crank_pair(influence, span, (b, span - b), 1.01 / common) < 0  # no room for a pair
     with pytest.raises(ValueError, match="two cams"):
         c.crank_split(influence[:1, :1], span, (b,), pair)
 

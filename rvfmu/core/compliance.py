@@ -179,8 +179,22 @@ def crank_split(influence, span, cam_positions, bearing_pair) -> tuple[float, fl
         raise ValueError("crank_split: a crankshaft of the model has two cams")
     influence = np.asarray(influence, dtype=float)
     own, cross = 0.5 * float(influence[0, 0] + influence[1, 1]), float(influence[0, 1])
-    tilt = (cam_positions[1] - cam_positions[0]) ** 2 / span ** 2 / bearing_pair
+    tilt = _tilt_ratio(span, cam_positions) / bearing_pair
     return own - cross + 2.0 * tilt, cross - tilt
+
+
+def crank_pair(influence, span, cam_positions, seat_stiffness) -> float:
+    """The bearing pair [N/m] inside a crank's seat element of `seat_stiffness` (the pair in
+    series with `crank_split`'s common part): 1 / k_seat = (1 - s^2 / L^2) / k_pair + b12.
+    Not positive where the seat is stiffer than the crank's common part alone."""
+    left = 1.0 / seat_stiffness - float(np.asarray(influence)[0, 1])
+    return (1.0 - _tilt_ratio(span, cam_positions)) / left if left > 0.0 else -np.inf
+
+
+def _tilt_ratio(span, cam_positions) -> float:
+    """s^2 / L^2: a cam's deflection per unit opposite load, times one bearing's stiffness
+    over 2, when the crank tilts in its bearings (`crank_split`)."""
+    return (cam_positions[1] - cam_positions[0]) ** 2 / span ** 2
 
 
 def shaft_torsion_stiffness(shear_modulus, diameter, length) -> float:
