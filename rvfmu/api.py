@@ -22,6 +22,8 @@ from .core.errors import ErrorSet, load_errors, zero_errors
 from .core.quasistatic import TECurve, Windup, default_points, te_curve, windup
 from .outputs import figure_file, output_file
 from .budget import StiffnessReport, stiffness  # noqa: F401  (the job of `rvte stiffness`)
+from .efficiency import EfficiencyReport, efficiency  # noqa: F401  (`rvte efficiency`)
+from .hysteresis import HysteresisReport, hysteresis  # noqa: F401  (`rvte hysteresis`)
 from .progress import counter as progress_counter
 
 HARMONICS_SHOWN = 5

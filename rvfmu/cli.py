@@ -81,6 +81,17 @@ def _stiffness(args):
     _show(report, args.json, (("plot", args.plot),))
 
 
+def _efficiency(args):
+    report = api.efficiency(args.design, args.errors, speeds=args.speeds, loads=args.loads,
+                            plot_path=args.plot)
+    _show(report, args.json, (("plot", args.plot),))
+
+
+def _hysteresis(args):
+    report = api.hysteresis(args.design, args.errors, max_load=args.max_load, plot_path=args.plot)
+    _show(report, args.json, (("plot", args.plot),))
+
+
 def _errors(args):
     text = api.errors_template(args.template, args.output)
     if args.output:
@@ -108,6 +119,15 @@ def _numbers(text: str) -> tuple[float, ...]:
         return tuple(float(x) for x in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r}: expected N or N_IN,N_OUT, e.g. 131072") from None
+
+
+def _values(text: str) -> tuple[float, ...]:
+    """X[,X...] of --speeds and --loads."""
+    try:
+        return tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected numbers separated by commas, "
+                                         "e.g. 5,15,30") from None
 
 
 def _orders(text: str) -> tuple[int, ...]:
@@ -210,6 +230,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", help="write a figure of the shares and the windup curve")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(run=_stiffness)
+
+    p = sub.add_parser("efficiency", help="efficiency forward and backdriving over output speed "
+                       "and torque, no-load running, starting and backdriving torque")
+    p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
+    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um "
+                   "and deg (`rvte errors --template DESIGN` writes one to fill)")
+    p.add_argument("--speeds", type=_values, default=None,
+                   help="output speeds [rpm], comma-separated (default 5,10,15,20,30,40,60)")
+    p.add_argument("--loads", type=_values, default=None,
+                   help="resisting output torques [N*m], comma-separated (default 25, 50, 75 "
+                   "and 100 %% of rated)")
+    p.add_argument("--plot", help="write the efficiency chart and the running torque")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.set_defaults(run=_efficiency)
+
+    p = sub.add_parser("hysteresis", help="the hysteresis loop of the windup test with friction: "
+                       "lost motion, rigidity, hysteresis loss and the friction work by contact")
+    p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
+    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um "
+                   "and deg (`rvte errors --template DESIGN` writes one to fill)")
+    p.add_argument("--max-load", type=float, default=None,
+                   help="the sweep's end [N*m], in both senses (default: the rated torque)")
+    p.add_argument("--plot", help="write the loop as a figure")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.set_defaults(run=_hysteresis)
 
     p = sub.add_parser("measure", help="TE from a bench's input and output encoder angles, "
                        "the bench's runout removed")

@@ -374,3 +374,67 @@ def plot_comparison(comparison, path: str | Path, title: str | None = None) -> P
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return path
+
+
+def plot_efficiency(report, path: str | Path) -> Path:
+    """The catalogue's efficiency chart (`rvfmu.efficiency.EfficiencyReport`): efficiency
+    against output speed, one curve per resisting torque, forward (solid) and backdriving
+    (dashed) (left); the no-load running torque at the input against output speed (right)."""
+    plt = _pyplot()
+    m = report.map
+    fig, (chart, running) = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True)
+    for j, torque in enumerate(m.load_Nm):
+        line, = chart.plot(m.output_speed_rpm, 100 * m.efficiency[:, j], "o-", ms=3,
+                           label=f"{torque:g} N·m")
+        chart.plot(m.output_speed_rpm, 100 * m.backdriving_efficiency[:, j], "--",
+                   color=line.get_color(), lw=1)
+    chart.set_xlabel("output speed [rpm]")
+    chart.set_ylabel("efficiency [%]")
+    chart.set_title(f"{m.design.name}: efficiency (solid forward, dashed backdriving)")
+    chart.grid(alpha=0.3)
+    chart.legend(fontsize=8, title="resisting torque")
+    running.plot(m.output_speed_rpm, m.no_load_running_torque_Nm, "o-", ms=3, color="tab:red")
+    running.set_xlabel("output speed [rpm]")
+    running.set_ylabel("no-load running torque at the input [N·m]")
+    running.set_title(f"starting {m.starting_torque_input_Nm:.3g} N·m (input), "
+                      f"backdriving {m.backdriving_torque_output_Nm:.3g} N·m (output)")
+    running.set_ylim(bottom=0)
+    running.grid(alpha=0.3)
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_hysteresis(report, path: str | Path) -> Path:
+    """The hysteresis loop (`rvfmu.hysteresis.HysteresisReport`): output angle against output
+    torque with the input locked, the loop with friction and its frictionless middle (left),
+    the middle around zero torque with the lost motion's span marked (right)."""
+    plt = _pyplot()
+    h = report.loop
+    fig, (whole, middle) = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True)
+    for ax in (whole, middle):
+        ax.plot(h.loop[:, 0], h.loop[:, 1] / ARCMIN, "-", color="tab:red", lw=1.2,
+                label="with friction")
+        ax.plot(h.tau_load, h.windup / ARCMIN, ":", color="0.3", lw=1, label="without friction")
+        ax.set_xlabel("output torque τ_load [N·m]")
+        ax.set_ylabel("output angle [arcmin]")
+        ax.grid(alpha=0.3)
+    whole.set_title(f"{h.design.name}: rigidity {h.torsional_rigidity_Nm_per_arcmin:.1f} N·m/arcmin")
+    whole.legend(fontsize=8, loc="upper left")
+    span = 0.1 * h.design.rated_torque
+    middle.set_xlim(-span, span)
+    inside = np.abs(h.windup) < np.inf
+    near = inside & (np.abs(h.tau_load) <= span)
+    if near.any():
+        lo, hi = h.windup[near].min() / ARCMIN, h.windup[near].max() / ARCMIN
+        middle.set_ylim(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo))
+    rated = h.design.rated_torque
+    for sign in (-1, 1):
+        middle.axvline(sign * 0.03 * rated, color="tab:blue", lw=0.8, ls="--")
+    middle.set_title(f"lost motion {h.lost_motion_arcmin:.3f} arcmin (±3 % rated, dashed), "
+                     f"hysteresis loss {h.hysteresis_loss_arcmin:.3f} arcmin", fontsize=10)
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path

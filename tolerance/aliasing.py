@@ -26,7 +26,7 @@ import numpy as np
 
 from rvfmu.core.quasistatic import default_points
 
-from .evaluate import WINDUP_METRICS, evaluate, metric_column, metric_kind
+from .evaluate import FRICTION_METRICS, WINDUP_METRICS, evaluate, metric_column, metric_kind
 from .store import rows_hash
 
 CHECK_ROWS = 16          # reducers recomputed: 16 at 12480 points cost about 4 batches of 64 at 720
@@ -97,7 +97,9 @@ def check(study, X: np.ndarray, Y: np.ndarray, folder: Path | None = None, Y_all
     """
     if not aliases(study):
         return None
-    picked = [j for j, m in enumerate(study.metrics) if metric_kind(m) not in WINDUP_METRICS]
+    # the windup test and the friction metrics do not sample the TE curve's points
+    picked = [j for j, m in enumerate(study.metrics)
+              if metric_kind(m) not in WINDUP_METRICS + FRICTION_METRICS]
     if not picked:
         return None
     metrics = tuple(study.metrics[j] for j in picked)

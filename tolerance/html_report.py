@@ -46,7 +46,7 @@ from rvfmu.outputs import output_file
 from rvfmu.plots import figure_te
 
 from .aliasing import aliases
-from .evaluate import WINDUP_METRICS, evaluate
+from .evaluate import FRICTION_METRICS, WINDUP_METRICS, evaluate
 from .montecarlo import PERCENTILES, MCAnalysis, Yield
 from .summaries import (NOTES_LEGEND, column_label, figure_convergence, figure_mc, figure_sobol,
                      operating_text)
@@ -517,6 +517,8 @@ def _design_section(study: Study, found: Found) -> Section:
             ("seed, batch size", f"{study.seed}, {study.batch_size}")]
     if any(m in WINDUP_METRICS for m in study.metrics):
         rows.append(("windup test positions", str(study.windup_positions)))
+    if any(m in FRICTION_METRICS for m in study.metrics):
+        rows.append(("output speed of the friction metrics", f"{study.output_speed_rpm:g} rpm"))
     tolerances = []
     for f in study.factors:
         values = ", ".join(f"{k} {getattr(f, k):.12g}" for k in KEYS[f.kind]

@@ -10,7 +10,8 @@ arcsec) and names every tolerance by its error name:
     design = "RV-40E-121"          # preset, or a design file relative to this file
     errors = "seed002_errors.toml" # optional: fixed errors added to every sampled reducer
     seed = 2002                    # the same seed gives the same reducers, on every backend
-    metrics = ["te_pp", "rms"]     # te_pp, rms, lost_motion, torsional_rigidity, order_<k>
+    metrics = ["te_pp", "rms"]     # te_pp, rms, lost_motion, torsional_rigidity, order_<k>,
+                                   # efficiency, no_load_running_torque
     batch_size = 64                # reducers per batch: unit of work, of storage and of resume
     output = "my_study/output"     # default: <study file stem>/output beside the file
 
@@ -18,6 +19,7 @@ arcsec) and names every tolerance by its error name:
     load_Nm = 0.0                  # resisting output torque T (tau_load = -T); 0: no-load TE
     points = 720                   # per output revolution
     windup_positions = 8           # input positions of the windup test (lost motion, rigidity)
+    output_speed_rpm = 15.0        # of the friction metrics (efficiency, no_load_running_torque)
 
     [spec]                         # a metric column = its limit (maximum; rigidity: minimum)
     te_pp_arcsec = 60.0
@@ -67,7 +69,7 @@ from .evaluate import LOWER_LIMITED, metric_column, metric_kind, metric_order
 
 SECTIONS = {
     "study": ("name", "design", "errors", "seed", "metrics", "batch_size", "output"),
-    "operating": ("load_Nm", "points", "windup_positions"),
+    "operating": ("load_Nm", "points", "windup_positions", "output_speed_rpm"),
     "spec": None,  # keys: metric columns
     "montecarlo": ("n", "confidence"),
     "sobol": ("n", "second_order", "resamples", "confidence"),
@@ -75,8 +77,9 @@ SECTIONS = {
 }
 FACTOR_KEYS = ("distribution", "group", "cost")
 MAX_BATCH = 4096        # reducers per batch: bigger batches only cost memory (S x points x pins)
-METRIC_NAMES_TEXT = ("must be te_pp, rms, lost_motion, torsional_rigidity or order_<k> "
-                     "(k cycles per output revolution)")
+METRIC_NAMES_TEXT = ("must be te_pp, rms, lost_motion, torsional_rigidity, order_<k> "
+                     "(k cycles per output revolution), efficiency or no_load_running_torque")
+OUTPUT_SPEED_RPM = 15.0  # default output speed of the friction metrics: the catalogue's rated speed
 MIN_SOBOL_N = 8         # the convergence check analyses N/4 base samples: at least 2
 
 
@@ -174,6 +177,7 @@ class Study:
     load_Nm: float = 0.0
     points: int | None = None
     windup_positions: int = 8
+    output_speed_rpm: float = OUTPUT_SPEED_RPM
     spec: tuple[SpecLimit, ...] = ()
     mc_n: int = 1000
     mc_confidence: float = 0.95
@@ -204,6 +208,12 @@ class Study:
             if metric_kind(name) == "order" and not 1 <= metric_order(name) < self.points // 2:
                 raise InputError("metrics", name, f"the order must be from 1 to {self.points // 2 - 1}"
                                  f" (Nyquist order of points = {self.points})", where)
+        if not finite_number("operating.output_speed_rpm", self.output_speed_rpm, where) > 0.0:
+            raise InputError("operating.output_speed_rpm", self.output_speed_rpm,
+                             "must be a positive output speed [rpm]", where)
+        if "efficiency" in self.metrics and not self.load_Nm > 0.0:
+            raise InputError("operating.load_Nm", self.load_Nm, "must be a resisting torque > 0 "
+                             "for the metric efficiency (the output's power over the input's)", where)
         if len(set(self.metrics)) != len(self.metrics):
             raise InputError("metrics", list(self.metrics), "must not repeat a metric", where)
         for limit in self.spec:
@@ -264,7 +274,10 @@ class Study:
             "design": self.design.file_values(),
             "errors": error_file_values(self.base_errors) if self.base_errors is not None else {},
             "operating": {"load_Nm": self.load_Nm, "points": self.points,
-                          "windup_positions": self.windup_positions},
+                          "windup_positions": self.windup_positions,
+                          # only where it changes a number: the friction metrics
+                          **({"output_speed_rpm": self.output_speed_rpm}
+                             if set(self.metrics) & {"efficiency", "no_load_running_torque"} else {})},
             "metrics": list(self.metrics),
             "tolerances": {f.name: f.file_values() for f in self.factors},
             "factor_order": [f.name for f in self.factors],
@@ -378,6 +391,8 @@ def study_from_values(values: dict, path: Path, text: str = "", output=None) -> 
         points=integer("operating.points", op["points"], 8, where=where) if "points" in op else None,
         windup_positions=integer("operating.windup_positions", op.get("windup_positions", 8), 1,
                                  where=where),
+        output_speed_rpm=finite_number("operating.output_speed_rpm",
+                                       op.get("output_speed_rpm", OUTPUT_SPEED_RPM), where),
         spec=_spec(sections["spec"], metrics, where),
         mc_n=integer("montecarlo.n", sections["montecarlo"].get("n", 1000), 1, where=where),
         mc_confidence=sections["montecarlo"].get("confidence", 0.95),

@@ -29,6 +29,8 @@ _LABELS = {
     "rms_arcsec": "TE RMS about the mean [arcsec]",
     "lost_motion_arcmin": "lost motion [arcmin]",
     "torsional_rigidity_Nm_per_arcmin": "torsional rigidity [N·m/arcmin]",
+    "efficiency": "efficiency (forward)",
+    "no_load_running_torque_Nm": "no-load running torque at the input [N·m]",
 }
 _ORDER_COLUMN = re.compile(r"order_([0-9]+)_arcsec$")
 
@@ -37,6 +39,8 @@ def operating_text(study) -> str:
     """Load and points per revolution, and whether they resolve the pin-passing order."""
     d = study.design
     load = "no load" if study.load_Nm == 0 else f"load {study.load_Nm:g} N*m resisting"
+    if {"efficiency", "no_load_running_torque"} & set(study.metrics):
+        load += f" at {study.output_speed_rpm:g} rpm output"
     pin_order = d.z_p * d.z_c
     nyquist = study.points // 2
     resolve = (f"resolves the pin-passing order {pin_order}" if nyquist > pin_order else

@@ -113,9 +113,7 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q)
     lin_b, brg_b, pin_b = model.offsets(errors, sample, angle)
     lin = np.einsum("bmn,bn->bm", model.linear_rows[angle], q) + lin_b
     lin_energy = 0.5 * model.linear_k * lin * lin                                  # (B, m)
-    brg = np.einsum("bpxn,bn->bpx", model.bearing_rows[angle], q) + brg_b
-    s = np.linalg.norm(brg, axis=-1)
-    c_half = model.clearance_halves(errors)[sample]
+    s, c_half = _bearing_deflections(model, errors, sample, angle, q, brg_b)
     over = np.maximum(s - c_half, 0.0)
     brg_energy = 0.5 * model.bearing_k * over * over                               # (B, nb)
     series_energy = np.zeros_like(brg_energy)     # the springs in series with roller bearings
@@ -139,6 +137,27 @@ def element_energies(model: EquivalentModel, errors: ErrorSet, sample, angle, q)
         if d.roller_laws.get(kind, (0.0, 0.0))[1] > 0.0:
             parts[name] = series_energy[:, columns(n_c)].sum(axis=1)
     return parts
+
+
+def _bearing_deflections(model, errors, sample, angle, q, brg_b):
+    """(B, nb) radial deflection of every bearing [m] and (B, nb) its free play."""
+    brg = np.einsum("bpxn,bn->bpx", model.bearing_rows[angle], q) + brg_b
+    return np.linalg.norm(brg, axis=-1), model.clearance_halves(errors)[sample]
+
+
+def bearing_forces(model: EquivalentModel, errors: ErrorSet, sample, angle, q) -> np.ndarray:
+    """(B, nb) radial force [N] on every bearing of the model (crank seats, cams, main
+    bearing, in `EquivalentModel` order) at the equilibria q (B, n): the linear spring beyond
+    the bearing's free play, or the roller law where the design gives the rollers."""
+    _, brg_b, _ = model.offsets(errors, sample, angle)
+    s, c_half = _bearing_deflections(model, errors, sample, angle, q, brg_b)
+    force = model.bearing_k * np.maximum(s - c_half, 0.0)
+    rollers = model.bearing_law_a > 0.0
+    if np.any(rollers):
+        force[:, rollers] = radial_law(s[:, rollers], c_half[:, rollers],
+                                       model.bearing_law_a[rollers],
+                                       model.bearing_law_compliance[rollers])[1]
+    return force
 
 
 WEAK_SPRINGS = "weak springs (numerical)"

@@ -106,6 +106,36 @@ DESIGN_FIELDS = (
               "further torsional compliance in series with the output (what no element "
               "models: output flange, housing and its fixing), windup per output torque, "
               "fitted by calibration; 0 = rigid", 0.0),
+    # Friction (docs/model.md section 9, `friction.py`): the defaults are the literature's
+    # values named there; a coefficient of 0 leaves its contact without friction, a bearing
+    # without a pitch diameter has none.
+    FieldSpec("pin_disc_friction", "pin_disc_friction_coefficient", 1.0, "non_negative",
+              "Coulomb coefficient of a pin on a disc lobe", 0.05),
+    FieldSpec("pin_groove_friction", "pin_groove_friction_coefficient", 1.0, "non_negative",
+              "Coulomb coefficient of a pin in its housing groove", 0.05),
+    FieldSpec("mesh_friction", "mesh_friction_coefficient", 1.0, "non_negative",
+              "mean Coulomb coefficient of the sun-planet meshes (ISO/TR 14179-2)", 0.05),
+    FieldSpec("needle_friction", "needle_bearing_friction_coefficient", 1.0, "non_negative",
+              "load-proportional friction of a crank-disc needle bearing, M = mu P d_m / 2",
+              0.002),
+    FieldSpec("tapered_friction", "tapered_bearing_friction_coefficient", 1.0, "non_negative",
+              "load-proportional friction of a crank's tapered roller bearings", 0.0018),
+    FieldSpec("main_bearing_friction", "main_bearing_friction_coefficient", 1.0,
+              "non_negative", "load-proportional friction of the main bearings", 0.002),
+    FieldSpec("bearing_drag_factor", "bearing_drag_factor", 1.0, "non_negative",
+              "Palmgren's f0 of the load-free drag of every rolling bearing", 2.0),
+    FieldSpec("lubricant_viscosity", "lubricant_viscosity_cSt", 1.0, "non_negative",
+              "kinematic viscosity of the lubricant at running temperature [mm^2/s]", 100.0),
+    FieldSpec("needle_pitch_diameter", "needle_pitch_diameter_mm", MM, "non_negative",
+              "pitch diameter of a crank-disc needle bearing; 0 = its friction left out", 0.0),
+    FieldSpec("tapered_pitch_diameter", "tapered_pitch_diameter_mm", MM, "non_negative",
+              "pitch diameter of a crank's tapered roller bearings; 0 = their friction left out",
+              0.0),
+    FieldSpec("main_bearing_pitch_diameter", "main_bearing_pitch_diameter_mm", MM,
+              "non_negative", "pitch diameter of the main bearings; 0 = their friction left out",
+              0.0),
+    FieldSpec("seal_torque", "seal_torque_Nm", 1.0, "non_negative",
+              "friction torque of the output's lip seal", 0.0),
 )
 
 _BY_KEY = {spec.file_key: spec for spec in DESIGN_FIELDS}
@@ -167,6 +197,18 @@ class RVDesign:
     pin_groove_clearance: float = 0.0
     carrier_compliance: float = 0.0
     output_compliance: float = 0.0
+    pin_disc_friction: float = 0.05
+    pin_groove_friction: float = 0.05
+    mesh_friction: float = 0.05
+    needle_friction: float = 0.002
+    tapered_friction: float = 0.0018
+    main_bearing_friction: float = 0.002
+    bearing_drag_factor: float = 2.0
+    lubricant_viscosity: float = 100.0
+    needle_pitch_diameter: float = 0.0
+    tapered_pitch_diameter: float = 0.0
+    main_bearing_pitch_diameter: float = 0.0
+    seal_torque: float = 0.0
 
     def __post_init__(self):
         for spec in DESIGN_FIELDS:

@@ -254,7 +254,11 @@ class EquivalentModel:
         pitch = d.z_p * d.e * psi_dir                                               # (A, 2, 2)
         centre = d.e * psi_dir
         normal = pin_pos[None, None] - pitch[:, :, None]                            # (A, 2, z_p, 2)
-        normal /= np.hypot(normal[..., 0], normal[..., 1])[..., None]
+        reach = np.hypot(normal[..., 0], normal[..., 1])                            # (A, 2, z_p)
+        normal /= reach[..., None]
+        # The disc turns about the pitch point relative to the housing, so its contact point
+        # slides past the (groove-held) pin at |theta_out'| times its distance from there.
+        self.pin_slide_arm = reach - d.r_rp
         contact = pin_pos[None, None] - d.r_rp * normal
         arm = contact - centre[:, :, None]
         lever = arm[..., 0] * normal[..., 1] - arm[..., 1] * normal[..., 0]         # (A, 2, z_p)

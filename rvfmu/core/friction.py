@@ -1,0 +1,295 @@
+"""Friction: the power the reducer's contacts lose, its efficiency, running and starting torque.
+
+The engineering question: how much of the motor's power reaches the output, forward and
+when the load drives the motor, how much torque the motor needs to turn the unloaded
+reducer, and where the power goes.  The answer is the power balance on the frictionless
+equilibrium (docs/model.md section 9): the contact loads are those of the quasi-static
+model without friction (`solver.solve_pairs`), the speeds those of the rigid kinematics of
+section 2, and every contact loses a power >= 0:
+
+- a pin: it turns freely in its housing groove, so the friction force at its two contacts
+  is the same (its moment balance) and the smaller Coulomb limit of the two, and it slides
+  where that limit is: the loss is min(mu_disc, mu_groove) * N * |v|, v the speed of the
+  disc's contact point, which turns about the pitch point (|theta_out'| times its distance
+  from there, `EquivalentModel.pin_slide_arm`);
+- a rolling bearing: its friction moment times its parts' relative speed (z_p |theta_out'|
+  for the crank bearings, |theta_out'| for the main bearings); the moment is a
+  load-proportional part mu * P * d_m / 2 (SKF's constant-coefficient estimate, written on
+  the pitch diameter) and Palmgren's load-free drag 1e-7 f0 (nu n)^(2/3) d_m^3 [N mm]
+  (Harris & Kotzalas, Rolling Bearing Analysis);
+- a sun-planet mesh: mu * H_V of the power it rolls, the sun torque times the sun's speed
+  relative to the carrier (ISO/TR 14179-2, Ohlendorf's loss factor H_V);
+- the output's lip seal: its torque times the output speed.
+
+Forward, P_in = P_out + sum of the losses; backdriving (the load drives the motor) the
+motor receives P_out - losses, with the losses of the backdriving equilibrium.  To first
+order in the coefficients this is the equilibrium with friction: what it leaves out is the
+change of the contact loads that friction's own forces make, a fraction of the loss itself
+(Malhotra & Parameswaran, Mech. Mach. Theory 18 (1983) 491, compute a cycloid drive's
+efficiency the same way).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .budget import bearing_forces
+from .checks import InputError, finite_number, integer
+from .design import RVDesign
+from .equivalent import EquivalentModel
+from .errors import ErrorSet
+from .limits import check_load
+from .quasistatic import NO_LOAD_PROBE, _checked_errors
+from .solver import solve_pairs
+from .units import MM
+
+RPM = 2.0 * math.pi / 60.0       # rad/s per rpm
+# Palmgren's drag: 1e-7 f0 (nu n)^(2/3) d_m^3 for nu*n >= 2000 (cSt rpm), 160e-7 f0 d_m^3
+# below; the larger of the two is continuous (the branches differ by 0.8 % at 2000).
+DRAG_FLOOR = 160.0
+LOSS_NAMES = ("pins", "crank-disc needle bearings", "crank-carrier bearings", "main bearings",
+              "sun-planet meshes", "output seal")
+AVERAGE_POINTS = 36              # angles over one crank turn that a loss is averaged on
+
+
+def mesh_loss_factor(z_1: int, z_2: int, pressure_angle: float) -> tuple[float, float, float]:
+    """(H_V, eps_1, eps_2) of an unshifted external spur pair with addendum = module.
+
+    ISO/TR 14179-2: the mesh loses mu * H_V of the power it transmits,
+    H_V = pi (u + 1) / (z_1 u) (1 - eps_alpha + eps_1^2 + eps_2^2), u = z_2 / z_1, with the
+    addendum contact ratios eps_k = z_k / (2 pi) (tan alpha_ak - tan alpha); the module
+    cancels.  (eps_1 + eps_2 is the transverse contact ratio.)
+    """
+    tan_alpha = math.tan(pressure_angle)
+    eps = []
+    for z in (z_1, z_2):
+        tip_angle = math.acos(z * math.cos(pressure_angle) / (z + 2.0))
+        eps.append(z / (2.0 * math.pi) * (math.tan(tip_angle) - tan_alpha))
+    u = z_2 / z_1
+    factor = math.pi * (u + 1.0) / (z_1 * u) * (1.0 - eps[0] - eps[1] + eps[0] ** 2 + eps[1] ** 2)
+    return factor, eps[0], eps[1]
+
+
+def bearing_drag_moment(f0: float, viscosity_cSt: float, speed_rpm, pitch_diameter: float):
+    """Palmgren's load-free friction moment [N*m] of one rolling bearing at `speed_rpm`
+    (array): 1e-7 f0 max((nu n)^(2/3), 160) d_m^3 N*mm, d_m in mm, nu in mm^2/s."""
+    nu_n = viscosity_cSt * np.abs(np.asarray(speed_rpm, dtype=float))
+    return 1e-7 * f0 * np.maximum(nu_n ** (2.0 / 3.0), DRAG_FLOOR) * (pitch_diameter / MM) ** 3 * 1e-3
+
+
+def pitch_diameters_from_sources(values: dict) -> dict:
+    """The bearings' pitch diameters of a preset file {file key: mm}, by one rule for every
+    frame (no drawing gives them): a needle bearing runs on its cam, whose diameter is the
+    crank's plus twice the eccentricity (the least that holds the shaft), with needles a
+    third as thick as long; a tapered roller is as thick as long, on the crank's diameter;
+    the main bearings run on the pin circle."""
+    src = values["sources"]
+    crank = src["crank_diameter_mm"]
+    return {
+        "needle_pitch_diameter_mm": crank + 2.0 * values["e_mm"] + values["needle_roller_length_mm"] / 3.0,
+        "tapered_pitch_diameter_mm": crank + values["tapered_roller_length_mm"],
+        "main_bearing_pitch_diameter_mm": 2.0 * values["R_p_mm"],
+    }
+
+
+@dataclass(frozen=True)
+class ContactLoads:
+    """Contact loads of the frictionless equilibria of S reducers at L output torques and A
+    input angles.
+
+    tau_load (L,) [N*m]; pin_force (S, L, A, 2, z_p) [N]; pin_slide_arm (A, 2, z_p) [m];
+    crank_seat_force (S, L, A, n_c), cam_force (S, L, A, 2 n_c), main_force (S, L, A) [N]: the
+    radial force on each crank's bearing pair, each needle bearing (crank i, disc j at
+    2 i + j) and the main bearings; tau_in (S, L, A) [N*m]: the input torque without
+    friction; q (S, L, A, n): the equilibria's unknowns (`EquivalentModel`); converged
+    (S, L, A).
+    """
+
+    tau_load: np.ndarray
+    pin_force: np.ndarray
+    pin_slide_arm: np.ndarray
+    crank_seat_force: np.ndarray
+    cam_force: np.ndarray
+    main_force: np.ndarray
+    tau_in: np.ndarray
+    q: np.ndarray
+    converged: np.ndarray
+
+
+def crank_turn_angles(design: RVDesign, points: int = AVERAGE_POINTS) -> np.ndarray:
+    """(points,) input angles [rad] spread over one turn of the cranks relative to the carrier,
+    the period of the bearings' loads (i/z_p input turns)."""
+    points = integer("points", points, 1)
+    return 2.0 * np.pi * design.ratio / design.z_p * np.arange(points) / points
+
+
+def contact_loads(design: RVDesign, errors: ErrorSet | None, tau_load, theta_in,
+                  samples=None) -> ContactLoads:
+    """The frictionless equilibria of the reducers `samples` of `errors` (default all) at
+    every (tau_load (L,), theta_in (A,)).
+
+    A zero load is the no-load limit approached from a resisting load (docs/model.md
+    section 5), which is how a motor turns an unloaded reducer.
+    """
+    errors = _checked_errors(design, errors)
+    samples = np.arange(errors.samples) if samples is None else np.atleast_1d(samples)
+    for s in samples:
+        integer("sample", int(s), 0, errors.samples - 1)
+    tau_load = np.atleast_1d(np.asarray(tau_load, dtype=float))
+    theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
+    if tau_load.size:
+        check_load("tau_load", tau_load[np.argmax(np.abs(tau_load))], design.rated_torque)
+    S, L, A, n_c = samples.size, tau_load.size, theta_in.size, design.n_c
+    pin = np.empty((S, L, A, 2, design.z_p))
+    seat, cam = np.empty((S, L, A, n_c)), np.empty((S, L, A, 2 * n_c))
+    main, tau_in = np.empty((S, L, A)), np.empty((S, L, A))
+    ok = np.empty((S, L, A), dtype=bool)
+    q = np.empty((S, L, A, EquivalentModel(design, theta_in[:1]).n_dof))
+    arm = None
+    for flank in (1, -1):     # +1: the sun drives (resisting load or none); -1: the load drives
+        loads = np.flatnonzero(tau_load <= 0.0) if flank == 1 else np.flatnonzero(tau_load > 0.0)
+        if loads.size == 0:
+            continue
+        model = EquivalentModel(design, theta_in, flank=flank)
+        arm = model.pin_slide_arm
+        k, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
+        s = samples[k]
+        eq = solve_pairs(model, errors, s, a, tau_load[t],
+                         no_load_probe=NO_LOAD_PROBE * design.rated_torque)
+        force = bearing_forces(model, errors, s, a, eq.q)                       # (B, nb)
+        pin[k, t, a] = eq.pin_force
+        seat[k, t, a] = force[:, :n_c]
+        cam[k, t, a] = force[:, n_c:3 * n_c]
+        main[k, t, a] = force[:, -1]
+        tau_in[k, t, a] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
+        q[k, t, a] = eq.q
+        ok[k, t, a] = eq.converged
+    if arm is None:
+        arm = EquivalentModel(design, theta_in).pin_slide_arm
+    return ContactLoads(tau_load, pin, arm, seat, cam, main, tau_in, q, ok)
+
+
+def contact_losses(design: RVDesign, loads: ContactLoads, output_speed_rpm) -> dict:
+    """{LOSS_NAMES: (V, S, L) power [W]} lost by each kind of contact at every output speed
+    (V,) [rpm], reducer and load of `loads`, averaged over its angles; each >= 0."""
+    d = design
+    w = np.abs(np.atleast_1d(np.asarray(output_speed_rpm, dtype=float))) * RPM       # (V,)
+    crank_rpm = d.z_p * w / RPM                           # cranks relative to carrier and discs
+
+    def drag(pitch_diameter, speed_rpm):                  # (V,) -> (V, 1, 1)
+        return bearing_drag_moment(d.bearing_drag_factor, d.lubricant_viscosity, speed_rpm,
+                                   pitch_diameter)[:, None, None]
+
+    mu_pin = min(d.pin_disc_friction, d.pin_groove_friction)
+    # the Coulomb parts per unit output speed, (S, L) [N*m]
+    pins = mu_pin * (loads.pin_force * loads.pin_slide_arm).sum(axis=(-1, -2)).mean(axis=-1)
+    needle = 0.5 * d.needle_friction * d.needle_pitch_diameter * loads.cam_force.sum(axis=-1).mean(axis=-1)
+    tapered = (0.5 * d.tapered_friction * d.tapered_pitch_diameter
+               * loads.crank_seat_force.sum(axis=-1).mean(axis=-1))
+    main = 0.5 * d.main_bearing_friction * d.main_bearing_pitch_diameter * loads.main_force.mean(axis=-1)
+    h_v = mesh_loss_factor(d.z_s, d.z_pl, d.pressure_angle)[0]
+    mesh = d.mesh_friction * h_v * np.abs(loads.tau_in).mean(axis=-1) * (d.ratio - 1.0)
+    w3 = w[:, None, None]
+    shape = (w.size,) + pins.shape
+    return {
+        "pins": pins[None] * w3,
+        "crank-disc needle bearings": (needle[None] + 2 * d.n_c * drag(d.needle_pitch_diameter, crank_rpm))
+        * d.z_p * w3,
+        "crank-carrier bearings": (tapered[None] + 2 * d.n_c * drag(d.tapered_pitch_diameter, crank_rpm))
+        * d.z_p * w3,
+        "main bearings": (main[None] + 2 * drag(d.main_bearing_pitch_diameter, w / RPM)) * w3,
+        "sun-planet meshes": mesh[None] * w3,
+        "output seal": np.broadcast_to(d.seal_torque * w3, shape).copy(),
+    }
+
+
+def operating_losses(design: RVDesign, errors: ErrorSet | None, load_Nm: float,
+                     output_speed_rpm: float, points: int = AVERAGE_POINTS):
+    """(efficiency (S,), no-load running torque at the input (S,) [N*m]) of every reducer of
+    `errors` at one operating point: a resisting load [N*m] > 0 at an output speed [rpm]
+    > 0, forward (the motor drives); the tolerance studies' metrics."""
+    load = finite_number("load_Nm", load_Nm)
+    speed = finite_number("output_speed_rpm", output_speed_rpm)
+    if not speed > 0.0:
+        raise InputError("output_speed_rpm", speed, "must be a positive output speed [rpm]")
+    loads = contact_loads(design, errors, [0.0, -load], crank_turn_angles(design, points))
+    lost = sum(contact_losses(design, loads, [speed]).values())[0]                 # (S, 2)
+    w = speed * RPM
+    efficiency = load * w / (load * w + lost[:, 1]) if load > 0.0 else np.zeros(lost.shape[0])
+    return efficiency, lost[:, 0] / (design.ratio * w), loads.converged.all(axis=(1, 2))
+
+
+@dataclass(frozen=True)
+class EfficiencyMap:
+    """Efficiency of one reducer over output speeds (V,) [rpm] and resisting loads (L,) [N*m].
+
+    efficiency, backdriving_efficiency, input_torque_Nm (the motor's torque, forward),
+    loss_W (forward, total): (V, L); losses: {LOSS_NAMES: (V, L) W}, forward;
+    no_load_running_torque_Nm (V,): at the input, turning the unloaded reducer;
+    starting_torque_input_Nm: its limit at standstill; backdriving_torque_output_Nm: the
+    output torque that starts the unloaded reducer turning the motor.  A backdriving
+    efficiency <= 0 means the load cannot drive the motor there (it is reported as 0).
+    """
+
+    design: RVDesign
+    output_speed_rpm: np.ndarray
+    load_Nm: np.ndarray
+    efficiency: np.ndarray
+    backdriving_efficiency: np.ndarray
+    input_torque_Nm: np.ndarray
+    loss_W: np.ndarray
+    losses: dict
+    no_load_running_torque_Nm: np.ndarray
+    starting_torque_input_Nm: float
+    backdriving_torque_output_Nm: float
+    converged: bool
+
+
+STANDSTILL_RPM = 1e-9    # a speed at which every loss is its limit at standstill
+
+
+def efficiency_map(design: RVDesign, errors: ErrorSet | None = None, output_speed_rpm=None,
+                   load_Nm=None, points: int = AVERAGE_POINTS, sample: int = 0) -> EfficiencyMap:
+    """Forward and backdriving efficiency, input torque and losses at every output speed
+    [rpm] and resisting load [N*m] (defaults: 5 to 60 rpm; 25 % to 100 % of rated torque),
+    the no-load running torque over the speeds and the starting and backdriving torques,
+    each loss averaged over `points` angles of one crank turn."""
+    speeds = np.atleast_1d(np.asarray(
+        [5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 60.0] if output_speed_rpm is None else output_speed_rpm,
+        dtype=float))
+    loads = np.atleast_1d(np.asarray(
+        design.rated_torque * np.array([0.25, 0.5, 0.75, 1.0]) if load_Nm is None else load_Nm,
+        dtype=float))
+    for field, values in (("speeds", speeds), ("loads", loads)):
+        if values.size == 0:
+            raise InputError(field, "", "must list at least one value")
+        for v in values:
+            if not finite_number(field, float(v)) > 0.0:
+                raise InputError(field, float(v), "must be positive (output speeds in rpm, "
+                                 "resisting output torques in N*m)")
+    check_load("loads", float(loads.max()), design.rated_torque)
+    theta_in = crank_turn_angles(design, points)
+    forward = contact_loads(design, errors, np.concatenate([[0.0], -loads]), theta_in, [sample])
+    backward = contact_loads(design, errors, loads, theta_in, [sample])
+    lost = {k: v[:, 0] for k, v in contact_losses(design, forward, speeds).items()}
+    total = sum(lost.values())                                                     # (V, 1 + L)
+    total_back = sum(contact_losses(design, backward, speeds).values())[:, 0]     # (V, L)
+    w = speeds[:, None] * RPM
+    p_out = loads[None] * w
+    p_in = p_out + total[:, 1:]
+    standstill = sum(contact_losses(design, forward, [STANDSTILL_RPM]).values())[0, 0, 0]
+    start = standstill / (design.ratio * STANDSTILL_RPM * RPM)
+    return EfficiencyMap(
+        design=design, output_speed_rpm=speeds, load_Nm=loads,
+        efficiency=p_out / p_in,
+        backdriving_efficiency=np.maximum(1.0 - total_back / p_out, 0.0),
+        input_torque_Nm=p_in / (design.ratio * w),
+        loss_W=total[:, 1:],
+        losses={k: v[:, 1:] for k, v in lost.items()},
+        no_load_running_torque_Nm=total[:, 0] / (design.ratio * speeds * RPM),
+        starting_torque_input_Nm=float(start),
+        backdriving_torque_output_Nm=float(design.ratio * start),
+        converged=bool(forward.converged.all() and backward.converged.all()))

@@ -1,0 +1,192 @@
+"""The hysteresis loop of the catalogue's windup test, with the contacts' friction.
+
+The engineering question: the catalogue draws the output angle against the output torque
+with the input locked, swept to +rated, back through zero to -rated and back, and reads
+three figures off that loop: the lost motion (the angle span of the loop's middle between
++-3 % rated torque), the torsional rigidity (its slope between 50 % and 100 %) and the
+hysteresis loss (the loop's width at zero torque).  Without friction the loop is a single
+curve; friction opens it.
+
+How: the frictionless windup (`contact_loads` at LEVELS torques from -max to +max, at the
+windup test's locked positions) gives the path; between two neighbouring torques every
+contact slips by what the equilibria's displacements give it (a pin: the disc's contact
+point along the tangent; a bearing: the turn of its inner part against its outer; the
+mesh: the carrier against the locked sun) and loses its friction force or moment (those of
+`friction`, at the mean of the two torques' loads) times that slip.  The work dW of an
+interval over the output's turn across it is the friction torque T_f there, which the
+applied torque must exceed on the way up and fall short of on the way down: the loop's
+branches are the path shifted by +-T_f (Coulomb friction switches its sense where the
+sweep turns).  So the loop's area is the friction work of a full cycle, and its middle is
+the frictionless windup: lost motion and rigidity read off the loop are those of
+`quasistatic.windup`, the hysteresis loss is what friction adds.  First order in the
+coefficients, as the efficiency (docs/model.md section 9).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .checks import InputError, finite_number, integer
+from .design import RVDesign
+from .equivalent import EquivalentModel
+from .errors import ErrorSet
+from .friction import bearing_drag_moment, contact_loads, mesh_loss_factor
+from .limits import check_load
+from .quasistatic import (LOST_MOTION_FRACTION, NO_LOAD_PROBE, RIGIDITY_FRACTIONS,
+                          WINDUP_POSITIONS, windup_positions)
+from .units import ARCMIN
+
+LEVELS = 40            # evenly spaced torques on each side of zero, up to the largest
+NEAR_ZERO = NO_LOAD_PROBE  # the smallest torque of the sweep, x the largest: the clearance's edge
+SMALL_LEVELS = 12      # and these, spaced evenly in log from it to 3 % of the largest
+
+
+@dataclass(frozen=True)
+class HysteresisLoop:
+    """The windup test's loop, the mean over the locked positions.
+
+    tau_load (T,) [N*m]: the frictionless path's torques, ascending; windup (T,) [rad]: its
+    output angle; friction_torque (T-1,) [N*m]: the friction torque of each interval;
+    friction_work_J: {contact kind: J} of one full cycle (both sweeps); loop (2(T-1)*2, 2):
+    the loop's corners (torque [N*m], angle [rad]), up the loading branch and back down
+    the unloading one; the catalogue figures of the loop.
+    """
+
+    design: RVDesign
+    tau_load: np.ndarray
+    windup: np.ndarray
+    friction_torque: np.ndarray
+    friction_work_J: dict
+    loop: np.ndarray
+    lost_motion_arcmin: float
+    torsional_rigidity_Nm_per_arcmin: float
+    hysteresis_loss_arcmin: float
+    converged: bool
+
+    @property
+    def area_J(self) -> float:
+        """The loop's area by the shoelace formula [J] (torque x angle)."""
+        t, a = self.loop[:, 0], self.loop[:, 1]
+        return float(0.5 * abs(np.dot(t, np.roll(a, -1)) - np.dot(a, np.roll(t, -1))))
+
+
+def sweep_torques(design: RVDesign, max_load: float, levels: int = LEVELS) -> np.ndarray:
+    """Ascending torques of the sweep [N*m], the same on each side of zero: `levels` evenly
+    up to max_load, SMALL_LEVELS evenly in log from NEAR_ZERO to 3 % of it (where the
+    clearance closes and friction's torque is of the size of the load), and the catalogue's
+    +-3 %, 50 % and 100 % of rated torque where they are within it."""
+    side = np.concatenate([max_load * np.linspace(0.0, 1.0, levels + 1)[1:],
+                           max_load * np.geomspace(NEAR_ZERO, LOST_MOTION_FRACTION, SMALL_LEVELS)])
+    rated = design.rated_torque
+    marks = [f * rated for f in (LOST_MOTION_FRACTION,) + RIGIDITY_FRACTIONS if f * rated <= max_load]
+    side = np.unique(np.concatenate([side, marks]))
+    return np.concatenate([-side[::-1], side])
+
+
+def _slips(design: RVDesign, model: EquivalentModel, q: np.ndarray):
+    """Per-interval slips of every contact between neighbouring torques at each position.
+
+    q: (T, P, n).  Returns pin slips (T-1, P, 2, z_p) [m] and the magnitudes of the turns
+    [rad] of the needle bearings (T-1, P, 2 n_c), in the model's order (crank i, disc j at
+    2 i + j), of the tapered pairs (T-1, P, n_c) and of the carrier in the main bearings
+    (T-1, P).
+    """
+    d, idx, scale = design, model.index, model.scale
+    dq = np.diff(q, axis=0)                                                    # (T-1, P, n)
+    dofs = model.pin_dofs                                                       # (2, 3)
+    normal = model.pin_rows[..., :2]                                            # (P, 2, z_p, 2)
+    psi = model.pose.psi                                                        # (P, 2)
+    centre = d.e * np.stack([np.cos(psi), np.sin(psi)], axis=-1)                # (P, 2, 2)
+    pins = d.R_p * np.stack([np.cos(2 * np.pi * np.arange(d.z_p) / d.z_p),
+                             np.sin(2 * np.pi * np.arange(d.z_p) / d.z_p)], axis=-1)
+    contact = pins[None, None] - d.r_rp * normal                                # (P, 2, z_p, 2)
+    radial = ((contact - centre[:, :, None]) * normal).sum(axis=-1)             # n . (Q - C)
+    tangent = np.stack([-normal[..., 1], normal[..., 0]], axis=-1)
+    move = dq[..., dofs[:, :2]]                                                  # (T-1, P, 2, 2)
+    turn = dq[..., dofs[:, 2]] / scale                                           # (T-1, P, 2)
+    pin_slip = np.abs((tangent * move[:, :, :, None, :]).sum(axis=-1) + turn[..., None] * radial)
+    carrier = dq[..., idx["carrier_rot"]] / scale
+    crank = np.stack([dq[..., idx[f"crank{i}_rot"]] for i in range(d.n_c)], axis=-1) / scale
+    needle = np.abs(crank[..., :, None] - turn[..., None, :]).reshape(crank.shape[:-1] + (-1,))
+    tapered = np.abs(crank - carrier[..., None])
+    return pin_slip, needle, tapered, np.abs(carrier)
+
+
+def hysteresis(design: RVDesign, errors: ErrorSet | None = None, max_load: float | None = None,
+               positions: int = WINDUP_POSITIONS, levels: int = LEVELS, sample: int = 0) -> HysteresisLoop:
+    """The windup test's loop swept to +-max_load (default the rated torque) with the input
+    locked at `positions` angles over one output revolution, for reducer `sample`."""
+    d = design
+    max_load = d.rated_torque if max_load is None else finite_number("max_load", max_load)
+    if not max_load > 0.0:
+        raise InputError("max_load", max_load, "must be a positive torque [N*m]: the loop is "
+                         "swept to +-max_load")
+    check_load("max_load", max_load, d.rated_torque)
+    positions, levels = integer("positions", positions, 1), integer("levels", levels, 2)
+    tau = sweep_torques(d, max_load, levels)
+    theta_in = windup_positions(d, positions)
+    loads = contact_loads(d, errors, tau, theta_in, [sample])
+    pin_force, cam_force, seat_force = loads.pin_force[0], loads.cam_force[0], loads.crank_seat_force[0]
+    model = EquivalentModel(d, theta_in)
+    angle = loads.q[0, ..., model.carrier_rot] / model.scale + d.series_compliance * tau[:, None]
+    pin_slip, needle, tapered, main = _slips(d, model, loads.q[0])
+    mean = lambda x: 0.5 * (x[1:] + x[:-1])                                    # noqa: E731
+    speed_rpm = 0.0      # a slow test: every bearing's drag at its standstill value
+    drag = lambda dm: bearing_drag_moment(d.bearing_drag_factor, d.lubricant_viscosity,  # noqa: E731
+                                          speed_rpm, dm)
+    mu_pin = min(d.pin_disc_friction, d.pin_groove_friction)
+    work = {  # (T-1, P) [J]
+        "pins": mu_pin * (mean(pin_force) * pin_slip).sum(axis=(-1, -2)),
+        "crank-disc needle bearings": ((0.5 * d.needle_friction * d.needle_pitch_diameter
+                                        * mean(cam_force) + drag(d.needle_pitch_diameter))
+                                       * needle).sum(axis=-1),
+        "crank-carrier bearings": ((0.5 * d.tapered_friction * d.tapered_pitch_diameter
+                                    * mean(seat_force)
+                                    + 2.0 * drag(d.tapered_pitch_diameter)) * tapered).sum(axis=-1),
+        "main bearings": (0.5 * d.main_bearing_friction * d.main_bearing_pitch_diameter
+                          * mean(loads.main_force[0]) + 2.0 * drag(d.main_bearing_pitch_diameter)) * main,
+        "sun-planet meshes": d.mesh_friction * mesh_loss_factor(d.z_s, d.z_pl, d.pressure_angle)[0]
+        * np.abs(mean(loads.tau_in[0])) * main,
+        "output seal": d.seal_torque * np.abs(np.diff(angle, axis=0)),
+    }
+    dw = sum(work.values()).mean(axis=-1)                                       # (T-1,)
+    theta = angle.mean(axis=-1)                                                 # (T,)
+    step = np.diff(theta)
+    t_f = np.where(step > 0.0, dw / np.where(step > 0.0, step, 1.0), 0.0)
+    up = np.stack([np.column_stack([tau[:-1] + t_f, theta[:-1]]),
+                   np.column_stack([tau[1:] + t_f, theta[1:]])], axis=1).reshape(-1, 2)
+    down = np.stack([np.column_stack([tau[:-1] - t_f, theta[:-1]]),
+                     np.column_stack([tau[1:] - t_f, theta[1:]])], axis=1).reshape(-1, 2)[::-1]
+    loop = np.concatenate([up, down])
+
+    def at(torque):
+        return float(np.interp(torque, tau, theta))
+
+    rated = d.rated_torque
+    lost = (at(LOST_MOTION_FRACTION * rated) - at(-LOST_MOTION_FRACTION * rated)) / ARCMIN \
+        if LOST_MOTION_FRACTION * rated <= max_load else float("nan")
+    lo, hi = (f * rated for f in RIGIDITY_FRACTIONS)
+    rigidity = float("nan")
+    if hi <= max_load:
+        compliance = 0.5 * ((at(hi) - at(lo)) + (at(-lo) - at(-hi))) / (hi - lo)
+        rigidity = 1.0 / (compliance / ARCMIN)
+    return HysteresisLoop(
+        design=d, tau_load=tau, windup=theta, friction_torque=t_f,
+        friction_work_J={k: 2.0 * float(v.mean(axis=-1).sum()) for k, v in work.items()},
+        loop=loop, lost_motion_arcmin=float(lost), torsional_rigidity_Nm_per_arcmin=rigidity,
+        hysteresis_loss_arcmin=_width_at_zero(tau, theta, t_f) / ARCMIN,
+        converged=bool(loads.converged.all()))
+
+
+def _width_at_zero(tau: np.ndarray, theta: np.ndarray, t_f: np.ndarray) -> float:
+    """The loop's width in angle at zero applied torque [rad]: unloaded from +max the output
+    rests where the frictionless path is at +T_f, from -max where it is at -T_f, T_f the
+    friction torque of the interval across zero (each side's path read on its own side
+    only, never across the clearance between them, and at its end below its first level)."""
+    k = int(np.flatnonzero((tau[:-1] < 0.0) & (tau[1:] > 0.0))[0])
+    held = t_f[k]
+    upper = np.interp(held, tau[k + 1:], theta[k + 1:])
+    lower = np.interp(-held, tau[:k + 1], theta[:k + 1])
+    return float(upper - lower)

@@ -1,0 +1,86 @@
+"""`rvte efficiency`: the catalogue's efficiency chart of a reducer, and where its power goes.
+
+The job over `rvfmu.core.friction`: forward and backdriving efficiency at every output
+speed and resisting torque, the motor's torque, the no-load running torque against speed,
+the starting torque at the input and the backdriving torque at the output; a table for
+people, JSON for scripts and a figure like the catalogue's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from .core.friction import LOSS_NAMES, EfficiencyMap, efficiency_map
+from .outputs import figure_file
+
+
+@dataclass(frozen=True)
+class EfficiencyReport:
+    """The efficiency map of one reducer (`friction.EfficiencyMap`)."""
+
+    map: EfficiencyMap
+
+    def summary(self) -> str:
+        m, d = self.map, self.map.design
+        lines = [f"design             {d.name} (ratio {d.ratio:g}, rated torque {d.rated_torque:g} N*m)",
+                 "efficiency         forward / backdriving [%] at output speed (rows, rpm) and "
+                 "resisting torque (columns, N*m)",
+                 "  rpm   " + "".join(f"{t:>16.4g}" for t in m.load_Nm)]
+        for v, speed in enumerate(m.output_speed_rpm):
+            cells = "".join(f"{100 * m.efficiency[v, t]:>9.1f} / {100 * m.backdriving_efficiency[v, t]:>4.1f}"
+                            for t in range(m.load_Nm.size))
+            lines.append(f"  {speed:<6.4g}" + cells)
+        v, t = 0, m.load_Nm.size - 1
+        lines.append(f"where the power goes at {m.output_speed_rpm[v]:g} rpm and {m.load_Nm[t]:g} N*m "
+                     f"({m.loss_W[v, t]:.3g} W lost):")
+        for name in LOSS_NAMES:
+            share = m.losses[name][v, t] / m.loss_W[v, t] if m.loss_W[v, t] > 0 else 0.0
+            lines.append(f"  {name:<30} {m.losses[name][v, t]:>9.3g} W  {100 * share:>5.1f} %")
+        lines.append("no-load running torque at the input [N*m]: " + ", ".join(
+            f"{r:.3g} at {s:g} rpm" for s, r in zip(m.output_speed_rpm, m.no_load_running_torque_Nm)))
+        lines.append(f"starting torque    {m.starting_torque_input_Nm:.4g} N*m at the input; "
+                     f"backdriving torque {m.backdriving_torque_output_Nm:.4g} N*m at the output")
+        if not m.converged:
+            lines.append("warning            the equilibrium did not converge at some angles")
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        m = self.map
+        return {
+            "design": m.design.name,
+            "map": [{"output_speed_rpm": float(s), "load_Nm": float(t),
+                     "efficiency": float(m.efficiency[v, j]),
+                     "backdriving_efficiency": float(m.backdriving_efficiency[v, j]),
+                     "input_torque_Nm": float(m.input_torque_Nm[v, j]),
+                     "losses_W": {name: float(m.losses[name][v, j]) for name in LOSS_NAMES}}
+                    for v, s in enumerate(m.output_speed_rpm) for j, t in enumerate(m.load_Nm)],
+            "no_load_running_torque": [{"output_speed_rpm": float(s), "input_torque_Nm": float(r)}
+                                       for s, r in zip(m.output_speed_rpm,
+                                                       m.no_load_running_torque_Nm)],
+            "starting_torque_input_Nm": m.starting_torque_input_Nm,
+            "backdriving_torque_output_Nm": m.backdriving_torque_output_Nm,
+            "converged": m.converged,
+        }
+
+
+def efficiency(design, errors=None, speeds=None, loads=None,
+               plot_path: str | Path | None = None) -> EfficiencyReport:
+    """Efficiency map, running, starting and backdriving torque of one reducer.
+
+    design: preset name, design file or RVDesign; errors: error file or ErrorSet (default
+    none); speeds: output speeds [rpm] (default 5 to 60); loads: resisting output torques
+    [N*m] (default 25 % to 100 % of rated); plot_path: the catalogue's chart (checked before
+    any work).
+    """
+    from .api import resolve_design, resolve_errors
+
+    plot_path = None if plot_path is None else figure_file("plot", plot_path)
+    design = resolve_design(design)
+    errors = resolve_errors(design, errors)
+    report = EfficiencyReport(efficiency_map(design, errors, speeds, loads))
+    if plot_path is not None:
+        from .plots import plot_efficiency
+
+        plot_efficiency(report, plot_path)
+    return report
