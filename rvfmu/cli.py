@@ -121,6 +121,13 @@ def _numbers(text: str) -> tuple[float, ...]:
         raise argparse.ArgumentTypeError(f"{text!r}: expected N or N_IN,N_OUT, e.g. 131072") from None
 
 
+def _design_and_errors(p) -> None:
+    """The design and --errors arguments that the jobs on one reducer share."""
+    p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
+    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um "
+                   "and deg (`rvte errors --template DESIGN` writes one to fill)")
+
+
 def _values(text: str) -> tuple[float, ...]:
     """X[,X...] of --speeds and --loads."""
     try:
@@ -152,9 +159,7 @@ def _time_and_load(text: str) -> tuple[float, float]:
 
 def _reducer_arguments(p, load_help: str) -> None:
     """DESIGN, --errors and --load: the reducer and its operating point, as every model takes them."""
-    p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
-    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um "
-                   "and deg (`rvte errors --template DESIGN` writes one to fill)")
+    _design_and_errors(p)
     p.add_argument("--load", type=float, default=0.0, help=load_help)
 
 
@@ -222,9 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("stiffness", help="torsional rigidity, lost motion and the compliance "
                        "budget: every elastic element's share of the windup")
-    p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
-    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um "
-                   "and deg (`rvte errors --template DESIGN` writes one to fill)")
+    _design_and_errors(p)
     p.add_argument("--load", type=float, default=None, help="torque [N*m] whose 50-100 %% span the "
                    "budget covers, in both senses (default: the rated torque, the catalogue's range)")
     p.add_argument("--plot", help="write a figure of the shares and the windup curve")
@@ -233,9 +236,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("efficiency", help="efficiency forward and backdriving over output speed "
                        "and torque, no-load running, starting and backdriving torque")
-    p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
-    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um "
-                   "and deg (`rvte errors --template DESIGN` writes one to fill)")
+    _design_and_errors(p)
     p.add_argument("--speeds", type=_values, default=None,
                    help="output speeds [rpm], comma-separated (default 5,10,15,20,30,40,60)")
     p.add_argument("--loads", type=_values, default=None,
@@ -247,9 +248,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("hysteresis", help="the hysteresis loop of the windup test with friction: "
                        "lost motion, rigidity, hysteresis loss and the friction work by contact")
-    p.add_argument("design", help="preset name (see `rvte presets`) or design TOML file")
-    p.add_argument("--errors", help="error TOML file: the names of docs/model.md section 4, in um "
-                   "and deg (`rvte errors --template DESIGN` writes one to fill)")
+    _design_and_errors(p)
     p.add_argument("--max-load", type=float, default=None,
                    help="the sweep's end [N*m], in both senses (default: the rated torque)")
     p.add_argument("--plot", help="write the loop as a figure")

@@ -23,6 +23,14 @@ def _pyplot():
     return plt
 
 
+def _saved(plt, fig, path: str | Path, dpi: int) -> Path:
+    """Write `fig` to `path` and free it."""
+    path = Path(path)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
 SPECTRUM_MARGIN = 1.4  # the order axis ends this factor beyond the last order or marker shown
 
 
@@ -125,10 +133,7 @@ def plot_windup(windup: Windup, path: str | Path, sample: int = 0) -> Path:
     ax.set_title(f"{windup.design.name}: windup, input locked "
                  f"({windup.theta_in.size} positions)")
     ax.grid(alpha=0.3)
-    path = Path(path)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    return _saved(plt, fig, path, dpi=130)
 
 
 def plot_catalogue(rows, path: str | Path) -> Path:
@@ -162,10 +167,7 @@ def plot_catalogue(rows, path: str | Path) -> Path:
         ax.legend(fontsize=8, loc="upper left")
     for ax in axes.ravel()[len(rows):]:
         ax.set_visible(False)
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _saved(plt, fig, path, dpi=110)
 
 
 def plot_budget(report, path: str | Path) -> Path:
@@ -200,10 +202,7 @@ def plot_budget(report, path: str | Path) -> Path:
     curve.set_title(f"windup, input locked; lost motion {report.lost_motion_arcmin:.3f} arcmin")
     curve.grid(alpha=0.3)
     curve.legend(fontsize=8, loc="upper left")
-    path = Path(path)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _saved(plt, fig, path, dpi=120)
 
 
 __all__ = ["figure_te", "marker_orders", "plot_te", "plot_windup", "plot_catalogue", "plot_budget",
@@ -241,10 +240,7 @@ def plot_simulation(sim, path: str | Path) -> Path:
             ax_sp.annotate(f"{name} {hz:.1f} Hz", (hz, ax_sp.get_ylim()[1] * 0.95), fontsize=7,
                            rotation=90, ha="right", va="top", color="0.4")
     ax_sp.grid(alpha=0.3)
-    path = Path(path)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    return _saved(plt, fig, path, dpi=130)
 
 
 def plot_campbell(design, frequencies_hz, speeds_rpm, lines: dict, speed_rpm: float,
@@ -275,10 +271,7 @@ def plot_campbell(design, frequencies_hz, speeds_rpm, lines: dict, speed_rpm: fl
     ax.set_title(f"{design.name}: Campbell diagram (modes at the loaded equilibrium)")
     ax.legend(loc="upper left", fontsize=8)
     ax.grid(alpha=0.3)
-    path = Path(path)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    return _saved(plt, fig, path, dpi=130)
 
 
 def plot_measured(measured, path: str | Path, title: str | None = None) -> Path:
@@ -327,10 +320,7 @@ def plot_measured(measured, path: str | Path, title: str | None = None) -> Path:
     if m.hz is not None:
         spectrum(axes[2], m.hz, m.spectrum_hz, "frequency [Hz]")
         axes[2].set_title(f"output speed {m.output_speed_hz:.4g} Hz (mean)", fontsize=8)
-    path = Path(path)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    return _saved(plt, fig, path, dpi=130)
 
 
 def plot_comparison(comparison, path: str | Path, title: str | None = None) -> Path:
@@ -370,10 +360,7 @@ def plot_comparison(comparison, path: str | Path, title: str | None = None) -> P
     ax_sp.set_ylabel("amplitude [arcsec]")
     ax_sp.legend(loc="upper right", fontsize=8)
     ax_sp.grid(alpha=0.3, which="both")
-    path = Path(path)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    return _saved(plt, fig, path, dpi=130)
 
 
 def plot_efficiency(report, path: str | Path) -> Path:
@@ -400,10 +387,7 @@ def plot_efficiency(report, path: str | Path) -> Path:
                       f"backdriving {m.backdriving_torque_output_Nm:.3g} N·m (output)")
     running.set_ylim(bottom=0)
     running.grid(alpha=0.3)
-    path = Path(path)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _saved(plt, fig, path, dpi=120)
 
 
 def plot_hysteresis(report, path: str | Path) -> Path:
@@ -434,7 +418,4 @@ def plot_hysteresis(report, path: str | Path) -> Path:
         middle.axvline(sign * 0.03 * rated, color="tab:blue", lw=0.8, ls="--")
     middle.set_title(f"lost motion {h.lost_motion_arcmin:.3f} arcmin (±3 % rated, dashed), "
                      f"hysteresis loss {h.hysteresis_loss_arcmin:.3f} arcmin", fontsize=10)
-    path = Path(path)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _saved(plt, fig, path, dpi=120)
