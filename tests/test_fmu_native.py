@@ -16,6 +16,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CoSimulation, fmi2False, fmi2Terminated, fmi2True
 from fmpy.validation import validate_fmu
 
+from rvfmu.core.reducer_model import friction_step
 from rvfmu.core.units import ARCSEC
 from rvfmu.fmu.api import fmu_build, fmu_info
 from rvfmu.fmu.build import build_fmu
@@ -26,7 +27,7 @@ from test_fmu import free_instances  # noqa: F401 - frees every instance after a
 
 MAP_POINTS = 4 * 40 * 39         # as tests/test_fmu_dynamic.py
 STEP = 1e-3
-OUTPUTS = ("theta_out", "omega_out", "te", "te_arcsec", "tau_in")
+OUTPUTS = ("theta_out", "omega_out", "te", "te_arcsec", "tau_in", "P_loss", "efficiency")
 FMI2_COSIMULATION_FUNCTIONS = (
     "GetTypesPlatform GetVersion SetDebugLogging Instantiate FreeInstance SetupExperiment "
     "EnterInitializationMode ExitInitializationMode Terminate Reset GetReal GetInteger GetBoolean "
@@ -105,7 +106,46 @@ def test_outputs_equal_the_python_fmu_over_a_long_varying_run(native, python_fmu
     np.testing.assert_allclose(ours[:, 3], theirs[:, 3], rtol=0, atol=1e-12 / ARCSEC)
     np.testing.assert_allclose(ours[:, 4], theirs[:, 4], rtol=1e-12, atol=1e-12)   # tau_in
     np.testing.assert_allclose(ours[:, 1], theirs[:, 1], rtol=0, atol=1e-9)        # omega_out
+    np.testing.assert_allclose(ours[:, 5:], theirs[:, 5:], rtol=1e-9, atol=1e-12)  # P_loss, eff.
     assert np.ptp(te) > 1e-5 and np.ptp(ours[:, 1]) > 1.0
+
+
+def test_friction_from_rest_through_reversal_and_backdriving(native, python_fmu, rv40):
+    """Both FMUs carry the same friction (to 1e-9) over a run that starts from rest, turns
+    forward against the load, is backdriven by it, reverses and stops; the input torque's
+    friction opposes the input's turning, the loss is the mean of the power in less the
+    power out, and at standstill nothing chatters."""
+    steps = 4000
+    t = np.arange(steps) * STEP
+    speed = 150.0 * np.sin(2 * np.pi * 0.5 * t) * np.minimum(t / 0.2, 1.0)   # rad/s at the input
+    speed[t > 3.5] = 0.0
+    theta_in = np.cumsum(speed) * STEP
+    tau_load = np.where(t < 1.0, -0.6, 0.6) * rv40.rated_torque             # resisting, then driving
+    ours = drive(Instance(*native, name="native"), theta_in, tau_load)
+    theirs = drive(Instance(*python_fmu, name="python"), theta_in, tau_load)
+    np.testing.assert_allclose(ours, theirs, rtol=1e-9, atol=1e-12)
+    tau_in, p_loss, efficiency = ours[:, 4], ours[:, 5], ours[:, 6]
+    omega_in = np.diff(theta_in, prepend=theta_in[0]) / STEP
+    ideal = tau_load / rv40.ratio
+    moving = np.abs(omega_in) > 1.0
+    # friction takes from the input's turning: the input torque less the ideal one opposes it
+    assert np.all((tau_in - ideal)[moving] * omega_in[moving] < 0.0)
+    assert np.all(p_loss >= 0.0) and np.all(p_loss[moving] > 0.0)
+    np.testing.assert_allclose(p_loss, (ideal - tau_in) * omega_in, rtol=2e-3, atol=1e-6)
+    # forward (the motor drives against the load) and backdriving: efficiency within (0, 1)
+    forward = moving & (tau_load * omega_in < 0)
+    backward = moving & (tau_load * omega_in > 0)
+    assert forward.any() and backward.any()
+    assert np.all((efficiency[forward] > 0.5) & (efficiency[forward] < 1.0))
+    assert np.all(efficiency[backward] < efficiency[forward].max())
+    # the mean power balance over the forward stretch: in - out = loss
+    run = forward & (t > 0.3) & (t < 0.9)
+    p_in = -tau_in * omega_in
+    p_out = -tau_load * ours[:, 1]
+    assert np.mean(p_in[run] - p_out[run]) == pytest.approx(np.mean(p_loss[run]), rel=0.02)
+    # at standstill: no loss, the input torque steady
+    still = t > 3.6
+    assert np.all(p_loss[still] == 0.0) and np.ptp(tau_in[still]) < 1e-9
 
 
 def test_interpolation_is_te_map_evaluate_one_to_the_bit(native, unzipped, rv40):
@@ -124,8 +164,22 @@ def test_interpolation_is_te_map_evaluate_one_to_the_bit(native, unzipped, rv40)
     for k, (a, b) in enumerate(zip(theta, load)):
         inst.set(theta_in=a, tau_load=b)
         inst.step(k * STEP, STEP)
-        te, tau_in = inst.get("te", "tau_in")
-        assert (te, tau_in) == te_map.evaluate_one(float(a), float(b)), (a, b)
+        te = inst.get("te")[0]
+        assert te == te_map.evaluate_one(float(a), float(b))[0], (a, b)
+    # the friction table and the load-free friction, to the bit: tau_in and P_loss at input
+    # speeds across the friction law's scale and the drag table, both senses of power flow
+    for k, (a, b) in enumerate(zip(theta[:300], load[:300])):
+        omega_in = (k % 23 - 11) * 10.0 ** (k % 7 - 4) * te_map.ratio
+        inst.set(theta_in=a, tau_load=b)
+        inst.step(0.0, STEP)                       # the angle of the step's start
+        inst.set(theta_in=a + omega_in * STEP, tau_load=b)
+        inst.step(STEP, STEP)
+        tau_in, p_loss, efficiency = inst.get("tau_in", "P_loss", "efficiency")
+        _, tau_map, coulomb = te_map.evaluate_one(float(a + omega_in * STEP), float(b))
+        omega = (float(a + omega_in * STEP) - float(a)) / STEP
+        expected = friction_step(tau_map, coulomb + te_map.load_free_one(omega / te_map.ratio),
+                                 te_map.ratio, omega)
+        assert (tau_in, p_loss, efficiency) == expected, (a, b, omega_in)
 
 
 def test_validates_declares_its_sources_and_carries_its_binaries(native, python_fmu, rv40):
@@ -251,7 +305,7 @@ def corrupt(data: bytearray, how: str) -> bytes:
     elif how == "magic":
         data[:8] = b"RVTEMAQ\0"
     elif how == "version":
-        data[8:12] = struct.pack("<I", 2)
+        data[8:12] = struct.pack("<I", 3)
     elif how == "truncated":
         del data[-8:]
     elif how == "levels":
@@ -262,10 +316,10 @@ def corrupt(data: bytearray, how: str) -> bytes:
 
 
 @pytest.mark.parametrize("how, reason", [
-    ("nan", "non-finite values in the torque levels, te or tau_in"),
+    ("nan", "non-finite values in the torque levels, te, tau_in or the friction"),
     ("magic", "not a TE map table (no RVTEMAP magic)"),
-    ("version", "format version 2, this FMU reads version 1"),
-    ("truncated", "6240 angle points x 16 torque levels do not fit its"),
+    ("version", "format version 3, this FMU reads version 2"),
+    ("truncated", "6240 angle points x 16 torque levels and 67 speeds do not fit its"),
     ("levels", "the torque levels must be strictly ascending"),
     ("empty", "not a TE map table"),
     ("missing", "cannot be opened"),
@@ -446,7 +500,7 @@ def test_reset_returns_to_the_start(native):
     inst.set(theta_in=20.0, tau_load=-400.0)
     inst.step(0.0, STEP)
     inst.fmu.reset()
-    assert inst.get("theta_in", *OUTPUTS) == [0.0] * 6
+    assert inst.get("theta_in", *OUTPUTS) == [0.0] * (1 + len(OUTPUTS))
     inst.set(theta_in=3.0, tau_load=-50.0)
     inst.fmu.setupExperiment(startTime=0.0)
     inst.fmu.enterInitializationMode()

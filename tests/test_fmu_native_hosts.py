@@ -84,7 +84,7 @@ def assert_summary(done, unzipped):
     line = done.stdout.strip()
     assert line.startswith(head) and line.endswith(tail), (line, head, tail)
     assert "[logStatusError] corrupted: TE map table" in done.stderr
-    assert "non-finite values in the torque levels, te or tau_in" in done.stderr
+    assert "non-finite values in the torque levels, te, tau_in or the friction" in done.stderr
 
 
 # -- real hosts, nothing preloaded -------------------------------------------------------
@@ -120,7 +120,8 @@ for load in loads:
     signal = np.zeros(t.size, dtype=[("time", float), ("theta_in", float), ("tau_load", float)])
     signal["time"], signal["theta_in"], signal["tau_load"] = t, float(speed) * t, -float(load)
     result = simulate_fmu(fmu, stop_time=float(duration), output_interval=1e-3, step_size=1e-3,
-                          input=signal, output=["theta_out", "te_arcsec", "omega_out", "tau_in"])
+                          input=signal, output=["theta_out", "te_arcsec", "omega_out", "tau_in",
+                                                "P_loss", "efficiency"])
     np.save(f"{out}/fmpy_{load}.npy", result)
 report["loaded"] = sorted(m for m in sys.modules
                           if m.split(".")[0] in ("rvfmu", "tolerance", "pythonfmu"))
@@ -162,13 +163,15 @@ def test_fmpy_and_libcosim_agree_in_a_process_without_rvte_libpython_preload_or_
         assert cosim.size == 1001 and by_fmpy.size == 1001
         # libcosim sets the inputs at t and steps to t + h: its row k is fmpy's row k + 1
         np.testing.assert_allclose(cosim["time"][:-1], by_fmpy["time"][1:], rtol=0, atol=1e-12)
-        for name in ("te_arcsec", "theta_out", "tau_in"):     # the same C code, the same inputs
+        for name in ("te_arcsec", "theta_out"):     # the same C code, the same inputs
             np.testing.assert_array_equal(cosim[name][:-1], by_fmpy[name][1:],
                                           err_msg=f"{name}, {load}")
         # omega_out divides by the step size: libcosim's is a whole number of nanoseconds,
-        # fmpy's (k + 1) h - k h; they differ by a rounding error
-        np.testing.assert_allclose(cosim["omega_out"][:-1], by_fmpy["omega_out"][1:], rtol=1e-12,
-                                   atol=1e-12, err_msg=f"omega_out, {load}")
+        # fmpy's (k + 1) h - k h; they differ by a rounding error, and so does the friction in
+        # tau_in, P_loss and efficiency, which goes with the input speed over the step
+        for name in ("omega_out", "tau_in", "P_loss", "efficiency"):
+            np.testing.assert_allclose(cosim[name][:-1], by_fmpy[name][1:], rtol=1e-12,
+                                       atol=1e-12, err_msg=f"{name}, {load}")
         assert np.ptp(cosim["te_arcsec"]) > 10.0                 # the TE does move over the run
     # a resisting load winds the output back, a driving one forward
     resisting, driving = (np.genfromtxt(work / f"cosim_{load!r}.csv", delimiter=",", names=True)

@@ -14,7 +14,9 @@ from rvfmu.core.checks import InputError
 from rvfmu.core.design import PRESET_NAMES, preset, preset_file
 from rvfmu.core.equivalent import EquivalentModel
 from rvfmu.core.hysteresis import hysteresis
-from rvfmu.core.quasistatic import te_curve, windup
+from rvfmu.core.quasistatic import equilibria, te_curve, windup
+from rvfmu.core.reducer_model import FRICTION_SPEED_SCALE, QuasiStaticReducer, friction_step
+from rvfmu.core.te_map import build_te_map
 from rvfmu.core.stiffness import transverse_contact_ratio
 from rvfmu.core.units import DEG, MM
 from test_cli import rvte
@@ -348,3 +350,55 @@ def test_study_friction_metrics_check_their_operating_point(tmp_path):
     # the running torque alone is fine without a load
     assert load_study(study_file(tmp_path, metrics='["no_load_running_torque"]', load=0.0,
                                  spec="")).load_Nm == 0.0
+
+
+# -- the FMUs' friction ---------------------------------------------------------------------
+
+def test_the_te_map_carries_the_friction_of_the_same_solves(seed002):
+    """The map's TE and input torque are the quasi-static model's to the bit (the same solves
+    give the friction table), its Coulomb table is `coulomb_torques` of those equilibria, and
+    its load-free table is Palmgren's drag and the seal within the table's interpolation."""
+    d = preset("RV-40E-121")
+    te_map = build_te_map(d, seed002, points=48, torque_fractions=(0.0, 0.5, 1.0))
+    for branch, (sign, side) in enumerate(((-1.0, -1), (1.0, 1))):
+        eq = equilibria(d, seed002, te_map.theta_in, sign * te_map.torque_magnitude, zero_side=side)
+        assert np.array_equal(te_map.te[branch], eq.te[0])
+        assert np.array_equal(te_map.tau_in[branch], eq.tau_in[0])
+    m = friction.efficiency_map(d, seed002, output_speed_rpm=[7.0], load_Nm=[0.5 * d.rated_torque],
+                                points=6)
+    # the map's Coulomb torque, averaged over its angles, is the efficiency map's loss / speed
+    coulomb = m.loss_W[0, 0] / (7.0 * friction.RPM) - sum(
+        friction.load_free_torques(d, [7.0]).values())[0]
+    assert te_map.friction[0, 1].mean() == pytest.approx(coulomb, rel=0.05)
+    speeds = np.geomspace(1e-3, 20.0, 50)
+    exact = sum(friction.load_free_torques(d, speeds / friction.RPM).values())
+    table = [te_map.load_free_one(w) for w in speeds]
+    assert table == pytest.approx(exact, rel=2e-3)
+    assert te_map.load_free_one(-3.0) == te_map.load_free_one(3.0)
+
+
+def test_without_friction_the_reducer_models_input_torque_is_the_maps(seed002):
+    d = preset("RV-40E-121").with_fields(**NO_FRICTION)
+    te_map = build_te_map(d, seed002, points=48, torque_fractions=(0.0, 0.5, 1.0, 2.5))
+    assert not te_map.friction.any() and not te_map.drag.any()
+    model = QuasiStaticReducer(te_map)
+    model.initialize(0.0, 0.0, -100.0)
+    for k in range(1, 200):
+        theta, load = 0.37 * k - 3.0, 150.0 * (k % 5 - 2)
+        out = model.step((k - 1) * 1e-3, 1e-3, theta, load)
+        assert out.tau_in == te_map.evaluate_one(theta, load)[1] and out.p_loss == 0.0
+        assert out.efficiency in (0.0, 1.0)
+
+
+def test_friction_step_by_hand():
+    """Coulomb beyond the speed scale, proportional within it; efficiency both ways."""
+    scale = FRICTION_SPEED_SCALE
+    tau_in, p_loss, eta = friction_step(-2.0, 12.1, 121.0, 5.0)         # driving forward
+    assert tau_in == pytest.approx(-2.1) and p_loss == pytest.approx(0.5)
+    assert eta == pytest.approx(10.0 / 10.5)
+    tau_in, p_loss, eta = friction_step(2.0, 12.1, 121.0, 5.0)          # backdriven
+    assert tau_in == pytest.approx(1.9) and eta == pytest.approx(9.5 / 10.0)
+    tau_in, p_loss, eta = friction_step(2.0, 12.1, 121.0, -0.5 * scale)  # within the scale
+    assert tau_in == pytest.approx(2.05) and p_loss == pytest.approx(0.05 * 0.5 * scale)
+    assert friction_step(0.05, 12.1, 121.0, 5.0)[2] == 0.0              # cannot backdrive
+    assert friction_step(2.0, 12.1, 121.0, 0.0) == (2.0, 0.0, 0.0)      # standstill

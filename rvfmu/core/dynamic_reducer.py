@@ -20,7 +20,7 @@ import numpy as np
 from .dynamic import DynamicModel, Motion, at_rest
 from .errors import ErrorSet
 from .newmark import NewmarkStepper, State
-from .reducer_model import Outputs
+from .reducer_model import Outputs, friction_step
 from .simulation import static_start
 
 DEFAULT_INTERNAL_STEP = 1e-4   # [s]: 10 kHz, 25 steps per stage-1 mesh period of an RV-110E at 1600 rpm
@@ -55,7 +55,10 @@ class DynamicReducer:
         model, s, c = self.model, self.state, self.design.series_compliance
         te = s.q[model.carrier_rot] / model.scale + c * tau_load
         omega_out = omega_in / self.design.ratio + s.v[model.carrier_rot] / model.scale + c * torque_rate
-        return Outputs(self.theta_in / self.design.ratio + te, omega_out, te, tau_in)
+        # no friction in the dynamic model yet: no loss, the efficiency 1 where power passes
+        _, p_loss, efficiency = friction_step(tau_in, 0.0, self.design.ratio, omega_in)
+        return Outputs(self.theta_in / self.design.ratio + te, omega_out, te, tau_in, p_loss,
+                       efficiency)
 
     def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:
         """At rest in the elastic equilibrium under tau_load at theta_in."""

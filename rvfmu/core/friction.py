@@ -127,12 +127,12 @@ def crank_turn_angles(design: RVDesign, points: int = AVERAGE_POINTS) -> np.ndar
 
 
 def contact_loads(design: RVDesign, errors: ErrorSet | None, tau_load, theta_in,
-                  samples=None) -> ContactLoads:
+                  samples=None, zero_side: int = -1, progress=None) -> ContactLoads:
     """The frictionless equilibria of the reducers `samples` of `errors` (default all) at
     every (tau_load (L,), theta_in (A,)).
 
-    A zero load is the no-load limit approached from a resisting load (docs/model.md
-    section 5), which is how a motor turns an unloaded reducer.
+    A zero load is the no-load limit (docs/model.md section 5) approached from a resisting
+    load (zero_side = -1, how a motor turns an unloaded reducer) or a driving one (+1).
     """
     errors = _checked_errors(design, errors)
     samples = np.arange(errors.samples) if samples is None else np.atleast_1d(samples)
@@ -149,16 +149,18 @@ def contact_loads(design: RVDesign, errors: ErrorSet | None, tau_load, theta_in,
     ok = np.empty((S, L, A), dtype=bool)
     q = np.empty((S, L, A, EquivalentModel(design, theta_in[:1]).n_dof))
     arm = None
-    for flank in (1, -1):     # +1: the sun drives (resisting load or none); -1: the load drives
-        loads = np.flatnonzero(tau_load <= 0.0) if flank == 1 else np.flatnonzero(tau_load > 0.0)
+    zero_flank = -1 if zero_side > 0 else 1
+    for flank in (1, -1):     # +1: the sun drives (a resisting load); -1: the load drives
+        at_zero = (tau_load == 0.0) & (zero_flank == flank)
+        loads = np.flatnonzero(((tau_load < 0.0) if flank == 1 else (tau_load > 0.0)) | at_zero)
         if loads.size == 0:
             continue
         model = EquivalentModel(design, theta_in, flank=flank)
         arm = model.pin_slide_arm
         k, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
         s = samples[k]
-        eq = solve_pairs(model, errors, s, a, tau_load[t],
-                         no_load_probe=NO_LOAD_PROBE * design.rated_torque)
+        eq = solve_pairs(model, errors, s, a, tau_load[t], progress=progress,
+                         no_load_probe=NO_LOAD_PROBE * design.rated_torque, zero_side=zero_side)
         force = bearing_forces(model, errors, s, a, eq.q)                       # (B, nb)
         pin[k, t, a] = eq.pin_force
         seat[k, t, a] = force[:, :n_c]
@@ -172,38 +174,74 @@ def contact_loads(design: RVDesign, errors: ErrorSet | None, tau_load, theta_in,
     return ContactLoads(tau_load, pin, arm, seat, cam, main, tau_in, q, ok)
 
 
+def coulomb_torques(design: RVDesign, pin_force, pin_slide_arm, cam_force, crank_seat_force,
+                    main_force, tau_in) -> dict:
+    """{LOSS_NAMES but the seal: (...) [N*m]} the friction torque at the output of each kind
+    of Coulomb contact at the equilibria given by their loads (shapes of `ContactLoads`
+    without the angle averaging: pin_force (..., 2, z_p), cam_force (..., 2 n_c),
+    crank_seat_force (..., n_c), main_force and tau_in (...)): the contact's loss is this
+    torque times the output speed, whatever the speed."""
+    d = design
+    h_v = mesh_loss_factor(d.z_s, d.z_pl, d.pressure_angle)[0]
+    return {
+        "pins": min(d.pin_disc_friction, d.pin_groove_friction)
+        * (pin_force * pin_slide_arm).sum(axis=(-1, -2)),
+        "crank-disc needle bearings": 0.5 * d.needle_friction * d.needle_pitch_diameter * d.z_p
+        * cam_force.sum(axis=-1),
+        "crank-carrier bearings": 0.5 * d.tapered_friction * d.tapered_pitch_diameter * d.z_p
+        * crank_seat_force.sum(axis=-1),
+        "main bearings": 0.5 * d.main_bearing_friction * d.main_bearing_pitch_diameter * main_force,
+        "sun-planet meshes": d.mesh_friction * h_v * np.abs(tau_in) * (d.ratio - 1.0),
+    }
+
+
+def load_free_torques(design: RVDesign, output_speed_rpm) -> dict:
+    """{"crank-disc needle bearings", "crank-carrier bearings", "main bearings", "output seal":
+    (V,) [N*m]} the friction torque at the output of the bearings' drag and the seal at
+    output speeds (V,) [rpm]: each bearing's Palmgren moment times its speed over the
+    output's (z_p for the crank bearings, 1 for the main bearings)."""
+    d = design
+    n_out = np.abs(np.atleast_1d(np.asarray(output_speed_rpm, dtype=float)))
+
+    def drag(pitch_diameter, ratio):
+        return ratio * bearing_drag_moment(d.bearing_drag_factor, d.lubricant_viscosity,
+                                           ratio * n_out, pitch_diameter)
+
+    return {
+        "crank-disc needle bearings": 2 * d.n_c * drag(d.needle_pitch_diameter, d.z_p),
+        "crank-carrier bearings": 2 * d.n_c * drag(d.tapered_pitch_diameter, d.z_p),
+        "main bearings": 2 * drag(d.main_bearing_pitch_diameter, 1.0),
+        "output seal": np.full(n_out.shape, d.seal_torque),
+    }
+
+
+def drag_kinks(design: RVDesign) -> np.ndarray:
+    """Output speeds [rad/s] where a bearing's drag leaves Palmgren's floor for his power law,
+    nu n = 160^(3/2) (the kinks of `load_free_torques`; none without a lubricant)."""
+    if not design.lubricant_viscosity > 0.0:
+        return np.empty(0)
+    ratios = np.array([design.z_p, 1.0])           # the crank bearings' speed, the main bearings'
+    return DRAG_FLOOR ** 1.5 / (design.lubricant_viscosity * ratios) * RPM
+
+
 def contact_losses(design: RVDesign, loads: ContactLoads, output_speed_rpm) -> dict:
     """{LOSS_NAMES: (V, S, L) power [W]} lost by each kind of contact at every output speed
     (V,) [rpm], reducer and load of `loads`, averaged over its angles; each >= 0."""
-    d = design
     w = np.abs(np.atleast_1d(np.asarray(output_speed_rpm, dtype=float))) * RPM       # (V,)
-    crank_rpm = d.z_p * w / RPM                           # cranks relative to carrier and discs
-
-    def drag(pitch_diameter, speed_rpm):                  # (V,) -> (V, 1, 1)
-        return bearing_drag_moment(d.bearing_drag_factor, d.lubricant_viscosity, speed_rpm,
-                                   pitch_diameter)[:, None, None]
-
-    mu_pin = min(d.pin_disc_friction, d.pin_groove_friction)
-    # the Coulomb parts per unit output speed, (S, L) [N*m]
-    pins = mu_pin * (loads.pin_force * loads.pin_slide_arm).sum(axis=(-1, -2)).mean(axis=-1)
-    needle = 0.5 * d.needle_friction * d.needle_pitch_diameter * loads.cam_force.sum(axis=-1).mean(axis=-1)
-    tapered = (0.5 * d.tapered_friction * d.tapered_pitch_diameter
-               * loads.crank_seat_force.sum(axis=-1).mean(axis=-1))
-    main = 0.5 * d.main_bearing_friction * d.main_bearing_pitch_diameter * loads.main_force.mean(axis=-1)
-    h_v = mesh_loss_factor(d.z_s, d.z_pl, d.pressure_angle)[0]
-    mesh = d.mesh_friction * h_v * np.abs(loads.tau_in).mean(axis=-1) * (d.ratio - 1.0)
-    w3 = w[:, None, None]
-    shape = (w.size,) + pins.shape
-    return {
-        "pins": pins[None] * w3,
-        "crank-disc needle bearings": (needle[None] + 2 * d.n_c * drag(d.needle_pitch_diameter, crank_rpm))
-        * d.z_p * w3,
-        "crank-carrier bearings": (tapered[None] + 2 * d.n_c * drag(d.tapered_pitch_diameter, crank_rpm))
-        * d.z_p * w3,
-        "main bearings": (main[None] + 2 * drag(d.main_bearing_pitch_diameter, w / RPM)) * w3,
-        "sun-planet meshes": mesh[None] * w3,
-        "output seal": np.broadcast_to(d.seal_torque * w3, shape).copy(),
-    }
+    coulomb = {k: v.mean(axis=-1) for k, v in coulomb_torques(                      # (S, L)
+        design, loads.pin_force, loads.pin_slide_arm, loads.cam_force, loads.crank_seat_force,
+        loads.main_force, loads.tau_in).items()}
+    free = load_free_torques(design, w / RPM)                                        # (V,)
+    shape = (w.size,) + loads.main_force.shape[:-1]                                 # (V, S, L)
+    out = {}
+    for name in LOSS_NAMES:
+        torque = np.zeros(shape)
+        if name in coulomb:
+            torque = torque + coulomb[name][None]
+        if name in free:
+            torque = torque + free[name][:, None, None]
+        out[name] = torque * w[:, None, None]
+    return out
 
 
 def operating_losses(design: RVDesign, errors: ErrorSet | None, load_Nm: float,

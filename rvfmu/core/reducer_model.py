@@ -17,14 +17,45 @@ from dataclasses import dataclass
 from .te_map import TEMap
 
 
+# The speed scale of the friction law [rad/s at the input]: friction is Coulomb's beyond it
+# and proportional to the input speed within it, so that it turns continuously through zero
+# (no chatter at standstill) and costs a host no event; 0.01 rad/s is 0.1 rpm at the motor.
+FRICTION_SPEED_SCALE = 0.01
+
+
 @dataclass(frozen=True)
 class Outputs:
-    """Outputs at one instant: theta_out [rad], omega_out [rad/s], te [rad], tau_in [N*m]."""
+    """Outputs at one instant: theta_out [rad], omega_out [rad/s], te [rad], tau_in [N*m],
+    p_loss [W] (the friction's power over the last step), efficiency [1] (over the last step:
+    forward the power the frictionless reducer passes over that plus the loss, backdriving
+    what is left of it after the loss; 0 where no power passes)."""
 
     theta_out: float
     omega_out: float
     te: float
     tau_in: float
+    p_loss: float = 0.0
+    efficiency: float = 0.0
+
+
+def friction_step(tau_map: float, friction_out: float, ratio: float, omega_in: float):
+    """(tau_in [N*m], p_loss [W], efficiency) of a step: the frictionless map's input torque
+    `tau_map`, the friction torque at the output `friction_out` [N*m] (>= 0), the input speed
+    over the step [rad/s].  Friction opposes the input's turning: its torque at the input
+    is friction_out / i times the speed over FRICTION_SPEED_SCALE, clipped to +-1 (docs/model.md
+    section 9)."""
+    sense = omega_in / FRICTION_SPEED_SCALE
+    sense = 1.0 if sense > 1.0 else (-1.0 if sense < -1.0 else sense)
+    torque = sense * (friction_out / ratio)
+    p_loss = torque * omega_in                                       # >= 0
+    passed = tau_map * omega_in        # the frictionless reducer's power into the input shaft
+    if passed < 0.0:                   # it resists the input: the motor drives
+        efficiency = -passed / (p_loss - passed)
+    elif passed > 0.0:                 # it drives the input: the load backdrives the motor
+        efficiency = (passed - p_loss) / passed if passed > p_loss else 0.0
+    else:
+        efficiency = 0.0
+    return tau_map - torque, p_loss, efficiency
 
 
 class QuasiStaticReducer:
@@ -33,7 +64,9 @@ class QuasiStaticReducer:
     theta_out = theta_in / i + TE(theta_in, tau_load); omega_out is the output
     angle's change over the last step divided by its length (zero before the first
     step), so the outputs at the end of a step depend only on the inputs there and
-    on the output angle at its start, whatever the step size.
+    on the output and input angles at its start, whatever the step size.  The input
+    torque carries the friction of the map (`friction_step`) at the input speed over
+    the step.
     """
 
     name = "quasistatic"
@@ -41,27 +74,37 @@ class QuasiStaticReducer:
     def __init__(self, te_map: TEMap):
         self.map = te_map
         self._evaluate_map = te_map.evaluate_one
+        self._load_free = te_map.load_free_one
         self._ratio = te_map.ratio
-        self.time = self.theta_out = self.omega_out = 0.0
+        self.time = self.theta_out = self.omega_out = self.theta_in = 0.0
 
     def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:
-        te, tau_in = self._evaluate_map(theta_in, tau_load)
+        te, tau_in, _ = self._evaluate_map(theta_in, tau_load)
         self.time, self.theta_out, self.omega_out = float(time), theta_in / self._ratio + te, 0.0
+        self.theta_in = theta_in
         return Outputs(self.theta_out, 0.0, te, tau_in)
 
     def step(self, time: float, step_size: float, theta_in: float, tau_load: float) -> Outputs:
         """Outputs at time + step_size for the inputs there."""
-        te, tau_in = self._evaluate_map(theta_in, tau_load)
+        te, tau_map, coulomb = self._evaluate_map(theta_in, tau_load)
         theta_out = theta_in / self._ratio + te
-        omega = (theta_out - self.theta_out) / step_size if step_size > 0 else 0.0
+        if step_size > 0:
+            omega = (theta_out - self.theta_out) / step_size
+            omega_in = (theta_in - self.theta_in) / step_size
+        else:
+            omega = omega_in = 0.0
+        friction_out = coulomb + self._load_free(omega_in / self._ratio)
+        tau_in, p_loss, efficiency = friction_step(tau_map, friction_out, self._ratio, omega_in)
         self.time, self.theta_out, self.omega_out = time + step_size, theta_out, omega
-        return Outputs(theta_out, omega, te, tau_in)
+        self.theta_in = theta_in
+        return Outputs(theta_out, omega, te, tau_in, p_loss, efficiency)
 
     def get_state(self) -> dict:
-        return {"time": self.time, "theta_out": self.theta_out, "omega_out": self.omega_out}
+        return {"time": self.time, "theta_out": self.theta_out, "omega_out": self.omega_out,
+                "theta_in": self.theta_in}
 
     def set_state(self, state: dict) -> None:
-        keys = ("time", "theta_out", "omega_out")
+        keys = ("time", "theta_out", "omega_out", "theta_in")
         if set(keys) - set(state) or not all(math.isfinite(float(state[k])) for k in keys):
             raise ValueError(f"not a state of this model: {sorted(state)}")
-        self.time, self.theta_out, self.omega_out = (float(state[k]) for k in keys)
+        self.time, self.theta_out, self.omega_out, self.theta_in = (float(state[k]) for k in keys)

@@ -36,12 +36,13 @@ UNITS = {  # unit name -> (base unit exponents, factor)
     "N.m": ({"kg": "1", "m": "2", "s": "-2"}, None),
     "1": ({}, None),
     "s": ({"s": "1"}, None),
+    "W": ({"kg": "1", "m": "2", "s": "-3"}, None),
 }
 VARIABLE_UNITS = {
     "theta_in": "rad", "tau_load": "N.m", "theta_out": "rad", "omega_out": "rad/s", "te": "rad",
     "te_arcsec": "arcsec", "tau_in": "N.m", "pin_stiffness_scale": "1",
     "bearing_stiffness_scale": "1", "mesh_stiffness_scale": "1", "error_scale": "1",
-    "dynamic_step": "s",
+    "dynamic_step": "s", "P_loss": "W", "efficiency": "1",
 }
 DEFAULT_STOP_TIME = 1.0
 DEFAULT_STEP = 1e-3

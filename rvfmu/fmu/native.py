@@ -24,20 +24,24 @@ build the binary for its own platform.
 The table, resources/te_map.bin (every number little-endian; model.c reads it
 and carries the same layout in a comment):
 
-    offset           type              field
-    0                char[8]           magic b"RVTEMAP\\0"
-    8                uint32            format version, 1
-    12               uint32            A, angle points over one output revolution (>= 2)
-    16               uint32            T, torque levels (>= 2)
-    20               uint32            0 (keeps the float64 fields 8-byte aligned)
-    24               float64           ratio i (> 0)
-    32               float64           rated torque [N*m] (> 0)
-    40               float64           momentary maximum class, x rated (limits.MOMENTARY_FACTOR)
-    48               float64           emergency-stop class, x rated (limits.EMERGENCY_FACTOR)
-    56               float64[T]        torque magnitudes [N*m], ascending, the first 0
-    56 + 8T          float64[2][T][A]  te [rad]: branch 0 resisting loads, 1 driving loads
-    56 + 8T + 16TA   float64[2][T][A]  tau_in [N*m]
-    56 + 8T + 32TA                     end of file: the length is checked against A and T
+    offset               type              field
+    0                    char[8]           magic b"RVTEMAP\\0"
+    8                    uint32            format version, 2
+    12                   uint32            A, angle points over one output revolution (>= 2)
+    16                   uint32            T, torque levels (>= 2)
+    20                   uint32            K, speeds of the load-free friction (>= 2)
+    24                   float64           ratio i (> 0)
+    32                   float64           rated torque [N*m] (> 0)
+    40                   float64           momentary maximum class, x rated (limits.MOMENTARY_FACTOR)
+    48                   float64           emergency-stop class, x rated (limits.EMERGENCY_FACTOR)
+    56                   float64           the friction law's speed scale [rad/s at the input]
+    64                   float64[T]        torque magnitudes [N*m], ascending, the first 0
+    64 + 8T              float64[2][T][A]  te [rad]: branch 0 resisting loads, 1 driving loads
+    64 + 8T + 16TA       float64[2][T][A]  tau_in [N*m]
+    64 + 8T + 32TA       float64[2][T][A]  the Coulomb friction torque at the output [N*m]
+    64 + 8T + 48TA       float64[K]        output speeds [rad/s], ascending, the first 0
+    64 + 8T + 48TA + 8K  float64[K]        the load-free friction torque at the output [N*m]
+    64 + 8T + 48TA + 16K                   end of file: the length is checked against A, T, K
 
 The load classes travel in the table rather than in the C code so that
 `rvfmu.core.limits` stays their only source.  A table that fails a check
@@ -65,6 +69,7 @@ import numpy as np
 from ..core.design import RVDesign
 from ..core.errors import ErrorSet, error_file_values, toml_text
 from ..core.limits import EMERGENCY_FACTOR, MOMENTARY_FACTOR
+from ..core.reducer_model import FRICTION_SPEED_SCALE
 from ..core.te_map import TEMap
 from .build import complete_model_description, prepare, source_line
 from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS
@@ -74,10 +79,11 @@ SOURCE_FILES = ("model.c", "fmi2Functions.c")      # compiled; model.h beside th
 MODEL_IDENTIFIER = "RVReducer"
 TABLE_NAME = "te_map.bin"
 TABLE_MAGIC = b"RVTEMAP\0"
-TABLE_VERSION = 1
-TABLE_HEADER = struct.Struct("<8s4I4d")            # magic, version, A, T, 0, ratio, rated, classes
+TABLE_VERSION = 2
+TABLE_HEADER = struct.Struct("<8s4I5d")   # magic, version, A, T, K, ratio, rated, classes, scale
 # The inputs and outputs in the order of their value references in fmi2Functions.c.
-VARIABLES = ("theta_in", "tau_load", "theta_out", "omega_out", "te", "te_arcsec", "tau_in")
+VARIABLES = ("theta_in", "tau_load", "theta_out", "omega_out", "te", "te_arcsec", "tau_in",
+             "P_loss", "efficiency")
 LOG_CATEGORIES = {"logEvents": "the table read, resets (with debug logging on)",
                   "logStatusWarning": "loads above the momentary maximum class",
                   "logStatusError": "inputs refused, tables that cannot be read"}
@@ -124,10 +130,12 @@ def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
 def write_table(te_map: TEMap, rated_torque: float, path: Path) -> None:
     """Write `te_map` and the load classes of `rated_torque` [N*m] as the table (module doc)."""
     points, levels = te_map.theta_in.size, te_map.torque_magnitude.size
-    header = TABLE_HEADER.pack(TABLE_MAGIC, TABLE_VERSION, points, levels, 0, te_map.ratio,
-                               rated_torque, MOMENTARY_FACTOR, EMERGENCY_FACTOR)
+    header = TABLE_HEADER.pack(TABLE_MAGIC, TABLE_VERSION, points, levels, te_map.drag_speed.size,
+                               te_map.ratio, rated_torque, MOMENTARY_FACTOR, EMERGENCY_FACTOR,
+                               FRICTION_SPEED_SCALE)
     body = [np.ascontiguousarray(a, dtype="<f8").tobytes()
-            for a in (te_map.torque_magnitude, te_map.te, te_map.tau_in)]
+            for a in (te_map.torque_magnitude, te_map.te, te_map.tau_in, te_map.friction,
+                      te_map.drag_speed, te_map.drag)]
     path.write_bytes(header + b"".join(body))
 
 
@@ -138,14 +146,17 @@ def read_table(path: str | Path) -> tuple[TEMap, float]:
     interpolation needs only their count): the map's theta_in is rebuilt.
     """
     data = Path(path).read_bytes()
-    magic, version, points, levels, _, ratio, rated, _, _ = TABLE_HEADER.unpack_from(data)
+    magic, version, points, levels, speeds, ratio, rated, _, _, _ = TABLE_HEADER.unpack_from(data)
     if magic != TABLE_MAGIC or version != TABLE_VERSION:
         raise ValueError(f"{path}: not a version {TABLE_VERSION} TE map table")
     values = np.frombuffer(data, "<f8", offset=TABLE_HEADER.size).astype(float)
-    magnitude, te, tau_in = np.split(values, [levels, levels + 2 * levels * points])
+    cells = 2 * levels * points
+    magnitude, te, tau_in, friction, drag_speed, drag = np.split(
+        values, np.cumsum([levels, cells, cells, cells, speeds]))
     angles = np.arange(points) * (2.0 * np.pi * ratio / points)
-    return (TEMap(ratio, angles, magnitude, te.reshape(2, levels, points),
-                  tau_in.reshape(2, levels, points)), rated)
+    shape = (2, levels, points)
+    return (TEMap(ratio, angles, magnitude, te.reshape(shape), tau_in.reshape(shape),
+                  friction.reshape(shape), drag_speed, drag), rated)
 
 
 def model_description() -> bytes:

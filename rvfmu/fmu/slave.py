@@ -69,6 +69,8 @@ class RVReducer(Fmi2Slave):
         self.te = 0.0
         self.te_arcsec = 0.0
         self.tau_in = 0.0
+        self.P_loss = 0.0
+        self.efficiency = 0.0
         # parameters
         self.design_file = ""
         self.errors_file = ""
@@ -94,7 +96,12 @@ class RVReducer(Fmi2Slave):
                            ("omega_out", "output speed over the last step [rad/s]"),
                            ("te", "transmission error theta_out - theta_in/i [rad]"),
                            ("te_arcsec", "transmission error [arcsec]"),
-                           ("tau_in", "torque of the reducer on the input shaft [N.m]")):
+                           ("tau_in", "torque of the reducer on the input shaft [N.m], its "
+                                      "friction included"),
+                           ("P_loss", "power lost to friction over the last step [W]"),
+                           ("efficiency", "efficiency over the last step [1]: forward the "
+                                          "transmitted power over it plus the loss, backdriving "
+                                          "what is left after the loss; 0 at standstill")):
             self.register_variable(Real(name, causality=Fmi2Causality.output, variability=cont,
                                         initial=Fmi2Initial.calculated, description=text))
         for name, text in (("design_file", "a preset name or a design TOML path; empty: the design "
@@ -248,6 +255,8 @@ class RVReducer(Fmi2Slave):
         self.te = outputs.te
         self.te_arcsec = outputs.te / ARCSEC
         self.tau_in = outputs.tau_in
+        self.P_loss = outputs.p_loss
+        self.efficiency = outputs.efficiency
 
     def _fail(self, message):
         self._failed = message

@@ -42,7 +42,7 @@ def run(fmu, out, speed=1600 * 2 * 3.141592653589793 / 60, load=0.0, step=1e-3, 
     observer = CosimObserver.create_last_value()
     execution.add_manipulator(manipulator)
     execution.add_observer(observer)
-    names = ["theta_out", "te_arcsec", "omega_out", "tau_in"]
+    names = ["theta_out", "te_arcsec", "omega_out", "tau_in", "P_loss", "efficiency"]
     refs = [variables[n] for n in names]
     if "model" in variables:
         if not execution.string_initial_value(index, variables["model"], model):

@@ -3,7 +3,7 @@
  * Plumbing only: the physics is in model.c.  The variables (value references
  * as in modelDescription.xml, which rvfmu/fmu/native.py writes in this order):
  * inputs theta_in [rad], tau_load [N*m]; outputs theta_out [rad], omega_out
- * [rad/s], te [rad], te_arcsec [arcsec], tau_in [N*m].
+ * [rad/s], te [rad], te_arcsec [arcsec], tau_in [N*m], P_loss [W], efficiency [1].
  *
  * Behaviour as the pythonfmu FMU's (rvfmu/fmu/slave.py, docs/model.md section 8):
  * nothing here aborts the host.  A table that cannot be read is fmi2Instantiate
@@ -33,7 +33,8 @@
 
 #define TABLE_NAME "te_map.bin"
 
-enum { THETA_IN, TAU_LOAD, THETA_OUT, OMEGA_OUT, TE, TE_ARCSEC, TAU_IN, VARIABLES };
+enum { THETA_IN, TAU_LOAD, THETA_OUT, OMEGA_OUT, TE, TE_ARCSEC, TAU_IN, P_LOSS, EFFICIENCY,
+       VARIABLES };
 
 typedef enum { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED } Mode;
 
@@ -45,7 +46,7 @@ static const char *const CATEGORY_NAMES[CATEGORIES] = {
 typedef struct {
     Mode mode;
     double theta_in, tau_load;   /* inputs */
-    Reducer reducer;             /* outputs, and the time and output angle of the last step */
+    Reducer reducer;             /* outputs, and the time and angles of the last step */
 } State;
 
 typedef struct {
@@ -59,7 +60,7 @@ typedef struct {
     char failed[RV_MESSAGE_SIZE + 32];   /* why initialisation failed; empty if it did not */
 } Instance;
 
-static const char STATE_TAG[8] = {'R', 'V', 'T', 'E', 'S', 'T', '1', '\0'};
+static const char STATE_TAG[8] = {'R', 'V', 'T', 'E', 'S', 'T', '2', '\0'};
 typedef struct {
     char tag[8];
     State state;
@@ -317,6 +318,8 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         case TE: value[k] = r->te; break;
         case TE_ARCSEC: value[k] = te_arcsec(r->te); break;
         case TAU_IN: value[k] = r->tau_in; break;
+        case P_LOSS: value[k] = r->p_loss; break;
+        case EFFICIENCY: value[k] = r->efficiency; break;
         default:
             LOG_ERROR_(instance, "fmi2GetReal: no Real variable has value reference %u",
                        (unsigned)vr[k]);

@@ -13,20 +13,24 @@
  * The table, resources/te_map.bin (all numbers little-endian; written by
  * rvfmu/fmu/native.py, whose docstring has the same layout):
  *
- *   offset           type              field
- *   0                char[8]           magic "RVTEMAP\0"
- *   8                uint32            format version, 1
- *   12               uint32            A, angle points over one output revolution (>= 2)
- *   16               uint32            T, torque levels (>= 2)
- *   20               uint32            0 (keeps the float64 fields 8-byte aligned)
- *   24               float64           ratio i (> 0)
- *   32               float64           rated torque [N*m] (> 0)
- *   40               float64           momentary maximum class, x rated (> 0)
- *   48               float64           emergency-stop class, x rated (>= the momentary)
- *   56               float64[T]        torque magnitudes [N*m], ascending, the first 0
- *   56 + 8T          float64[2][T][A]  te [rad]; branch 0 resisting, 1 driving loads
- *   56 + 8T + 16TA   float64[2][T][A]  tau_in [N*m]
- *   56 + 8T + 32TA                     end of file
+ *   offset               type              field
+ *   0                    char[8]           magic "RVTEMAP\0"
+ *   8                    uint32            format version, 2
+ *   12                   uint32            A, angle points over one output revolution (>= 2)
+ *   16                   uint32            T, torque levels (>= 2)
+ *   20                   uint32            K, speeds of the load-free friction (>= 2)
+ *   24                   float64           ratio i (> 0)
+ *   32                   float64           rated torque [N*m] (> 0)
+ *   40                   float64           momentary maximum class, x rated (> 0)
+ *   48                   float64           emergency-stop class, x rated (>= the momentary)
+ *   56                   float64           the friction law's speed scale [rad/s] (> 0)
+ *   64                   float64[T]        torque magnitudes [N*m], ascending, the first 0
+ *   64 + 8T              float64[2][T][A]  te [rad]; branch 0 resisting, 1 driving loads
+ *   64 + 8T + 16TA       float64[2][T][A]  tau_in [N*m]
+ *   64 + 8T + 32TA       float64[2][T][A]  the Coulomb friction torque at the output [N*m]
+ *   64 + 8T + 48TA       float64[K]        output speeds [rad/s], ascending, the first 0
+ *   64 + 8T + 48TA + 8K  float64[K]        the load-free friction torque at the output [N*m]
+ *   64 + 8T + 48TA + 16K                   end of file
  */
 #ifdef __MINGW32__
 #define __USE_MINGW_ANSI_STDIO 1   /* C99 printf and strtod (two-digit exponents), not msvcrt's */
@@ -43,7 +47,7 @@
 #define ARCSEC_RAD (PI / 180.0 / 3600.0)   /* rvfmu.core.units.ARCSEC, same expression */
 
 static const char MAGIC[8] = {'R', 'V', 'T', 'E', 'M', 'A', 'P', '\0'};
-enum { FORMAT_VERSION = 1, HEADER_SIZE = 56 };
+enum { FORMAT_VERSION = 2, HEADER_SIZE = 64 };
 
 /* -- reading the table ---------------------------------------------------------------- */
 
@@ -95,7 +99,7 @@ static int all_finite(const double *values, size_t count) {
 }
 
 int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
-    size_t length = 0, A, T, cells, k;
+    size_t length = 0, A, T, K, cells, count, k;
     double *values;
     const unsigned char *p;
     unsigned char *data = read_file(path, &length, message, size);
@@ -115,18 +119,21 @@ int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
     }
     A = read_u32(data + 12);
     T = read_u32(data + 16);
+    K = read_u32(data + 20);
     /* sizes against the file length, by division: no product can overflow */
-    if (A < 2 || T < 2 || T > (length - HEADER_SIZE) / 8
-        || A > (length - HEADER_SIZE - 8 * T) / (32 * T)
-        || length != HEADER_SIZE + 8 * T + 32 * T * A) {
-        snprintf(reason, sizeof reason, "%lu angle points x %lu torque levels do not fit its %lu "
-                 "bytes (%lu expected)", (unsigned long)A, (unsigned long)T, (unsigned long)length,
-                 (unsigned long)(HEADER_SIZE + 8 * T + 32 * T * A));
+    if (A < 2 || T < 2 || K < 2 || K > (length - HEADER_SIZE) / 16
+        || T > (length - HEADER_SIZE - 16 * K) / 8
+        || A > (length - HEADER_SIZE - 16 * K - 8 * T) / (48 * T)
+        || length != HEADER_SIZE + 8 * T + 48 * T * A + 16 * K) {
+        snprintf(reason, sizeof reason, "%lu angle points x %lu torque levels and %lu speeds do "
+                 "not fit its %lu bytes", (unsigned long)A, (unsigned long)T, (unsigned long)K,
+                 (unsigned long)length);
         free(data);
         return fail(message, size, path, reason);
     }
     cells = 2 * T * A;
-    values = malloc((T + 2 * cells) * sizeof *values);
+    count = T + 3 * cells + 2 * K;
+    values = malloc(count * sizeof *values);
     if (!values) {
         free(data);
         return fail(message, size, path, "out of memory");
@@ -137,25 +144,36 @@ int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
     map->rated_torque = read_f64(data + 32);
     map->momentary_factor = read_f64(data + 40);
     map->emergency_factor = read_f64(data + 48);
-    for (k = 0, p = data + HEADER_SIZE; k < T + 2 * cells; k++, p += 8) values[k] = read_f64(p);
+    map->speeds = (int)K;
+    map->speed_scale = read_f64(data + 56);
+    for (k = 0, p = data + HEADER_SIZE; k < count; k++, p += 8) values[k] = read_f64(p);
     free(data);
     map->magnitude = values;
     map->te = values + T;
     map->tau_in = values + T + cells;
+    map->friction = values + T + 2 * cells;
+    map->drag_speed = values + T + 3 * cells;
+    map->drag = values + T + 3 * cells + K;
 
     if (!(isfinite(map->ratio) && map->ratio > 0 && isfinite(map->rated_torque)
           && map->rated_torque > 0 && isfinite(map->momentary_factor) && map->momentary_factor > 0
-          && isfinite(map->emergency_factor) && map->emergency_factor >= map->momentary_factor))
-        strcpy(reason, "ratio, rated torque and load classes must be finite and > 0");
-    else if (!all_finite(values, T + 2 * cells))
-        strcpy(reason, "non-finite values in the torque levels, te or tau_in");
-    else if (map->magnitude[0] != 0.0)
-        strcpy(reason, "the first torque level must be 0");
+          && isfinite(map->emergency_factor) && map->emergency_factor >= map->momentary_factor
+          && isfinite(map->speed_scale) && map->speed_scale > 0))
+        strcpy(reason, "ratio, rated torque, load classes and speed scale must be finite and > 0");
+    else if (!all_finite(values, count))
+        strcpy(reason, "non-finite values in the torque levels, te, tau_in or the friction");
+    else if (map->magnitude[0] != 0.0 || map->drag_speed[0] != 0.0)
+        strcpy(reason, "the first torque level and the first speed must be 0");
     else {
         reason[0] = '\0';
         for (k = 1; k < T; k++)
             if (!(map->magnitude[k] > map->magnitude[k - 1])) {
                 strcpy(reason, "the torque levels must be strictly ascending");
+                break;
+            }
+        for (k = 1; k < K && !reason[0]; k++)
+            if (!(map->drag_speed[k] > map->drag_speed[k - 1])) {
+                strcpy(reason, "the speeds must be strictly ascending");
                 break;
             }
     }
@@ -220,7 +238,8 @@ static double bilinear(const double *lo, const double *hi, int i0, int i1, doubl
     return a + wt * (hi[i0] + wa * (hi[i1] - hi[i0]) - a);
 }
 
-void te_map_evaluate(const TEMap *map, double theta_in, double tau_load, double *te, double *tau_in) {
+void te_map_evaluate(const TEMap *map, double theta_in, double tau_load, double *te, double *tau_in,
+                     double *friction) {
     const int A = map->points, last_level = map->levels - 2;
     double position = python_mod(theta_in, map->period) * map->per_radian;
     long whole = (long)position;          /* int(position): position >= 0 */
@@ -237,25 +256,66 @@ void te_map_evaluate(const TEMap *map, double theta_in, double tau_load, double 
     row = ((size_t)branch * (size_t)map->levels + (size_t)j0) * (size_t)A;
     *te = bilinear(map->te + row, map->te + row + A, i0, i1, wa, wt);
     *tau_in = bilinear(map->tau_in + row, map->tau_in + row + A, i0, i1, wa, wt);
+    *friction = bilinear(map->friction + row, map->friction + row + A, i0, i1, wa, wt);
+}
+
+/* TEMap.load_free_one: linear in the speed's magnitude, the last two speeds extrapolated. */
+double te_map_load_free(const TEMap *map, double omega_out) {
+    const double *speeds = map->drag_speed, *values = map->drag;
+    double speed = omega_out < 0 ? -omega_out : omega_out, w;
+    int k = bisect_right(speeds, map->speeds, speed) - 1, last = map->speeds - 2;
+    k = k > last ? last : k;
+    w = (speed - speeds[k]) / (speeds[k + 1] - speeds[k]);
+    return values[k] + w * (values[k + 1] - values[k]);
 }
 
 /* -- the reducer: QuasiStaticReducer --------------------------------------------------- */
 
 void reducer_initialize(Reducer *reducer, const TEMap *map, double time, double theta_in,
                         double tau_load) {
-    te_map_evaluate(map, theta_in, tau_load, &reducer->te, &reducer->tau_in);
+    double friction;
+    te_map_evaluate(map, theta_in, tau_load, &reducer->te, &reducer->tau_in, &friction);
     reducer->time = time;
     reducer->theta_out = theta_in / map->ratio + reducer->te;
     reducer->omega_out = 0.0;
+    reducer->theta_in = theta_in;
+    reducer->p_loss = 0.0;
+    reducer->efficiency = 0.0;
+}
+
+/* reducer_model.friction_step: friction opposes the input's turning, Coulomb beyond the speed
+ * scale and proportional to the speed within it. */
+static void friction_step(Reducer *reducer, const TEMap *map, double tau_map, double friction_out,
+                          double omega_in) {
+    double sense = omega_in / map->speed_scale, torque, passed;
+    sense = sense > 1.0 ? 1.0 : (sense < -1.0 ? -1.0 : sense);
+    torque = sense * (friction_out / map->ratio);
+    reducer->p_loss = torque * omega_in;
+    passed = tau_map * omega_in;
+    if (passed < 0.0)
+        reducer->efficiency = -passed / (reducer->p_loss - passed);
+    else if (passed > 0.0)
+        reducer->efficiency = passed > reducer->p_loss ? (passed - reducer->p_loss) / passed : 0.0;
+    else
+        reducer->efficiency = 0.0;
+    reducer->tau_in = tau_map - torque;
 }
 
 void reducer_step(Reducer *reducer, const TEMap *map, double time, double step_size,
                   double theta_in, double tau_load) {
-    double theta_out;
-    te_map_evaluate(map, theta_in, tau_load, &reducer->te, &reducer->tau_in);
+    double theta_out, tau_map, coulomb, omega_in;
+    te_map_evaluate(map, theta_in, tau_load, &reducer->te, &tau_map, &coulomb);
     theta_out = theta_in / map->ratio + reducer->te;
-    reducer->omega_out = step_size > 0 ? (theta_out - reducer->theta_out) / step_size : 0.0;
+    if (step_size > 0) {
+        reducer->omega_out = (theta_out - reducer->theta_out) / step_size;
+        omega_in = (theta_in - reducer->theta_in) / step_size;
+    } else {
+        reducer->omega_out = omega_in = 0.0;
+    }
+    friction_step(reducer, map, tau_map, coulomb + te_map_load_free(map, omega_in / map->ratio),
+                  omega_in);
     reducer->theta_out = theta_out;
+    reducer->theta_in = theta_in;
     reducer->time = time + step_size;
 }
 

@@ -29,9 +29,14 @@ typedef struct {
     double emergency_factor;   /* x rated: above, the step is refused */
     double period;             /* input angle of one output revolution [rad] */
     double per_radian;         /* angle points per radian of input */
+    int speeds;                /* K: speeds of the load-free friction */
+    double speed_scale;        /* the friction law's speed scale [rad/s at the input] */
     double *magnitude;         /* (T,) ascending torque magnitudes [N*m], the first 0 */
     double *te;                /* (2, T, A): branch 0 resisting loads, 1 driving loads [rad] */
     double *tau_in;            /* (2, T, A) [N*m] */
+    double *friction;          /* (2, T, A): the Coulomb friction torque at the output [N*m] */
+    double *drag_speed;        /* (K,) output speeds [rad/s], ascending, the first 0 */
+    double *drag;              /* (K,) the load-free friction torque at the output [N*m] */
 } TEMap;
 
 /* The reducer's whole state, and its outputs at `time`. */
@@ -40,7 +45,10 @@ typedef struct {
     double theta_out;   /* [rad] */
     double omega_out;   /* [rad/s]: change of theta_out over the last step / its size */
     double te;          /* [rad] */
-    double tau_in;      /* [N*m] */
+    double tau_in;      /* [N*m], friction included */
+    double theta_in;    /* [rad]: the input angle of the last step */
+    double p_loss;      /* [W]: the friction's power over the last step */
+    double efficiency;  /* [1] over the last step (reducer_model.friction_step) */
 } Reducer;
 
 typedef enum { INPUT_OK = 0, INPUT_WARNING = 1, INPUT_REFUSED = 2 } InputCheck;
@@ -49,8 +57,13 @@ typedef enum { INPUT_OK = 0, INPUT_WARNING = 1, INPUT_REFUSED = 2 } InputCheck;
 int te_map_read(const char *path, TEMap *map, char *message, size_t size);
 void te_map_free(TEMap *map);
 
-/* TE [rad] and input torque [N*m] at one input angle [rad] and load torque [N*m]. */
-void te_map_evaluate(const TEMap *map, double theta_in, double tau_load, double *te, double *tau_in);
+/* TE [rad], input torque [N*m] and the Coulomb friction torque at the output [N*m] at one
+ * input angle [rad] and load torque [N*m]. */
+void te_map_evaluate(const TEMap *map, double theta_in, double tau_load, double *te, double *tau_in,
+                     double *friction);
+
+/* The load-free friction torque at the output [N*m] at an output speed [rad/s]. */
+double te_map_load_free(const TEMap *map, double omega_out);
 
 /* Outputs at `time` for the initial inputs: omega_out = 0. */
 void reducer_initialize(Reducer *reducer, const TEMap *map, double time, double theta_in,
