@@ -106,6 +106,22 @@ def test_the_motor_torque_stays_within_its_limit(joint):
     assert summary["peak_motor_torque_Nm"] <= limit
 
 
+def test_the_motor_lifts_the_arm_and_pays_for_the_reducers_friction(joint):
+    """The motor's work over the run (its torque times its turn) is more than the arm's rise
+    in potential energy, and the quasi-static reducer's friction (docs/model.md section 9)
+    costs work that the frictionless dynamic reducer does not."""
+    runs, summary, _, _ = joint
+    arm = run_joint.ARM
+    work = {name: summary["runs"][name]["motor_work_J"] for name in runs}
+    for name, run in runs.items():
+        assert work[name] == pytest.approx(run_joint.motor_work(run))
+        rise = arm["mass"] * arm["g"] * arm["com_distance"] * (
+            math.sin(run.theta_arm[-1]) - math.sin(run.theta_arm[0]))
+        assert work[name] > rise > 0.0, name
+    assert work["errors"] > 1.03 * work["dynamic"]
+    assert work["no-errors"] > 1.03 * work["dynamic"]
+
+
 def test_the_dynamic_reducer_stays_stable_in_the_joint(joint):
     """Coupled iteratively, the dynamic reducer's carrier mode on the link spring stays quiet."""
     runs, summary, _, _ = joint

@@ -377,6 +377,12 @@ def simulate(fmus, error_scale=1.0, points=POINTS, stop_time=STOP_TIME, step=STE
 
 
 # -- report ------------------------------------------------------------------------------------
+def motor_work(run) -> float:
+    """The work the motor does on its shaft over the run [J]: its torque times its turn,
+    by the trapezoidal rule over the communication points."""
+    return float(np.sum(0.5 * (run.tau_motor[1:] + run.tau_motor[:-1]) * np.diff(run.theta_motor)))
+
+
 def summary(runs: dict) -> dict:
     """Peak values of the runs [arcsec, N m]; runs: name -> JointRun, any of RUNS.
 
@@ -397,6 +403,7 @@ def summary(runs: dict) -> dict:
             "te_pp_arcsec": float(np.ptp(run.te_arcsec)),
             "peak_servo_error_arcsec": float(np.max(np.abs(run.servo_error_arcsec))),
             "peak_motor_torque_Nm": float(np.max(np.abs(run.tau_motor))),
+            "motor_work_J": motor_work(run),
             "reducer_steps_per_step": float(np.mean(run.evaluations)),
             "wall_time_s": run.wall_time_s,
         }
@@ -522,14 +529,15 @@ def report(s) -> str:
              f"reducer and arm coupled {o['coupling']}; drive torque input {drive}"
              + ("" if o["dynamic_step_s"] is None else f"; dynamic_step {o['dynamic_step_s']:g} s"),
              "  run        reducer       arm error [arcsec]   TE p-p    servo error  motor torque"
-             "  reducer steps  wall",
+             "  motor work  reducer steps  wall",
              f"                           peak  at t = {s['end_time_s']:<4g} s  [arcsec]  peak [arcsec]"
-             "  peak [N m]     per step    [s]"]
+             "  peak [N m]         [J]     per step    [s]"]
     for name, r in s["runs"].items():
         lines.append(f"  {name:<10} {r['model']:<12} {r['peak_arm_error_arcsec']:6.1f} "
                      f"{r['final_arm_error_arcsec']:+11.1f}  {r['te_pp_arcsec']:10.1f} "
                      f"{r['peak_servo_error_arcsec']:11.1f} {r['peak_motor_torque_Nm']:12.2f} "
-                     f"{r['reducer_steps_per_step']:12.2f} {r['wall_time_s']:7.1f}")
+                     f"{r['motor_work_J']:11.2f} {r['reducer_steps_per_step']:12.2f} "
+                     f"{r['wall_time_s']:7.1f}")
     if "te_caused" in s:
         c = s["te_caused"]
         lines.append(f"  arm error caused by TE (errors - no-errors): peak {c['peak_arcsec']:.1f} "
