@@ -242,8 +242,7 @@ def compliance_budget(design: RVDesign, errors: ErrorSet | None = None, torque: 
         increase = np.array([(p.reshape(levels, positions)[-1] - p.reshape(levels, positions)[0]).sum()
                              for p in parts.values()])
         energy = increase if energy is None else energy + increase
-        theta = (eq.q[:, model.carrier_rot] / model.scale
-                 + design.series_compliance * tau[t]).reshape(levels, positions)
+        theta = model.output_angle(eq.q, tau[t]).reshape(levels, positions)
         work += float(np.sum(0.5 * (tau[1:] + tau[:-1])[:, None] * np.diff(theta, axis=0)))
         ends.append((theta[0], theta[-1]))
     shares = dict(zip(names, energy / work), **{WEAK_SPRINGS: weak / work})

@@ -262,6 +262,9 @@ class EquivalentModel:
         contact = pin_pos[None, None] - d.r_rp * normal
         arm = contact - centre[:, :, None]
         lever = arm[..., 0] * normal[..., 1] - arm[..., 1] * normal[..., 0]         # (A, 2, z_p)
+        # a turn of the disc about its centre slides its contact point along the tangent by
+        # the turn times n . (Q - C) (the hysteresis loop's pin slips)
+        self.pin_tangent_lever = (arm * normal).sum(axis=-1)                        # (A, 2, z_p)
         self.pin_rows = np.concatenate([normal, (lever / self.scale)[..., None]], axis=-1)
         self.pin_k = d.pin_disc_stiffness
         self.pin_law = np.array(d.pin_law, dtype=float)     # (k, b, F*): `pin_law.contact`
@@ -281,6 +284,12 @@ class EquivalentModel:
         for k, part in enumerate((gap, radial_dot, tangent_dot, lever)):
             self._pin_geometry[:, k] = part
         self._lobe_flat = self._lobe + d.z_c * np.arange(2)[None, :, None]
+
+    def output_angle(self, q: np.ndarray, tau_load) -> np.ndarray:
+        """The output flange's angle from its nominal place [rad] at the equilibria q (..., n)
+        under tau_load (broadcast to q's leading shape): the carrier's crank seats' rotation
+        plus the windup of the series compliance (the carrier's pillars, the output's)."""
+        return q[..., self.carrier_rot] / self.scale + self.design.series_compliance * tau_load
 
     # -- loads -----------------------------------------------------------------------
     def load_vector(self) -> np.ndarray:

@@ -39,7 +39,7 @@ import numpy as np
 from .budget import bearing_forces
 from .checks import InputError, finite_number, integer
 from .design import RVDesign
-from .equivalent import EquivalentModel
+from .equivalent import EquivalentModel, dof_names
 from .errors import ErrorSet
 from .limits import check_load
 from .quasistatic import NO_LOAD_PROBE, _checked_errors
@@ -104,7 +104,8 @@ class ContactLoads:
     crank_seat_force (S, L, A, n_c), cam_force (S, L, A, 2 n_c), main_force (S, L, A) [N]: the
     radial force on each crank's bearing pair, each needle bearing (crank i, disc j at
     2 i + j) and the main bearings; tau_in (S, L, A) [N*m]: the input torque without
-    friction; q (S, L, A, n): the equilibria's unknowns (`EquivalentModel`); converged
+    friction; q (S, L, A, n): the equilibria's unknowns (`EquivalentModel`); output_angle
+    (S, L, A) [rad]: the output flange's (`EquivalentModel.output_angle`); converged
     (S, L, A).
     """
 
@@ -116,6 +117,7 @@ class ContactLoads:
     main_force: np.ndarray
     tau_in: np.ndarray
     q: np.ndarray
+    output_angle: np.ndarray
     converged: np.ndarray
 
 
@@ -147,7 +149,8 @@ def contact_loads(design: RVDesign, errors: ErrorSet | None, tau_load, theta_in,
     seat, cam = np.empty((S, L, A, n_c)), np.empty((S, L, A, 2 * n_c))
     main, tau_in = np.empty((S, L, A)), np.empty((S, L, A))
     ok = np.empty((S, L, A), dtype=bool)
-    q = np.empty((S, L, A, EquivalentModel(design, theta_in[:1]).n_dof))
+    q = np.empty((S, L, A, len(dof_names(design.n_c))))
+    angle = np.empty((S, L, A))
     arm = None
     zero_flank = -1 if zero_side > 0 else 1
     for flank in (1, -1):     # +1: the sun drives (a resisting load); -1: the load drives
@@ -168,49 +171,77 @@ def contact_loads(design: RVDesign, errors: ErrorSet | None, tau_load, theta_in,
         main[k, t, a] = force[:, -1]
         tau_in[k, t, a] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
         q[k, t, a] = eq.q
+        angle[k, t, a] = model.output_angle(eq.q, tau_load[t])
         ok[k, t, a] = eq.converged
     if arm is None:
         arm = EquivalentModel(design, theta_in).pin_slide_arm
-    return ContactLoads(tau_load, pin, arm, seat, cam, main, tau_in, q, ok)
+    return ContactLoads(tau_load, pin, arm, seat, cam, main, tau_in, q, angle, ok)
+
+
+def coulomb_resistances(design: RVDesign, pin_force, cam_force, crank_seat_force, main_force,
+                        tau_in) -> dict:
+    """{LOSS_NAMES but the seal: array} each Coulomb contact's friction, independent of how
+    fast it slips, at the loads given (shapes of `ContactLoads` without the angle averaging):
+    pins: the friction force of each pin (..., 2, z_p) [N], the smaller limit of its two
+    contacts; each needle bearing (..., 2 n_c), each crank's tapered pair (..., n_c) and the
+    main bearings (...): the load-proportional moment mu P d_m / 2 [N*m]; the meshes (...):
+    mu H_V |tau_sun| [N*m], their loss over the sun's turn against the carrier."""
+    d = design
+    h_v = mesh_loss_factor(d.z_s, d.z_pl, d.pressure_angle)[0]
+    return {
+        "pins": min(d.pin_disc_friction, d.pin_groove_friction) * pin_force,
+        "crank-disc needle bearings": 0.5 * d.needle_friction * d.needle_pitch_diameter * cam_force,
+        "crank-carrier bearings": 0.5 * d.tapered_friction * d.tapered_pitch_diameter
+        * crank_seat_force,
+        "main bearings": 0.5 * d.main_bearing_friction * d.main_bearing_pitch_diameter * main_force,
+        "sun-planet meshes": d.mesh_friction * h_v * np.abs(tau_in),
+    }
 
 
 def coulomb_torques(design: RVDesign, pin_force, pin_slide_arm, cam_force, crank_seat_force,
                     main_force, tau_in) -> dict:
     """{LOSS_NAMES but the seal: (...) [N*m]} the friction torque at the output of each kind
-    of Coulomb contact at the equilibria given by their loads (shapes of `ContactLoads`
-    without the angle averaging: pin_force (..., 2, z_p), cam_force (..., 2 n_c),
-    crank_seat_force (..., n_c), main_force and tau_in (...)): the contact's loss is this
-    torque times the output speed, whatever the speed."""
-    d = design
-    h_v = mesh_loss_factor(d.z_s, d.z_pl, d.pressure_angle)[0]
+    of Coulomb contact (`coulomb_resistances` times each contact's slip per output turn:
+    its sliding arm for a pin, z_p for the crank bearings, i - 1 for the meshes): the
+    contact's loss is this torque times the output speed, whatever the speed."""
+    r = coulomb_resistances(design, pin_force, cam_force, crank_seat_force, main_force, tau_in)
     return {
-        "pins": min(d.pin_disc_friction, d.pin_groove_friction)
-        * (pin_force * pin_slide_arm).sum(axis=(-1, -2)),
-        "crank-disc needle bearings": 0.5 * d.needle_friction * d.needle_pitch_diameter * d.z_p
-        * cam_force.sum(axis=-1),
-        "crank-carrier bearings": 0.5 * d.tapered_friction * d.tapered_pitch_diameter * d.z_p
-        * crank_seat_force.sum(axis=-1),
-        "main bearings": 0.5 * d.main_bearing_friction * d.main_bearing_pitch_diameter * main_force,
-        "sun-planet meshes": d.mesh_friction * h_v * np.abs(tau_in) * (d.ratio - 1.0),
+        "pins": (r["pins"] * pin_slide_arm).sum(axis=(-1, -2)),
+        "crank-disc needle bearings": design.z_p * r["crank-disc needle bearings"].sum(axis=-1),
+        "crank-carrier bearings": design.z_p * r["crank-carrier bearings"].sum(axis=-1),
+        "main bearings": r["main bearings"],
+        "sun-planet meshes": (design.ratio - 1.0) * r["sun-planet meshes"],
     }
+
+
+def drag_moments(design: RVDesign, speed_rpm) -> dict:
+    """{"crank-disc needle bearings", "crank-carrier bearings", "main bearings": array [N*m]}
+    Palmgren's load-free moment of one needle bearing, of one crank's tapered pair (two
+    bearings) and of the main bearings (two), each turning at `speed_rpm` against its
+    outer part."""
+    d = design
+
+    def drag(pitch_diameter):
+        return bearing_drag_moment(d.bearing_drag_factor, d.lubricant_viscosity, speed_rpm,
+                                   pitch_diameter)
+
+    return {"crank-disc needle bearings": drag(d.needle_pitch_diameter),
+            "crank-carrier bearings": 2.0 * drag(d.tapered_pitch_diameter),
+            "main bearings": 2.0 * drag(d.main_bearing_pitch_diameter)}
 
 
 def load_free_torques(design: RVDesign, output_speed_rpm) -> dict:
     """{"crank-disc needle bearings", "crank-carrier bearings", "main bearings", "output seal":
     (V,) [N*m]} the friction torque at the output of the bearings' drag and the seal at
-    output speeds (V,) [rpm]: each bearing's Palmgren moment times its speed over the
-    output's (z_p for the crank bearings, 1 for the main bearings)."""
+    output speeds (V,) [rpm]: each bearing's Palmgren moment (`drag_moments`) times its
+    speed over the output's (z_p for the crank bearings, 1 for the main bearings)."""
     d = design
     n_out = np.abs(np.atleast_1d(np.asarray(output_speed_rpm, dtype=float)))
-
-    def drag(pitch_diameter, ratio):
-        return ratio * bearing_drag_moment(d.bearing_drag_factor, d.lubricant_viscosity,
-                                           ratio * n_out, pitch_diameter)
-
+    crank, main = drag_moments(d, d.z_p * n_out), drag_moments(d, n_out)
     return {
-        "crank-disc needle bearings": 2 * d.n_c * drag(d.needle_pitch_diameter, d.z_p),
-        "crank-carrier bearings": 2 * d.n_c * drag(d.tapered_pitch_diameter, d.z_p),
-        "main bearings": 2 * drag(d.main_bearing_pitch_diameter, 1.0),
+        "crank-disc needle bearings": 2 * d.n_c * d.z_p * crank["crank-disc needle bearings"],
+        "crank-carrier bearings": d.n_c * d.z_p * crank["crank-carrier bearings"],
+        "main bearings": main["main bearings"],
         "output seal": np.full(n_out.shape, d.seal_torque),
     }
 

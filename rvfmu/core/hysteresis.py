@@ -32,7 +32,7 @@ from .checks import InputError, finite_number, integer
 from .design import RVDesign
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
-from .friction import bearing_drag_moment, contact_loads, mesh_loss_factor
+from .friction import coulomb_resistances, contact_loads, drag_moments
 from .limits import check_load
 from .quasistatic import (LOST_MOTION_FRACTION, NO_LOAD_PROBE, RIGIDITY_FRACTIONS,
                           WINDUP_POSITIONS, windup_positions)
@@ -85,33 +85,30 @@ def sweep_torques(design: RVDesign, max_load: float, levels: int = LEVELS) -> np
     return np.concatenate([-side[::-1], side])
 
 
-def _slips(design: RVDesign, model: EquivalentModel, q: np.ndarray):
-    """Per-interval slips of every contact between neighbouring torques at each position.
-
-    q: (T, P, n).  Returns pin slips (T-1, P, 2, z_p) [m] and the magnitudes of the turns
-    [rad] of the needle bearings (T-1, P, 2 n_c), in the model's order (crank i, disc j at
-    2 i + j), of the tapered pairs (T-1, P, n_c) and of the carrier in the main bearings
-    (T-1, P).
-    """
+def _slips(design: RVDesign, model: EquivalentModel, q: np.ndarray) -> dict:
+    """{LOSS_NAMES but the seal: array} the magnitudes of every contact's slip between
+    neighbouring torques at each position, q: (T, P, n): each pin's (T-1, P, 2, z_p) [m] and
+    the turn [rad] of each needle bearing (T-1, P, 2 n_c; crank i, disc j at 2 i + j), each
+    crank in its tapered pair (T-1, P, n_c), the carrier in its main bearings and, the sun
+    being locked, against the sun (T-1, P)."""
     d, idx, scale = design, model.index, model.scale
     dq = np.diff(q, axis=0)                                                    # (T-1, P, n)
     dofs = model.pin_dofs                                                       # (2, 3)
     normal = model.pin_rows[..., :2]                                            # (P, 2, z_p, 2)
-    psi = model.pose.psi                                                        # (P, 2)
-    centre = d.e * np.stack([np.cos(psi), np.sin(psi)], axis=-1)                # (P, 2, 2)
-    pins = d.R_p * np.stack([np.cos(2 * np.pi * np.arange(d.z_p) / d.z_p),
-                             np.sin(2 * np.pi * np.arange(d.z_p) / d.z_p)], axis=-1)
-    contact = pins[None, None] - d.r_rp * normal                                # (P, 2, z_p, 2)
-    radial = ((contact - centre[:, :, None]) * normal).sum(axis=-1)             # n . (Q - C)
     tangent = np.stack([-normal[..., 1], normal[..., 0]], axis=-1)
     move = dq[..., dofs[:, :2]]                                                  # (T-1, P, 2, 2)
     turn = dq[..., dofs[:, 2]] / scale                                           # (T-1, P, 2)
-    pin_slip = np.abs((tangent * move[:, :, :, None, :]).sum(axis=-1) + turn[..., None] * radial)
     carrier = dq[..., idx["carrier_rot"]] / scale
     crank = np.stack([dq[..., idx[f"crank{i}_rot"]] for i in range(d.n_c)], axis=-1) / scale
-    needle = np.abs(crank[..., :, None] - turn[..., None, :]).reshape(crank.shape[:-1] + (-1,))
-    tapered = np.abs(crank - carrier[..., None])
-    return pin_slip, needle, tapered, np.abs(carrier)
+    return {
+        "pins": np.abs((tangent * move[:, :, :, None, :]).sum(axis=-1)
+                       + turn[..., None] * model.pin_tangent_lever),
+        "crank-disc needle bearings": np.abs(crank[..., :, None] - turn[..., None, :]).reshape(
+            crank.shape[:-1] + (-1,)),
+        "crank-carrier bearings": np.abs(crank - carrier[..., None]),
+        "main bearings": np.abs(carrier),
+        "sun-planet meshes": np.abs(carrier),
+    }
 
 
 def hysteresis(design: RVDesign, errors: ErrorSet | None = None, max_load: float | None = None,
@@ -128,29 +125,20 @@ def hysteresis(design: RVDesign, errors: ErrorSet | None = None, max_load: float
     tau = sweep_torques(d, max_load, levels)
     theta_in = windup_positions(d, positions)
     loads = contact_loads(d, errors, tau, theta_in, [sample])
-    pin_force, cam_force, seat_force = loads.pin_force[0], loads.cam_force[0], loads.crank_seat_force[0]
     model = EquivalentModel(d, theta_in)
-    angle = loads.q[0, ..., model.carrier_rot] / model.scale + d.series_compliance * tau[:, None]
-    pin_slip, needle, tapered, main = _slips(d, model, loads.q[0])
+    angle = loads.output_angle[0]                                               # (T, P)
+    slips = _slips(d, model, loads.q[0])
     mean = lambda x: 0.5 * (x[1:] + x[:-1])                                    # noqa: E731
-    speed_rpm = 0.0      # a slow test: every bearing's drag at its standstill value
-    drag = lambda dm: bearing_drag_moment(d.bearing_drag_factor, d.lubricant_viscosity,  # noqa: E731
-                                          speed_rpm, dm)
-    mu_pin = min(d.pin_disc_friction, d.pin_groove_friction)
+    # each contact's friction at the mean of an interval's two loads; a slow test: every
+    # bearing's drag at its standstill value
+    resist = coulomb_resistances(d, *(mean(a[0]) for a in (
+        loads.pin_force, loads.cam_force, loads.crank_seat_force, loads.main_force, loads.tau_in)))
+    for name, drag in drag_moments(d, 0.0).items():
+        resist[name] = resist[name] + drag
     work = {  # (T-1, P) [J]
-        "pins": mu_pin * (mean(pin_force) * pin_slip).sum(axis=(-1, -2)),
-        "crank-disc needle bearings": ((0.5 * d.needle_friction * d.needle_pitch_diameter
-                                        * mean(cam_force) + drag(d.needle_pitch_diameter))
-                                       * needle).sum(axis=-1),
-        "crank-carrier bearings": ((0.5 * d.tapered_friction * d.tapered_pitch_diameter
-                                    * mean(seat_force)
-                                    + 2.0 * drag(d.tapered_pitch_diameter)) * tapered).sum(axis=-1),
-        "main bearings": (0.5 * d.main_bearing_friction * d.main_bearing_pitch_diameter
-                          * mean(loads.main_force[0]) + 2.0 * drag(d.main_bearing_pitch_diameter)) * main,
-        "sun-planet meshes": d.mesh_friction * mesh_loss_factor(d.z_s, d.z_pl, d.pressure_angle)[0]
-        * np.abs(mean(loads.tau_in[0])) * main,
-        "output seal": d.seal_torque * np.abs(np.diff(angle, axis=0)),
-    }
+        name: (resist[name] * slips[name]).reshape(slips[name].shape[:2] + (-1,)).sum(axis=-1)
+        for name in resist}
+    work["output seal"] = d.seal_torque * np.abs(np.diff(angle, axis=0))
     dw = sum(work.values()).mean(axis=-1)                                       # (T-1,)
     theta = angle.mean(axis=-1)                                                 # (T,)
     step = np.diff(theta)

@@ -147,8 +147,7 @@ def equilibria(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=
         eq = solve_pairs(model, errors, s, a, tau_load[t], no_load_probe=probe, progress=progress,
                          zero_side=zero_side)
         # The output flange: the carrier's crank seats' rotation plus the series windup.
-        out["te"][s, t, a] = eq.q[:, model.carrier_rot] / model.scale + \
-            design.series_compliance * tau_load[t]
+        out["te"][s, t, a] = model.output_angle(eq.q, tau_load[t])
         # Mesh force on the sun acts along -w at the sun's base circle.
         out["tau_in"][s, t, a] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
         out["pin_force_max"][s, t, a] = eq.pin_force.max(axis=(1, 2))

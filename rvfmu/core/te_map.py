@@ -182,7 +182,6 @@ def build_te_map(design: RVDesign, errors: ErrorSet | None = None, points: int |
     torque_fractions: magnitudes as fractions of the rated torque, ascending from 0,
     solved on both branches; points: per output revolution (default `default_points`).
     """
-    from .equivalent import EquivalentModel
     from .friction import RPM, coulomb_torques, contact_loads, drag_kinks, load_free_torques
 
     errors = zero_errors(design) if errors is None else errors.check(design)
@@ -193,13 +192,10 @@ def build_te_map(design: RVDesign, errors: ErrorSet | None = None, points: int |
     magnitude = np.asarray(torque_fractions, float) * design.rated_torque
     te = np.empty((2, magnitude.size, points))
     tau_in, friction = np.empty_like(te), np.empty_like(te)
-    carrier = EquivalentModel(design, theta_in[:1])
     for branch, (sign, side) in enumerate(((-1.0, -1), (1.0, 1))):
         tau = sign * magnitude
         loads = contact_loads(design, errors, tau, theta_in, zero_side=side, progress=progress)
-        # the output flange: the carrier's crank seats' rotation plus the series windup
-        te[branch] = (loads.q[0, ..., carrier.carrier_rot] / carrier.scale
-                      + design.series_compliance * tau[:, None])
+        te[branch] = loads.output_angle[0]
         tau_in[branch] = loads.tau_in[0]
         friction[branch] = sum(coulomb_torques(
             design, loads.pin_force[0], loads.pin_slide_arm, loads.cam_force[0],
