@@ -82,13 +82,16 @@ def _stiffness(args):
 
 
 def _efficiency(args):
-    report = api.efficiency(args.design, args.errors, speeds=args.speeds, loads=args.loads,
-                            plot_path=args.plot)
+    with ProgressBar("efficiency") as bar:
+        report = api.efficiency(args.design, args.errors, speeds=args.speeds, loads=args.loads,
+                                plot_path=args.plot, progress=bar)
     _show(report, args.json, (("plot", args.plot),))
 
 
 def _hysteresis(args):
-    report = api.hysteresis(args.design, args.errors, max_load=args.max_load, plot_path=args.plot)
+    with ProgressBar("hysteresis") as bar:
+        report = api.hysteresis(args.design, args.errors, max_load=args.max_load,
+                                plot_path=args.plot, progress=bar)
     _show(report, args.json, (("plot", args.plot),))
 
 

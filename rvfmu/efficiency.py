@@ -11,8 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from .core.friction import LOSS_NAMES, EfficiencyMap, efficiency_map
+from .core.friction import (AVERAGE_POINTS, DEFAULT_LOAD_FRACTIONS, LOSS_NAMES, EfficiencyMap,
+                            efficiency_map)
 from .outputs import figure_file
+from .progress import counter as progress_counter
 
 
 @dataclass(frozen=True)
@@ -65,20 +67,23 @@ class EfficiencyReport:
 
 
 def efficiency(design, errors=None, speeds=None, loads=None,
-               plot_path: str | Path | None = None) -> EfficiencyReport:
+               plot_path: str | Path | None = None, progress=None) -> EfficiencyReport:
     """Efficiency map, running, starting and backdriving torque of one reducer.
 
     design: preset name, design file or RVDesign; errors: error file or ErrorSet (default
     none); speeds: output speeds [rpm] (default 5 to 60); loads: resisting output torques
     [N*m] (default 25 % to 100 % of rated); plot_path: the catalogue's chart (checked before
-    any work).
+    any work); progress(total, done): optional, called as the equilibria are solved.
     """
     from .api import resolve_design, resolve_errors
 
     plot_path = None if plot_path is None else figure_file("plot", plot_path)
     design = resolve_design(design)
     errors = resolve_errors(design, errors)
-    report = EfficiencyReport(efficiency_map(design, errors, speeds, loads))
+    count = len(DEFAULT_LOAD_FRACTIONS) if loads is None else len(loads)
+    report = EfficiencyReport(efficiency_map(
+        design, errors, speeds, loads,
+        progress=progress_counter((1 + 2 * count) * AVERAGE_POINTS, progress)))
     if plot_path is not None:
         from .plots import plot_efficiency
 

@@ -13,9 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .core.friction import LOSS_NAMES
-from .core.hysteresis import HysteresisLoop, hysteresis as hysteresis_loop
+from .core.hysteresis import HysteresisLoop, hysteresis as hysteresis_loop, sweep_torques
+from .core.quasistatic import WINDUP_POSITIONS
 from .core.units import ARCMIN
 from .outputs import figure_file
+from .progress import counter as progress_counter
 
 
 @dataclass(frozen=True)
@@ -71,19 +73,24 @@ def _number(value: float) -> float | None:
 
 
 def hysteresis(design, errors=None, max_load: float | None = None,
-               plot_path: str | Path | None = None) -> HysteresisReport:
+               plot_path: str | Path | None = None, progress=None) -> HysteresisReport:
     """The windup test's hysteresis loop of one reducer.
 
     design: preset name, design file or RVDesign; errors: error file or ErrorSet (default
     none); max_load [N*m]: the sweep's end (default the rated torque); plot_path: the loop
-    as a figure (checked before any work).
+    as a figure (checked before any work); progress(total, done): optional, called as the
+    equilibria are solved.
     """
     from .api import resolve_design, resolve_errors
 
     plot_path = None if plot_path is None else figure_file("plot", plot_path)
     design = resolve_design(design)
     errors = resolve_errors(design, errors)
-    report = HysteresisReport(hysteresis_loop(design, errors, max_load))
+    top = design.rated_torque if max_load is None else max_load
+    total = (sweep_torques(design, top).size * WINDUP_POSITIONS
+             if isinstance(top, (int, float)) and math.isfinite(top) and top > 0 else 0)
+    report = HysteresisReport(hysteresis_loop(design, errors, max_load,
+                                              progress=progress_counter(total, progress)))
     if plot_path is not None:
         from .plots import plot_hysteresis
 

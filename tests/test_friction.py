@@ -402,3 +402,12 @@ def test_friction_step_by_hand():
     assert tau_in == pytest.approx(2.05) and p_loss == pytest.approx(0.05 * 0.5 * scale)
     assert friction_step(0.05, 12.1, 121.0, 5.0)[2] == 0.0              # cannot backdrive
     assert friction_step(2.0, 12.1, 121.0, 0.0) == (2.0, 0.0, 0.0)      # standstill
+
+
+def test_the_jobs_report_progress_to_their_total():
+    for job, kwargs in ((api.efficiency, dict(speeds=[5.0], loads=[100.0, 200.0])),
+                        (api.hysteresis, dict(max_load=103.0))):
+        seen = []
+        job("RV-40E-121", progress=lambda total, done: seen.append((total, done)), **kwargs)
+        assert seen and seen[-1][0] == seen[-1][1]
+        assert all(b[1] > a[1] for a, b in zip(seen, seen[1:]))

@@ -53,6 +53,8 @@ DRAG_FLOOR = 160.0
 LOSS_NAMES = ("pins", "crank-disc needle bearings", "crank-carrier bearings", "main bearings",
               "sun-planet meshes", "output seal")
 AVERAGE_POINTS = 36              # angles over one crank turn that a loss is averaged on
+DEFAULT_SPEEDS_RPM = (5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 60.0)   # the catalogue chart's range
+DEFAULT_LOAD_FRACTIONS = (0.25, 0.5, 0.75, 1.0)                  # x rated torque
 
 
 def mesh_loss_factor(z_1: int, z_2: int, pressure_angle: float) -> tuple[float, float, float]:
@@ -321,16 +323,17 @@ STANDSTILL_RPM = 1e-9    # a speed at which every loss is its limit at standstil
 
 
 def efficiency_map(design: RVDesign, errors: ErrorSet | None = None, output_speed_rpm=None,
-                   load_Nm=None, points: int = AVERAGE_POINTS, sample: int = 0) -> EfficiencyMap:
+                   load_Nm=None, points: int = AVERAGE_POINTS, sample: int = 0,
+                   progress=None) -> EfficiencyMap:
     """Forward and backdriving efficiency, input torque and losses at every output speed
     [rpm] and resisting load [N*m] (defaults: 5 to 60 rpm; 25 % to 100 % of rated torque),
     the no-load running torque over the speeds and the starting and backdriving torques,
-    each loss averaged over `points` angles of one crank turn."""
+    each loss averaged over `points` angles of one crank turn.  progress(count): optional,
+    called as the (1 + 2 loads) x points equilibria are solved."""
     speeds = np.atleast_1d(np.asarray(
-        [5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 60.0] if output_speed_rpm is None else output_speed_rpm,
-        dtype=float))
+        DEFAULT_SPEEDS_RPM if output_speed_rpm is None else output_speed_rpm, dtype=float))
     loads = np.atleast_1d(np.asarray(
-        design.rated_torque * np.array([0.25, 0.5, 0.75, 1.0]) if load_Nm is None else load_Nm,
+        design.rated_torque * np.array(DEFAULT_LOAD_FRACTIONS) if load_Nm is None else load_Nm,
         dtype=float))
     for field, values in (("speeds", speeds), ("loads", loads)):
         if values.size == 0:
@@ -341,8 +344,9 @@ def efficiency_map(design: RVDesign, errors: ErrorSet | None = None, output_spee
                                  "resisting output torques in N*m)")
     check_load("loads", float(loads.max()), design.rated_torque)
     theta_in = crank_turn_angles(design, points)
-    forward = contact_loads(design, errors, np.concatenate([[0.0], -loads]), theta_in, [sample])
-    backward = contact_loads(design, errors, loads, theta_in, [sample])
+    forward = contact_loads(design, errors, np.concatenate([[0.0], -loads]), theta_in, [sample],
+                            progress=progress)
+    backward = contact_loads(design, errors, loads, theta_in, [sample], progress=progress)
     lost = {k: v[:, 0] for k, v in contact_losses(design, forward, speeds).items()}
     total = sum(lost.values())                                                     # (V, 1 + L)
     total_back = sum(contact_losses(design, backward, speeds).values())[:, 0]     # (V, L)

@@ -112,7 +112,8 @@ def _slips(design: RVDesign, model: EquivalentModel, q: np.ndarray) -> dict:
 
 
 def hysteresis(design: RVDesign, errors: ErrorSet | None = None, max_load: float | None = None,
-               positions: int = WINDUP_POSITIONS, levels: int = LEVELS, sample: int = 0) -> HysteresisLoop:
+               positions: int = WINDUP_POSITIONS, levels: int = LEVELS, sample: int = 0,
+               progress=None) -> HysteresisLoop:
     """The windup test's loop swept to +-max_load (default the rated torque) with the input
     locked at `positions` angles over one output revolution, for reducer `sample`."""
     d = design
@@ -124,7 +125,7 @@ def hysteresis(design: RVDesign, errors: ErrorSet | None = None, max_load: float
     positions, levels = integer("positions", positions, 1), integer("levels", levels, 2)
     tau = sweep_torques(d, max_load, levels)
     theta_in = windup_positions(d, positions)
-    loads = contact_loads(d, errors, tau, theta_in, [sample])
+    loads = contact_loads(d, errors, tau, theta_in, [sample], progress=progress)
     model = EquivalentModel(d, theta_in)
     angle = loads.output_angle[0]                                               # (T, P)
     slips = _slips(d, model, loads.q[0])
