@@ -206,6 +206,12 @@ class SimulationReport:
                                     or f"none above {metrics.NOISE_FLOOR_ARCSEC:g}\u2033"),
             "excitations       " + ", ".join(f"{name} {hz:.1f} Hz" for name, hz in ex.items()),
         ]
+        power = sim.mean_powers()
+        efficiency = power["efficiency"]
+        lines.append(
+            f"power (mean)      input {power['input_W']:.4g} W, output {power['output_W']:.4g} W, "
+            f"friction {power['friction_W']:.4g} W, damping {power['damping_W']:.3g} W"
+            + (f"; efficiency {100 * efficiency:.1f} %" if efficiency is not None else ""))
         if sim.failed_steps:
             lines.append(f"warning           {sim.failed_steps} steps did not converge")
         return "\n".join(lines)
@@ -220,7 +226,9 @@ class SimulationReport:
                                                                    float(sim.time[-1])],
                 "step_s": sim.step, "te_range_arcsec": [float(te.min()), float(te.max())],
                 "te_pp_arcsec": float(te.max() - te.min()),
-                "peaks": [[f, a] for f, a in self.peaks], "failed_steps": sim.failed_steps}
+                "peaks": [[f, a] for f, a in self.peaks], "failed_steps": sim.failed_steps,
+                "power_W": {k[:-2]: v for k, v in sim.mean_powers().items() if k.endswith("_W")},
+                "efficiency": sim.mean_powers()["efficiency"]}
 
 
 def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
@@ -229,7 +237,7 @@ def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
              csv_path: str | Path | None = None, plot_path: str | Path | None = None,
              progress=None, load_step: tuple[float, float] | None = None,
              load_csv: str | Path | None = None,
-             input_csv: str | Path | None = None) -> SimulationReport:
+             input_csv: str | Path | None = None, friction: bool = True) -> SimulationReport:
     """Dynamic TE of one reducer (docs/model.md section 7) at a constant input speed after a
     start ramp, or along sampled input angles; writes the CSV (time_s, theta_in_rad,
     theta_out_rad, te_arcsec, tau_in_Nm) and the plot if asked.
@@ -237,7 +245,8 @@ def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
     load [N*m resisting]: constant; load_step (time [s], load [N*m]): the load
     changes to that value at that time of the run; load_csv: a file of columns
     time_s, load_Nm (linear between rows, held beyond).  input_csv: a file of
-    columns time_s, theta_in_rad, used instead of speed_rpm and the ramp.
+    columns time_s, theta_in_rad, used instead of speed_rpm and the ramp.  friction: False
+    leaves out the contacts' friction and drag (docs/model.md section 9).
     """
     from .core.simulation import Sampled, simulate as run
 
@@ -261,7 +270,7 @@ def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
     design = resolve_design(design)
     sim = run(design, resolve_errors(design, errors), speed_rpm=speed_rpm, load=load,
               duration=duration, revolutions=revolutions, contact=contact, mesh=mesh, step=step,
-              progress=progress, input_angle=input_angle)
+              progress=progress, input_angle=input_angle, friction=friction)
     report = SimulationReport(sim, tuple(sim.peaks_hz()))
     if csv_path is not None:
         write_columns(csv_path, {"time_s": (sim.time, ".9g"), "theta_in_rad": (sim.theta_in, ".12g"),

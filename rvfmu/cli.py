@@ -66,7 +66,7 @@ def _simulate(args):
                               contact=args.contact, mesh=args.mesh, step=args.step,
                               csv_path=args.csv, plot_path=args.plot, progress=bar,
                               load_step=args.load_step, load_csv=args.load_csv,
-                              input_csv=args.input_csv)
+                              input_csv=args.input_csv, friction=not args.no_friction)
     _show(report, args.json, (("csv", args.csv), ("plot", args.plot)))
 
 
@@ -212,6 +212,8 @@ def build_parser() -> argparse.ArgumentParser:
                       "(linear between rows, held beyond)")
     p.add_argument("--input-csv", metavar="FILE", help="input angles in time instead of the ramp "
                    "and --speed-rpm: columns time_s,theta_in_rad (a cubic spline through them)")
+    p.add_argument("--no-friction", action="store_true", help="leave out the contacts' friction "
+                   "and drag (docs/model.md section 9): the frictionless reducer")
     p.add_argument("--csv", help="write time_s,theta_in_rad,theta_out_rad,te_arcsec,tau_in_Nm")
     p.add_argument("--plot", help="write a figure of TE(t) and its spectrum in Hz")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")

@@ -32,6 +32,14 @@ angular accelerations during a speed ramp) times its mass.
 - Damping: each element a dashpot c = 2 zeta sqrt(k m), zeta the design's
   damping ratio and m the reduced translational mass of the two bodies it joins
   (bodies fixed to the housing count as infinite).
+- Friction (docs/model.md section 9), at the contacts and with the coefficients of
+  the quasi-static power balance (`friction.py`): each contact resists its slip w
+  (its sliding speed [m/s]: the nominal kinematics' plus the unknowns') with
+  R w / sqrt(w^2 + SLIP_SCALE^2), R = mu N + drag, N its own normal force.  A pin
+  slides along its tangent (the smaller coefficient of its two contacts); a bearing's
+  slip is its parts' relative turn at its pitch radius (its drag Palmgren's moment at
+  the nominal speed); a mesh's is H_V times the sun's base-circle speed against the
+  carrier (its loss mu H_V |tau_sun| times that speed); the seal's, the carrier's at R_p.
 
 Nothing here integrates: `DynamicModel` gives the mass matrix, the loads and
 the element forces with their tangent stiffness and damping at a time step;
@@ -58,6 +66,8 @@ DOUBLE_PAIR = 1.75         # double-pair / single-pair mesh stiffness: ISO 6336-
 IMPACT_EXPONENT = 1.5      # IMPACT law exponent e (Hertz-like, seeds 000/001)
 IMPACT_PENETRATION = 1e-6  # d_max [m]: the damping reaches c_max over 1 um of penetration
 CHUNK = 512                # time steps whose geometry is built at once
+SLIP_SCALE = 1e-5          # [m/s] friction's regularised sign: a contact slipping at 10 um/s
+                           # carries 71 % of its Coulomb force, at 0.1 mm/s 99.5 %
 CONTACT_LAWS = ("linear", "hertz", "impact")
 MESH_MODELS = ("varying", "constant")
 
@@ -139,11 +149,12 @@ class DynamicModel:
 
     errors: one reducer (an ErrorSet of one sample); tau_load: [N*m] constant or a
     function of time (docs/model.md section 2 sign); flank: the loaded flank of the
-    meshes (+1: the sun drives, -1: the load drives; default from the load's sign).
+    meshes (+1: the sun drives, -1: the load drives; default from the load's sign);
+    friction: False leaves out the contacts' friction and drag (a frictionless reducer).
     """
 
     def __init__(self, design: RVDesign, errors: ErrorSet, contact: str | None = None,
-                 mesh: str = "varying", flank: int = 1):
+                 mesh: str = "varying", flank: int = 1, friction: bool = True):
         if errors.samples != 1:
             raise ValueError("the dynamic model simulates one reducer at a time")
         contact = contact_law(design, contact)
@@ -178,6 +189,8 @@ class DynamicModel:
         self.shaft_c = 2 * zeta * math.sqrt(self.shaft_k * design.sun_inertia)
         # IMPACT: k delta^e equals the linear law at the pin deflection under rated torque
         self.impact_k = self.pin_k * self._rated_pin_deflection() ** (1.0 - IMPACT_EXPONENT)
+        self.friction = bool(friction)
+        turning = self._turning_contacts(probe)
         s2 = self.scale ** 2
         self.elements = Elements(
             self.linear_c, np.ascontiguousarray(self.half_clearance, dtype=float), self.bearing_k,
@@ -188,13 +201,70 @@ class DynamicModel:
             np.asarray(self.pin_dofs, dtype=np.int64),
             np.array(design.pin_law if contact == "hertz" else (self.pin_k, 0.0, 0.0), dtype=float),
             float(self.pin_c), contact == "impact", float(self.impact_k), IMPACT_EXPONENT,
-            IMPACT_PENETRATION, int(self.sun_rot), self.shaft_k / s2, self.shaft_c / s2)
+            IMPACT_PENETRATION, int(self.sun_rot), self.shaft_k / s2, self.shaft_c / s2,
+            min(design.pin_disc_friction, design.pin_groove_friction) if friction else 0.0,
+            turning["cols"], turning["rows"], turning["source"],
+            turning["friction"] if friction else np.zeros(turning["friction"].size),
+            SLIP_SCALE, friction and self._resists(turning))
+        self._drag_radius, self._drag_kind = turning["radius"], turning["kind"]
         counts = {"crank": design.n_c, "disc": 2}
         self._nominal_index = tuple({body: [self.index[f"{body}{k}_{axis}"] for k in range(count)]
                                      for body, count in counts.items()} for axis in ("x", "y", "rot"))
         self._geometry = None
 
     # -- constant parts --------------------------------------------------------------
+    def _resists(self, turning: dict) -> bool:
+        """Whether any contact has friction or drag (with none, the run is the frictionless
+        one to the bit)."""
+        d = self.design
+        pins = min(d.pin_disc_friction, d.pin_groove_friction) > 0.0
+        drag = d.bearing_drag_factor > 0.0 and d.lubricant_viscosity > 0.0 and \
+            any(r > 0.0 for r, kind in zip(turning["radius"], turning["kind"])
+                if kind not in (None, "output seal"))
+        return bool(pins or np.any(turning["friction"] * np.abs(turning["rows"]).sum(axis=1) > 0.0)
+                    or drag or d.seal_torque > 0.0)
+
+    def _turning_contacts(self, probe) -> dict:
+        """The contacts whose slip is a turn: each crank's bearing pair in the carrier, each
+        needle bearing, the main bearings, each sun-planet mesh and the output seal, in
+        that order.  {"cols" (E, 2), "rows" (E, 2): the slip [m/s] per unknown velocity;
+        "source" (E,): the element pressing it (`Elements.turn_source`); "friction" (E,);
+        "radius" (E,) [m]: the arm its drag moment acts at (0: no drag); "kind": the
+        `friction.drag_moments` key of its drag, or None}."""
+        from .friction import mesh_loss_factor
+
+        d, idx, s = self.design, self.index, self.scale
+        nb = self.bearing_k.size
+        carrier = idx["carrier_rot"]
+        cols, rows, source, mu, radius, kind = [], [], [], [], [], []
+
+        def add(c, r, src, coefficient, arm, drag):
+            cols.append(c + [-1] * (2 - len(c)))
+            rows.append(r + [0.0] * (2 - len(r)))
+            source.append(src)
+            mu.append(coefficient)
+            radius.append(arm)
+            kind.append(drag)
+
+        r = 0.5 * d.tapered_pitch_diameter
+        for i in range(d.n_c):
+            add([idx[f"crank{i}_rot"], carrier], [r / s, -r / s], i, d.tapered_friction, r,
+                "crank-carrier bearings")
+        r = 0.5 * d.needle_pitch_diameter
+        for i in range(d.n_c):
+            for j in range(2):
+                add([idx[f"crank{i}_rot"], idx[f"disc{j}_rot"]], [r / s, -r / s],
+                    d.n_c + 2 * i + j, d.needle_friction, r, "crank-disc needle bearings")
+        r = 0.5 * d.main_bearing_pitch_diameter
+        add([carrier], [r / s], nb - 1, d.main_bearing_friction, r, "main bearings")
+        arm = mesh_loss_factor(d.z_s, d.z_pl, d.pressure_angle)[0] * d.sun_base_radius
+        for i in range(d.n_c):
+            add([idx["sun_rot"], carrier], [arm / s, -arm / s], nb + i, d.mesh_friction, 0.0, None)
+        add([carrier], [1.0], -1, 0.0, s, "output seal")
+        return {"cols": np.array(cols, dtype=np.int64), "rows": np.array(rows),
+                "source": np.array(source, dtype=np.int64), "friction": np.array(mu),
+                "radius": np.array(radius), "kind": kind}
+
     def _bodies(self) -> dict:
         """{body: (mass [kg], inertia [kg m^2])} of the sun, a crank, a disc and the carrier."""
         d = self.design
@@ -248,17 +318,71 @@ class DynamicModel:
         h = np.diff(m.time[start - 1:stop]) if start else np.diff(m.time[:stop], prepend=m.time[0])
         L = gather(model.linear_rows, self._linear_cols)
         B = gather(model.bearing_rows, self._bearing_cols)
+        # friction: each pin slips along its tangent (the disc's point turning about the disc's
+        # centre by n . (Q - C)), each turning contact as its rows say; nominal slips are the
+        # rows times the nominal velocities
+        normal = model.pin_rows[..., :2]
+        tangent = np.concatenate([-normal[..., 1:], normal[..., :1],
+                                  (model.pin_tangent_lever / self.scale)[..., None]], axis=-1)
+        nominal = self.nominal_velocities(theta, m.omega_in[start:stop])
+        pin_slip = np.einsum("ajpx,ajx->ajp", tangent, nominal[:, self.pin_dofs])
+        el = self.elements
+        turn_slip = np.einsum("ex,aex->ae", el.turn_rows,
+                              nominal[:, np.maximum(el.turn_cols, 0)] * (el.turn_cols >= 0))
+        turn_drag = self._drag(turn_slip)
         # every array C-contiguous: the compiled kernels then see one type signature, the
         # one `compile_kernels` compiles and the FMU bundles, whatever the chunk's length
         parts = (h, np.maximum(self._linear_cols, 0), L, k_lin, lin, np.maximum(self._bearing_cols, 0),
-                 B, brg, model.pin_rows, pins, external)
+                 B, brg, model.pin_rows, pins, external, tangent, pin_slip, turn_slip, turn_drag)
         return Geometry(*(np.ascontiguousarray(x) for x in parts))
+
+    def _drag(self, turn_slip: np.ndarray) -> np.ndarray:
+        """(A, E) load-free resistance [N] of the turning contacts at their nominal slips
+        (A, E): a bearing's Palmgren moment at its speed over its pitch radius, the seal's
+        torque over R_p; zero without friction."""
+        from .friction import RPM, drag_moments
+
+        drag = np.zeros(turn_slip.shape)
+        if not self.friction:
+            return drag
+        for e, (kind, radius) in enumerate(zip(self._drag_kind, self._drag_radius)):
+            if kind == "output seal":
+                drag[:, e] = self.design.seal_torque / self.scale
+            elif kind is not None and radius > 0.0:
+                speed_rpm = np.abs(turn_slip[:, e]) / radius / RPM
+                drag[:, e] = drag_moments(self.design, speed_rpm)[kind] / radius
+        return drag
 
     def external(self, step: int) -> np.ndarray:
         """(n,) external generalised force at a step [N]: the load torque on the carrier and
         the nominal motion's d'Alembert forces."""
         g, a = self.geometry(step)
         return g.external[a]
+
+    def nominal_velocities(self, theta_in, omega_in) -> np.ndarray:
+        """(A, n) velocities of the nominal motion [m/s, rotations as arc length at R_p]:
+        every body's rigid-kinematics velocity (docs/model.md section 2) at each instant."""
+        d, i = self.design, self.design.ratio
+        th_in, w_in = (np.atleast_1d(np.asarray(x, dtype=float)) for x in (theta_in, omega_in))
+        th_out, w_out = th_in / i, w_in / i
+        k_beta = -d.z_s / d.z_pl
+        w_psi = w_out + k_beta * (w_in - w_out)
+        psi = th_out + k_beta * (th_in - th_out)
+        out = np.zeros((th_in.size, self.n))
+        idx, s = self.index, self.scale
+        out[:, idx["sun_rot"]] = w_in * s
+        out[:, idx["carrier_rot"]] = w_out * s
+        x, y, rot = self._nominal_index
+        for body, radius, angle, w in (
+                ("crank", d.crank_circle_radius,
+                 th_out[:, None] + 2 * math.pi * np.arange(d.n_c) / d.n_c, w_out),
+                ("disc", d.e, psi[:, None] + math.pi * np.arange(2), w_psi)):
+            speed = (radius * w)[:, None]
+            out[:, x[body]] = -speed * np.sin(angle)
+            out[:, y[body]] = speed * np.cos(angle)
+        out[:, rot["crank"]] = (w_psi * s)[:, None]
+        out[:, rot["disc"]] = (w_out * s)[:, None]
+        return out
 
     def nominal_forces(self, theta_in, omega_in, alpha_in) -> np.ndarray:
         """(A, n) d'Alembert forces of the nominal motion [N]: minus mass times the nominal
@@ -296,15 +420,31 @@ class DynamicModel:
         its derivatives in q and v (tangent stiffness and damping).  The input shaft
         ties the sun's rotation to the prescribed angle.
         """
-        g, a = self.geometry(step)
-        f, K, C = np.empty(self.n), np.empty((self.n, self.n)), np.empty((self.n, self.n))
-        element_forces(self.elements, g, a, np.ascontiguousarray(q, dtype=float),
-                       np.ascontiguousarray(v, dtype=float), f, K, C)
+        f, K, C, _ = self.forces_and_powers(step, q, v)
         return f, K, C
 
+    def forces_and_powers(self, step: int, q: np.ndarray, v: np.ndarray):
+        """`forces` and the powers (friction, dampers) [W] the elements dissipate there."""
+        g, a = self.geometry(step)
+        f, K, C = np.empty(self.n), np.empty((self.n, self.n)), np.empty((self.n, self.n))
+        powers = element_forces(self.elements, g, a, np.ascontiguousarray(q, dtype=float),
+                                np.ascontiguousarray(v, dtype=float), f, K, C)
+        return f, K, C, powers
+
     def energy(self, step: int, q: np.ndarray, v: np.ndarray) -> float:
-        """Kinetic plus elastic energy [J] at a step (the linear or Hertz pin law, not
-        IMPACT's; for energy checks)."""
+        """Kinetic energy of the unknowns' velocities plus the elastic energy [J] at a step
+        (the linear or Hertz pin law, not IMPACT's; for energy checks)."""
+        return float(0.5 * np.sum(self.mass * v * v) + self.elastic_energy(step, q))
+
+    def stored_energy(self, step: int, q: np.ndarray, v: np.ndarray) -> float:
+        """The reducer's kinetic energy in its whole motion (nominal plus the unknowns') plus
+        its elastic energy [J] at a step: what the power balance's storage term counts."""
+        m = self.motion
+        speed = self.nominal_velocities(m.theta_in[step], m.omega_in[step])[0] + v
+        return float(0.5 * np.sum(self.mass * speed * speed) + self.elastic_energy(step, q))
+
+    def elastic_energy(self, step: int, q: np.ndarray) -> float:
+        """Elastic energy [J] of every element at a step (as `energy`)."""
         g, a = self.geometry(step)
         delta = np.sum(g.L[a] * q[g.linear_cols], axis=-1) + g.linear_offset[a]
         elastic = 0.5 * np.sum(g.linear_k[a] * delta ** 2)
@@ -320,7 +460,7 @@ class DynamicModel:
             pin = g.P[a, j] @ q[self.pin_dofs[j]] + g.pin_offset[a, j]
             elastic += float(np.sum(contacts(pin, self.elements.pin_law)[0]))
         elastic += 0.5 * self.shaft_k * (q[self.sun_rot] / self.scale) ** 2
-        return float(0.5 * np.sum(self.mass * v * v) + elastic)
+        return float(elastic)
 
     def input_torque(self, q, v) -> float:
         """Torque of the reducer on the input shaft [N*m] (docs/model.md section 2): the shaft's twist."""

@@ -6,7 +6,8 @@ line from its previous value (constant speed over the step, the only motion
 the host's samples define) and the load is held at its new value, and the
 Newmark stepper runs internal steps of at most `internal_step` seconds.  The
 outputs are those at the end of the step, but for tau_in, its mean over the
-step.  The state is the displacements, velocities and accelerations of every unknown with
+step, and p_loss and the efficiency, the power the reducer's friction and dashpots
+dissipate over the step and what it leaves of the power that passes.  The state is the displacements, velocities and accelerations of every unknown with
 the last input angle and time: a master can save it, roll back and re-step to
 the same results.
 """
@@ -20,7 +21,7 @@ import numpy as np
 from .dynamic import DynamicModel, Motion, at_rest
 from .errors import ErrorSet
 from .newmark import NewmarkStepper, State
-from .reducer_model import Outputs, friction_step
+from .reducer_model import Outputs, step_efficiency
 from .simulation import static_start
 
 DEFAULT_INTERNAL_STEP = 1e-4   # [s]: 10 kHz, 25 steps per stage-1 mesh period of an RV-110E at 1600 rpm
@@ -49,16 +50,15 @@ class DynamicReducer:
         return self.model
 
     def _outputs(self, omega_in: float, tau_in: float, tau_load: float,
-                 torque_rate: float = 0.0) -> Outputs:
+                 torque_rate: float = 0.0, p_loss: float = 0.0, p_out: float = 0.0) -> Outputs:
         """Outputs of the flange: the carrier plus the windup of the massless series compliance
-        under tau_load [N*m], changing at torque_rate [N*m/s]."""
+        under tau_load [N*m], changing at torque_rate [N*m/s]; p_loss and p_out [W]: the
+        power dissipated and the power the output gives the load, means over the step."""
         model, s, c = self.model, self.state, self.design.series_compliance
         te = s.q[model.carrier_rot] / model.scale + c * tau_load
         omega_out = omega_in / self.design.ratio + s.v[model.carrier_rot] / model.scale + c * torque_rate
-        # no friction in the dynamic model yet: no loss, the efficiency 1 where power passes
-        _, p_loss, efficiency = friction_step(tau_in, 0.0, self.design.ratio, omega_in)
         return Outputs(self.theta_in / self.design.ratio + te, omega_out, te, tau_in, p_loss,
-                       efficiency)
+                       step_efficiency(p_out, p_loss))
 
     def initialize(self, time: float, theta_in: float, tau_load: float) -> Outputs:
         """At rest in the elastic equilibrium under tau_load at theta_in."""
@@ -79,19 +79,26 @@ class DynamicReducer:
         model = self._model(tau_load)
         # the nominal motion's d'Alembert forces come at this constant speed (centripetal terms)
         model.prepare(Motion(t, angles, np.full(t.size, omega), np.zeros(t.size), tau_load))
-        start = model.input_torque(self.state.q, self.state.v)
         stepper = NewmarkStepper(model, self.state)
-        q, v = np.empty((count + 1, model.n)), np.empty((count + 1, model.n))
-        stepper.advance(count, q, v)
+        q, v, power = (np.empty((count + 1, model.n)), np.empty((count + 1, model.n)),
+                       np.empty((count + 1, 2)))
+        q[0], v[0] = self.state.q, self.state.v
+        power[0] = model.forces_and_powers(0, q[0], v[0])[3]
+        stepper.advance(count, q, v, power)
         # tau_in over the step, its mean (trapezoid over the internal steps): what a host that
         # holds it over its next step should get; the end value alone carries the sun's ringing
         # on its shaft (kHz), sampled once per communication step
-        torque = np.concatenate([[start], model.input_torque(q[1:].T, v[1:].T)])
-        tau_in = float(np.sum(0.5 * np.diff(t) * (torque[1:] + torque[:-1])) / step_size)
+        def mean(x):
+            return float(np.sum(0.5 * np.diff(t) * (x[1:] + x[:-1])) / step_size)
+
+        tau_in = mean(model.input_torque(q.T, v.T))
+        p_loss = mean(power.sum(axis=1))
+        p_out = -float(tau_load) * mean(omega / self.design.ratio
+                                        + v[:, model.carrier_rot] / model.scale)
         self.state = stepper.state
         self.time, self.theta_in, self.omega_in = time + step_size, float(theta_in), omega
         rate, self.tau_load = (float(tau_load) - self.tau_load) / step_size, float(tau_load)
-        return self._outputs(omega, tau_in, self.tau_load, rate)
+        return self._outputs(omega, tau_in, self.tau_load, rate, p_loss, p_out)
 
     def get_state(self) -> dict:
         s = self.state

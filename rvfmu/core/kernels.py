@@ -8,6 +8,12 @@ These two functions hold that loop; numba compiles them (`COMPILED`) when it
 is installed, and without it (a host Python that lacks it, or RVTE_NUMBA=0)
 they run as they are, as plain numpy: the same results, several times slower.
 
+Friction (docs/model.md section 9) rides on the same elements: every pin, bearing and
+mesh has a slip, its sliding speed [m/s], the nominal kinematics' plus a row over the
+unknowns' velocities, and resists it with R s(w), R its Coulomb force mu N (N the
+element's own normal force) plus a drag, and s(w) = w / sqrt(w^2 + slip_scale^2) the
+regularised sign of the slip.
+
 The element data come in two named tuples built by `DynamicModel`:
 `Elements` (what does not change over the run) and `Geometry` (rows, offsets,
 stiffnesses and external forces at a run of time steps, axis 0 the step).
@@ -22,6 +28,8 @@ import numpy as np
 from .compiled import COMPILED, kernel  # noqa: F401 (COMPILED: what tests and benchmarks ask)
 from .pin_law import contact
 from .roller_law import roller_law
+
+LINE_SEARCH_HALVINGS = 8    # a Newton update is halved at most this often (to 1/256)
 
 Elements = namedtuple("Elements", [
     "linear_c",        # (m,) dashpots of the meshes and sun support [N s/m]
@@ -41,6 +49,15 @@ Elements = namedtuple("Elements", [
     "shaft",           # index of the sun's rotation
     "shaft_k",         # input shaft stiffness over scale^2 [N/m]
     "shaft_c",         # its dashpot over scale^2 [N s/m]
+    "pin_friction",    # the pins' Coulomb coefficient: the smaller of their two contacts'
+    "turn_cols",       # (E, w) unknowns the slip of each turning contact touches (bearings, meshes,
+                       # the seal; -1: none)
+    "turn_rows",       # (E, w) their coefficients: slip speed [m/s] per unknown velocity
+    "turn_source",     # (E,) the element whose normal force presses it: a bearing b (0 .. nb-1),
+                       # a mesh nb + e, or -1 (a load-free resistance only)
+    "turn_friction",   # (E,) its Coulomb coefficient (0: none)
+    "slip_scale",      # [m/s] the regularised sign's slip scale
+    "line_search",     # True: Newton updates halved until the residual falls (with friction)
 ])
 
 Geometry = namedtuple("Geometry", [
@@ -53,6 +70,10 @@ Geometry = namedtuple("Geometry", [
     "bearing_offset",  # (A, nb, 2)
     "P", "pin_offset",                     # (A, 2, z_p, 3), (A, 2, z_p)
     "external",                            # (A, n) load and nominal-motion forces [N]
+    "pin_tangent",     # (A, 2, z_p, 3) each pin's slip row over its disc's unknowns
+    "pin_slip",        # (A, 2, z_p) the nominal slip [m/s]
+    "turn_slip",       # (A, E) the turning contacts' nominal slip [m/s]
+    "turn_drag",       # (A, E) their load-free resistance [N] at the nominal speed
 ])
 
 
@@ -83,12 +104,32 @@ def gather(rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
 
 
 @kernel
+def regularised_sign(w, scale):
+    """(s, ds/dw) of the slip w [m/s]: w / sqrt(w^2 + scale^2), the sign of w smoothed over
+    `scale` (the exact sign for scale = 0 and w != 0)."""
+    root = np.sqrt(w * w + scale * scale)
+    if root == 0.0:
+        return 0.0, 0.0
+    return w / root, scale * scale / (root * root * root)
+
+
+@kernel
 def element_forces(el, g, a, q, v, f, K, C):
     """Forces of every element at step a of geometry g into f (n,), with their derivatives in
-    q and v into K and C (n, n): the EOM is M q'' + f = F.  f, K, C are overwritten."""
+    q and v into K and C (n, n): the EOM is M q'' + f = F.  f, K, C are overwritten.
+    Returns (friction power, damper power) [W]: what the contacts' friction and the
+    elements' dashpots dissipate at this state (each >= 0)."""
     f[:] = 0.0
     K[:, :] = 0.0
     C[:, :] = 0.0
+    friction_power, damper_power = 0.0, 0.0
+    nb = el.bearing_k.shape[0]
+    # each element's normal force and its gradient over the element's own unknowns (for the
+    # friction it presses): bearings along (x, y), meshes signed by their force
+    bearing_load = np.zeros(nb)
+    bearing_grad = np.zeros((nb, 2))
+    mesh_load = np.zeros(g.linear_cols.shape[0])
+    mesh_sign = np.zeros(g.linear_cols.shape[0])
     # meshes and sun support: bilateral springs
     cols, L = g.linear_cols, g.L[a]
     for e in range(cols.shape[0]):
@@ -98,6 +139,9 @@ def element_forces(el, g, a, q, v, f, K, C):
             rate += L[e, x] * v[cols[e, x]]
         k, c = g.linear_k[a, e], el.linear_c[e]
         force = k * delta + c * rate
+        damper_power += c * rate * rate
+        mesh_load[e] = abs(force)
+        mesh_sign[e] = 1.0 if force >= 0.0 else -1.0
         for x in range(cols.shape[1]):
             i = cols[e, x]
             f[i] += L[e, x] * force
@@ -131,6 +175,9 @@ def element_forces(el, g, a, q, v, f, K, C):
                                           el.bearing_law[b, 0], el.bearing_law[b, 1])
             across = force / r if r > 0.0 else 0.0
         fx, fy = across * dx + c * vx, across * dy + c * vy
+        damper_power += c * (vx * vx + vy * vy)
+        bearing_load[b] = across * r
+        bearing_grad[b, 0], bearing_grad[b, 1] = radial * ux, radial * uy
         sxx = across + (radial - across) * ux * ux
         syy = across + (radial - across) * uy * uy
         sxy = (radial - across) * ux * uy
@@ -168,37 +215,104 @@ def element_forces(el, g, a, q, v, f, K, C):
                 c = el.pin_c
             if normal <= 0.0:
                 continue                                   # a separating dashpot pulls nothing
+            damper_power += c * rate * rate
             for x in range(3):
                 f[dofs[x]] += R[p, x] * normal
                 for y in range(3):
                     K[dofs[x], dofs[y]] += k * R[p, x] * R[p, y]
                     C[dofs[x], dofs[y]] += c * R[p, x] * R[p, y]
+            if el.pin_friction == 0.0:
+                continue
+            # friction along the tangent: mu N s(w), w the disc's slip past the pin
+            T = g.pin_tangent[a, j, p]
+            w = g.pin_slip[a, j, p]
+            for x in range(3):
+                w += T[x] * v[dofs[x]]
+            sign, dsign = regularised_sign(w, el.slip_scale)
+            resist = el.pin_friction * normal
+            friction_power += resist * sign * w
+            for x in range(3):
+                f[dofs[x]] += T[x] * resist * sign
+                for y in range(3):
+                    K[dofs[x], dofs[y]] += el.pin_friction * sign * k * T[x] * R[p, y]
+                    C[dofs[x], dofs[y]] += el.pin_friction * sign * c * T[x] * R[p, y] \
+                        + resist * dsign * T[x] * T[y]
     # input shaft: the sun's rotation deviation against a torsional spring to the housing
     s = el.shaft
     f[s] += el.shaft_k * q[s] + el.shaft_c * v[s]
     K[s, s] += el.shaft_k
     C[s, s] += el.shaft_c
+    damper_power += el.shaft_c * v[s] * v[s]
+    # turning contacts: bearings, meshes and the seal resist their slip with R s(w),
+    # R = mu N + drag; N's gradient reaches the unknowns of the element that presses them
+    cols, S = el.turn_cols, el.turn_rows
+    for e in range(cols.shape[0]):
+        drag, mu, source = g.turn_drag[a, e], el.turn_friction[e], el.turn_source[e]
+        normal = 0.0
+        if source >= nb:
+            normal = mesh_load[source - nb]
+        elif source >= 0:
+            normal = bearing_load[source]
+        resist = mu * normal + drag
+        if resist == 0.0:
+            continue
+        w = g.turn_slip[a, e]
+        for x in range(cols.shape[1]):
+            if cols[e, x] >= 0:
+                w += S[e, x] * v[cols[e, x]]
+        sign, dsign = regularised_sign(w, el.slip_scale)
+        friction_power += resist * sign * w
+        for x in range(cols.shape[1]):
+            i = cols[e, x]
+            if i < 0:
+                continue
+            f[i] += S[e, x] * resist * sign
+            for y in range(cols.shape[1]):
+                if cols[e, y] >= 0:
+                    C[i, cols[e, y]] += resist * dsign * S[e, x] * S[e, y]
+            if mu == 0.0 or normal == 0.0:
+                continue
+            scale = mu * sign * S[e, x]
+            if source >= nb:        # N = |k delta + c rate| of mesh m
+                m = source - nb
+                for y in range(g.linear_cols.shape[1]):
+                    j = g.linear_cols[m, y]
+                    K[i, j] += scale * mesh_sign[m] * g.linear_k[a, m] * L[m, y]
+                    C[i, j] += scale * mesh_sign[m] * el.linear_c[m] * L[m, y]
+            else:                   # N = F(r) of bearing `source`'s spring
+                for y in range(g.bearing_cols.shape[1]):
+                    j = g.bearing_cols[source, y]
+                    K[i, j] += scale * (bearing_grad[source, 0] * B[source, 0, y]
+                                        + bearing_grad[source, 1] * B[source, 1, y])
+    return friction_power, damper_power
 
 
 @kernel
 def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cycle_tolerance,
-                  max_iterations, out_q, out_v):
+                  max_iterations, out_q, out_v, out_power):
     """Advance the state (q, v, a), given at the step before `first`, through steps first..stop-1
     of g by the Newmark rule with Newton iterations; q, v, a are updated in place and the
-    state after each step is written to out_q[k], out_v[k].
+    state after each step is written to out_q[k], out_v[k], the power its friction and
+    dashpots dissipate to out_power[k] ((friction, dampers) [W], at the last iteration's
+    state: within the update's tolerance of the step's).
 
     A step has converged when the Newton update is below `tolerance`, or when the
     iterations have settled into a two-state cycle whose update is below
     `cycle_tolerance`: a contact sits exactly at its switch (a pin at zero force,
     or its dashpot at the point of pulling), where the tangent jumps and Newton
-    alternates between the two sides.  Returns (most Newton iterations in one
-    step, steps that did not converge)."""
+    alternates between the two sides.  With friction (`Elements.line_search`) each
+    Newton update is halved until the step's residual falls (at most LINE_SEARCH_HALVINGS
+    times): the regularised sign is a sigmoid over a slip of a few um/s, and a full
+    Newton update from outside it overshoots to the other side and back.  Returns
+    (most Newton iterations in one step, steps that did not converge)."""
     n = q.size
     f = np.empty(n)
     K = np.empty((n, n))
     C = np.empty((n, n))
     M = np.diag(mass)
     most, failed = 0, 0
+    powers = (0.0, 0.0)
+    residual = np.zeros(n)
     for k in range(first, stop):
         h = g.h[k]
         q_old, v_old, a_old = q.copy(), v.copy(), a.copy()
@@ -206,16 +320,34 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
         converged = False
         it = 0
         last, before = np.inf, np.inf
+        evaluated = False
         while it < max_iterations:
             it += 1
-            a[:] = (q - q_old - h * v_old) / (beta * h * h) - (0.5 / beta - 1.0) * a_old
-            v[:] = v_old + h * ((1.0 - gamma) * a_old + gamma * a)
-            element_forces(el, g, k, q, v, f, K, C)
-            residual = mass * a + f - g.external[k]
+            if not evaluated:
+                a[:] = (q - q_old - h * v_old) / (beta * h * h) - (0.5 / beta - 1.0) * a_old
+                v[:] = v_old + h * ((1.0 - gamma) * a_old + gamma * a)
+                powers = element_forces(el, g, k, q, v, f, K, C)
+                residual = mass * a + f - g.external[k]
             J = M / (beta * h * h) + C * (gamma / (beta * h)) + K
             dq = np.linalg.solve(J, -residual)
-            q += dq
             size = np.max(np.abs(dq))
+            if el.line_search:
+                norm = np.sqrt(np.sum(residual * residual))
+                start = q.copy()
+                fraction = 1.0
+                for _ in range(LINE_SEARCH_HALVINGS + 1):
+                    q[:] = start + fraction * dq
+                    a[:] = (q - q_old - h * v_old) / (beta * h * h) - (0.5 / beta - 1.0) * a_old
+                    v[:] = v_old + h * ((1.0 - gamma) * a_old + gamma * a)
+                    powers = element_forces(el, g, k, q, v, f, K, C)
+                    residual = mass * a + f - g.external[k]
+                    if np.sqrt(np.sum(residual * residual)) < norm:
+                        break
+                    fraction *= 0.5
+                size *= fraction
+                evaluated = True
+            else:
+                q += dq
             if size < tolerance or (size < cycle_tolerance and abs(size - before) <= 1e-3 * size):
                 converged = True
                 break
@@ -226,4 +358,5 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
         v[:] = v_old + h * ((1.0 - gamma) * a_old + gamma * a)
         out_q[k] = q
         out_v[k] = v
+        out_power[k, 0], out_power[k, 1] = powers
     return most, failed

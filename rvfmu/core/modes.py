@@ -144,7 +144,8 @@ def modes(design: RVDesign, errors: ErrorSet | None = None, load: float = 0.0,
     theta_in = finite_number("theta_in", theta_in)
     tau_load = -load if load != 0.0 else -MODES_NO_LOAD_PROBE * design.rated_torque
     flank = 1 if tau_load <= 0 else -1
-    model = DynamicModel(design, errors, contact="linear", mesh="constant", flank=flank)
+    model = DynamicModel(design, errors, contact="linear", mesh="constant", flank=flank,
+                         friction=False)
     model.prepare(at_rest(theta_in))
     q = static_start(model, tau_load, theta_in)
     _, K, _ = model.forces(0, q, np.zeros(model.n))

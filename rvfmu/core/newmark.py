@@ -61,9 +61,10 @@ class NewmarkStepper:
         a0 = (model.external(step) - f) / model.mass
         return cls(model, State(q0.copy(), v0.copy(), a0), step, **kwargs)
 
-    def advance(self, stop: int, q_out=None, v_out=None) -> State:
+    def advance(self, stop: int, q_out=None, v_out=None, power_out=None) -> State:
         """Run to time step `stop`; the states of steps k + 1 .. stop go into q_out[k + 1 ..],
-        v_out[k + 1 ..] ((T, n) arrays indexed by step) when given."""
+        v_out[k + 1 ..] ((T, n) arrays indexed by step) when given, and the power the
+        friction and the dashpots dissipate there into power_out[k + 1 ..] ((T, 2) [W])."""
         model = self.model
         q, v, a = (np.array(x, dtype=float) for x in (self.state.q, self.state.v, self.state.a))
         k = self.k
@@ -71,15 +72,18 @@ class NewmarkStepper:
             g, first = model.geometry(k + 1)
             last = min(first + stop - k, g.h.size)
             qs, vs = np.empty((last, q.size)), np.empty((last, q.size))
+            ps = np.empty((last, 2))
             most, failed = newmark_steps(model.elements, g, first, last, model.mass, q, v, a,
                                          self.beta, self.gamma, TOLERANCE, CYCLE_TOLERANCE,
-                                         MAX_ITERATIONS, qs, vs)
+                                         MAX_ITERATIONS, qs, vs, ps)
             self.iterations = max(self.iterations, most)
             self.failed_steps += failed
             done = last - first
             if q_out is not None:
                 q_out[k + 1:k + 1 + done] = qs[first:last]
                 v_out[k + 1:k + 1 + done] = vs[first:last]
+            if power_out is not None:
+                power_out[k + 1:k + 1 + done] = ps[first:last]
             k += done
         self.state, self.k = State(q, v, a), k
         return self.state

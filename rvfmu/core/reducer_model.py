@@ -58,6 +58,19 @@ def friction_step(tau_map: float, friction_out: float, ratio: float, omega_in: f
     return tau_map - torque, p_loss, efficiency
 
 
+def step_efficiency(p_out: float, p_loss: float) -> float:
+    """The efficiency of a step from the power the output gives the load p_out [W] and the
+    power dissipated p_loss [W] (means over the step): forward (p_out > 0) p_out over
+    p_out + p_loss, backdriving (the load drives, p_out < 0) what the loss leaves of the
+    load's power, at least 0; 0 where no power passes.  The kinetic and elastic energy the
+    step stores or gives back counts for neither, so it stays within [0, 1]."""
+    if p_out > 0.0:
+        return p_out / (p_out + p_loss)
+    if p_out < 0.0:
+        return max(-p_out - p_loss, 0.0) / -p_out
+    return 0.0
+
+
 class QuasiStaticReducer:
     """Static equilibrium at every instant, from a TE map.
 

@@ -24,6 +24,7 @@ from .limits import check_load
 from .metrics import NOISE_FLOOR_ARCSEC
 from .newmark import NewmarkStepper, static_equilibrium
 from .quasistatic import NO_LOAD_PROBE
+from .reducer_model import step_efficiency
 from .solver import solve_pairs
 from .units import rad_to_arcsec
 
@@ -63,8 +64,10 @@ class Simulation:
 
     time, theta_in, theta_out, te [rad], omega_out [rad/s], tau_in [N*m], tau_load [N*m]: (T,);
     q: (T, n) every unknown [m, rotations as arc length at R_p], names in `dofs`;
-    steady: index of the first step after the start ramp; step [s]; drive: "ramp"
-    (constant speed after a start ramp) or "sampled" (sampled input angles).
+    steady: index of the first step after the start ramp; step [s]; omega_in [rad/s],
+    friction_power, damper_power [W]: (T,), the power the contacts' friction and the
+    elements' dashpots dissipate; drive: "ramp" (constant speed after a start ramp) or
+    "sampled" (sampled input angles).
     """
 
     design: RVDesign
@@ -81,7 +84,41 @@ class Simulation:
     steady: int
     step: float
     failed_steps: int
+    omega_in: np.ndarray
+    friction_power: np.ndarray
+    damper_power: np.ndarray
     drive: str = "ramp"
+
+    @property
+    def input_power(self) -> np.ndarray:
+        """(T,) [W] the power the input shaft brings in: minus the reducer's torque on it
+        (docs/model.md section 2) times its speed."""
+        return -self.tau_in * self.omega_in
+
+    @property
+    def output_power(self) -> np.ndarray:
+        """(T,) [W] the power the output gives the load: minus tau_load times the output speed
+        (negative where the load drives)."""
+        return -self.tau_load * self.omega_out
+
+    def mean_powers(self) -> dict:
+        """{"input_W", "output_W", "friction_W", "damping_W": mean over the run after the
+        start ramp (trapezoid in time); "efficiency": `reducer_model.step_efficiency` of
+        those means (what the losses leave of the power that passes, forward or
+        backdriving; None where no power passes)}."""
+        t = self.time[self.steady:]
+        span = t[-1] - t[0] if t.size > 1 else 0.0
+
+        def mean(x):
+            x = x[self.steady:]
+            return float(np.sum(0.5 * np.diff(t) * (x[1:] + x[:-1])) / span) if span > 0 else float(x[0])
+
+        out = {"input_W": mean(self.input_power), "output_W": mean(self.output_power),
+               "friction_W": mean(self.friction_power), "damping_W": mean(self.damper_power)}
+        passes = out["output_W"] != 0.0
+        out["efficiency"] = step_efficiency(out["output_W"], out["friction_W"] + out["damping_W"]) \
+            if passes else None
+        return out
 
     @property
     def te_arcsec(self) -> np.ndarray:
@@ -178,7 +215,8 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
              load: float | Sampled = 0.0, duration: float | None = None,
              revolutions: float | None = None, contact: str | None = None, mesh: str = "varying",
              step: float | None = None, ramp: float | None = None, method: str = "newmark",
-             progress=None, input_angle: Sampled | None = None) -> Simulation:
+             progress=None, input_angle: Sampled | None = None,
+             friction: bool = True) -> Simulation:
     """Dynamic TE of one reducer at a constant input speed after a start ramp, or along
     sampled input angles.
 
@@ -189,7 +227,8 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     0.05 s).  input_angle: `Sampled` input angles [rad] instead of the ramp and
     constant speed (speed_rpm, duration, revolutions and ramp then come from the
     samples and must not be given).  method: "newmark" (fixed step, the default)
-    or "Radau" / "BDF" (scipy's adaptive solve_ivp, the slow reference).
+    or "Radau" / "BDF" (scipy's adaptive solve_ivp, the slow reference).  friction:
+    False simulates the reducer without its contacts' friction and drag.
     progress(total, done): optional.
     """
     errors = zero_errors(design) if errors is None else errors.check(design)
@@ -259,20 +298,23 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     else:
         motion = sampled_motion(time, input_angle, tau_load)
     drive = "ramp" if input_angle is None else "sampled"
-    model = DynamicModel(design, errors, contact, mesh, 1 if np.mean(tau_load) <= 0 else -1)
+    model = DynamicModel(design, errors, contact, mesh, 1 if np.mean(tau_load) <= 0 else -1,
+                         friction)
     model.prepare(motion)
     q0 = static_start(model, tau_load[0], float(motion.theta_in[0]), model.external(0))
     if method != "newmark":
         return _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive)
     stepper = NewmarkStepper.starting_at(model, q0)
-    q, v = np.empty((count, model.n)), np.empty((count, model.n))
+    q, v, power = np.empty((count, model.n)), np.empty((count, model.n)), np.empty((count, 2))
     q[0], v[0] = q0, stepper.state.v
+    power[0] = model.forces_and_powers(0, q0, v[0])[3]
     report = max(1, count // 200)
     while stepper.k < count - 1:
-        stepper.advance(min(stepper.k + report, count - 1), q, v)
+        stepper.advance(min(stepper.k + report, count - 1), q, v, power)
         if progress is not None:
             progress(count - 1, stepper.k)
-    return _record(model, design, speed_rpm, motion, q, v, ramp, step, stepper.failed_steps, drive)
+    return _record(model, design, speed_rpm, motion, q, v, power, ramp, step,
+                   stepper.failed_steps, drive)
 
 
 def _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive):
@@ -308,11 +350,15 @@ def _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive):
     if not solution.success:
         raise RuntimeError(f"solve_ivp ({method}) failed: {solution.message}")
     q, v = solution.y[:n].T, solution.y[n:].T
-    return _record(model, design, speed_rpm, motion, q, v, ramp, step, 0, drive)
+    model.prepare(motion)
+    power = np.array([model.forces_and_powers(k, q[k], v[k])[3] for k in range(time.size)])
+    return _record(model, design, speed_rpm, motion, q, v, power, ramp, step, 0, drive)
 
 
-def _record(model, design, speed_rpm, motion, q, v, ramp, step, failed, drive: str) -> Simulation:
-    """The run's record from the unknowns q and their rates v, (T, n), at the motion's times."""
+def _record(model, design, speed_rpm, motion, q, v, power, ramp, step, failed,
+            drive: str) -> Simulation:
+    """The run's record from the unknowns q and their rates v, (T, n), and the dissipated
+    powers (T, 2) (friction, dampers), at the motion's times."""
     # the output flange: the carrier plus the windup of the massless series compliance
     te = q[:, model.carrier_rot] / model.scale + design.series_compliance * motion.tau_load
     omega_out = motion.omega_in / design.ratio + v[:, model.carrier_rot] / model.scale
@@ -321,7 +367,8 @@ def _record(model, design, speed_rpm, motion, q, v, ramp, step, failed, drive: s
     return Simulation(design, speed_rpm, motion.time, motion.theta_in,
                       motion.theta_in / design.ratio + te, te, omega_out,
                       model.input_torque(q.T, v.T), motion.tau_load, q, tuple(model.names),
-                      int(np.searchsorted(motion.time, motion.time[0] + ramp)), step, failed, drive)
+                      int(np.searchsorted(motion.time, motion.time[0] + ramp)), step, failed,
+                      motion.omega_in, power[:, 0], power[:, 1], drive)
 
 
 def static_start(model, tau_load: float, theta_in: float = 0.0, force=None) -> np.ndarray:

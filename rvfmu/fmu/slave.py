@@ -98,7 +98,8 @@ class RVReducer(Fmi2Slave):
                            ("te_arcsec", "transmission error [arcsec]"),
                            ("tau_in", "torque of the reducer on the input shaft [N.m], its "
                                       "friction included"),
-                           ("P_loss", "power lost to friction over the last step [W]"),
+                           ("P_loss", "power lost to friction over the last step [W] "
+                                      "(model dynamic: with its dashpots', the mean)"),
                            ("efficiency", "efficiency over the last step [1]: forward the "
                                           "transmitted power over it plus the loss, backdriving "
                                           "what is left after the loss; 0 at standstill")):
