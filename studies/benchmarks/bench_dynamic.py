@@ -3,7 +3,8 @@
 What it measures, on one core (BLAS threads set to 1 before numpy loads):
 - the RV-40E-121 with the seed 002 errors at 1600 rpm input and half its rated
   load, Newmark at the default step, for `--revolutions` output revolutions
-  after the start ramp (one revolution is 4.54 s simulated);
+  after the start ramp (one revolution is 4.54 s simulated), with its contacts'
+  friction and without (docs/model.md section 9: what friction costs);
 - scipy's solve_ivp (BDF, the adaptive reference) on the first `--reference`
   seconds of the same run, and Newmark on that same interval, so the ratio
   column compares the two integrators on equal work;
@@ -124,6 +125,7 @@ def main() -> None:
     profiler.enable()
     full = run(f"Newmark, {args.revolutions:g} output rev", revolutions=args.revolutions)
     profiler.disable()
+    run("  the same without friction", revolutions=args.revolutions, friction=False)
 
     # the FMU's model: 1 ms communication steps, internal steps of at most 0.1 ms
     from rvfmu.core.dynamic_reducer import DynamicReducer
