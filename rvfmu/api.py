@@ -140,11 +140,7 @@ def write_columns(path: str | Path, columns: dict) -> Path:
 def read_columns(field: str, path: str | Path, names: tuple[str, ...]) -> list[np.ndarray]:
     """The columns `names` of a CSV file with a header row, as float arrays; an InputError
     naming the field, the file and the row for a missing file, column or non-number."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(field, str(path), "must be an existing CSV file")
-    with path.open(newline="") as handle:
-        rows = list(csv.reader(line for line in handle if line.strip()))
+    rows = _csv_rows(field, path)
     header = [name.strip() for name in rows[0]] if rows else []
     missing = [name for name in names if name not in header]
     if missing:
@@ -608,13 +604,23 @@ def measure(data: str | Path, ratio: float, columns=None, units: str | None = No
 
 
 def _csv_header(field: str, path: str | Path) -> list[str]:
+    rows = _csv_rows(field, path, header_only=True)
+    return [name.strip() for name in rows[0]] if rows else []
+
+
+def _csv_rows(field: str, path: str | Path, header_only: bool = False) -> list[list[str]]:
+    """The non-empty rows of a CSV file (only the first with header_only), or an InputError
+    naming the field and the file when it is missing or not text (UTF-8)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(field, str(path), "must be an existing CSV file")
-    with path.open(newline="") as handle:
-        for row in csv.reader(line for line in handle if line.strip()):
-            return [name.strip() for name in row]
-    return []
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            rows = csv.reader(line for line in handle if line.strip())
+            return [next(rows, [])] if header_only else list(rows)
+    except UnicodeDecodeError as exc:
+        raise InputError(field, str(path), f"is not a text (UTF-8) CSV file: byte {exc.start} "
+                         f"is {exc.object[exc.start:exc.start + 1]!r}") from None
 
 
 def _measure_columns(data, columns, units):
@@ -914,14 +920,16 @@ def calibrate(design, data, fit, target: str | None = None, errors=None, load: f
               remove_input_orders=(), keep_orders=(), points: int | None = None,
               maxiter: int | None = None, popsize: int | None = None, seed: int | None = None,
               output: str | Path | None = None, progress=None) -> CalibrateReport:
-    """Identify stiffnesses of `design` from measurements (`rvfmu.calibration`).
+    """Identify stiffnesses and friction fields of `design` from measurements
+    (`rvfmu.calibration`).
 
     data: files, each a bench CSV (read as `measure` reads it, the design's ratio; at
     `load` with `errors`), a data-set TOML ([[dataset]] tables with te_pp_arcsec or data,
     load_Nm, errors, error_scale) or a catalogue TOML (torsional_rigidity_Nm_per_arcmin,
-    lost_motion_arcmin, rated_torque_Nm).  fit: names (R_ca, R_b, R_pd of seed 003, or
-    stiffness fields); target: peaks, curve or catalogue (default: what the data bring);
-    bounds: {name: (lower, upper)} [N/m].  maxiter, popsize, seed: differential_evolution's
+    lost_motion_arcmin, rated_torque_Nm; [[efficiency]] and [[running_torque]] tables).
+    fit: names (R_ca, R_b, R_pd of seed 003, stiffness fields, output_stiffness,
+    modification_scale, friction fields); target: peaks, curve or catalogue (default: what
+    the data bring); bounds: {name: (lower, upper)} in each value's unit.  maxiter, popsize, seed: differential_evolution's
     budget and seed.  output: the calibrated design TOML to write.  Everything is checked
     before the first model evaluation.  progress(total, done): optional.
     """

@@ -24,6 +24,16 @@ How it is answered, and why so:
   it gets sigma = inf; a value whose sigma exceeds itself is reported as not
   determined by the data.
   With as many residuals as values (n = p) there is no variance left: sigma = nan.
+- Friction (docs/model.md section 9): a catalogue file may also hold efficiency points
+  (output speed, resisting torque, efficiency) and no-load running torques at the
+  input (output speed, torque), each with its conditions; the friction fields
+  (`FRICTION_FIELDS`: the contacts' coefficients, the bearings' drag factor, the
+  lubricant's viscosity, the seal's torque) are fitted to them on their logarithms
+  like the stiffnesses.  An efficiency's residual is that of its loss share 1 - eta,
+  relative, which is what the coefficients set (an efficiency near 1 would hide it).
+  The contact loads do not depend on friction (the first-order power balance), so a
+  data set's loads are solved once per stiffness state and every friction value
+  costs only the losses.
 - Besides the stiffnesses, two values that the catalogue figures identify:
   `output_stiffness` [N*m/arcmin], the torsional stiffness of what is in series
   with the output (flange, carrier body, housing; it sets the design's
@@ -86,6 +96,16 @@ TARGETS = ("peaks", "curve", "catalogue")
 # The stiffness fields of a design: every one may be fitted.
 STIFFNESS_FIELDS = tuple(spec for spec in DESIGN_FIELDS if spec.file_key.endswith("_N_per_m"))
 _BY_NAME = {**{s.field: s for s in STIFFNESS_FIELDS}, **{s.file_key: s for s in STIFFNESS_FIELDS}}
+# The friction fields that may be fitted (to efficiencies and running torques), with their
+# units; with the bearings' pitch diameters they leave the contact loads as they are.
+FRICTION_UNITS = {"pin_disc_friction": "1", "pin_groove_friction": "1", "mesh_friction": "1",
+                  "needle_friction": "1", "tapered_friction": "1", "main_bearing_friction": "1",
+                  "bearing_drag_factor": "1", "lubricant_viscosity": "cSt", "seal_torque": "N*m"}
+FRICTION_FIELDS = tuple(spec for spec in DESIGN_FIELDS if spec.field in FRICTION_UNITS)
+_FRICTION_BY_NAME = {**{s.field: s for s in FRICTION_FIELDS},
+                     **{s.file_key: s for s in FRICTION_FIELDS}}
+LOAD_FREE_FIELDS = tuple(FRICTION_UNITS) + ("needle_pitch_diameter", "tapered_pitch_diameter",
+                                            "main_bearing_pitch_diameter")
 
 # Seed 003's support stiffnesses and the design field each one sets (module docstring).
 SEED003_NAMES = {"R_ca": "main_bearing_stiffness", "R_b": "crank_carrier_bearing_stiffness",
@@ -170,17 +190,34 @@ class Parameter:
 
 @dataclass(frozen=True)
 class Catalogue:
-    """Catalogue figures of a reducer; rated_torque_Nm: the torque they refer to (lost motion
-    at +-3 % of it, rigidity between 50 and 100 %), None: the design's."""
+    """Catalogue figures of a reducer; rated_torque_Nm: the torque the stiffness figures refer
+    to (lost motion at +-3 % of it, rigidity between 50 and 100 %), None: the design's;
+    efficiency: ((output speed [rpm], resisting torque [N*m], efficiency), ...), forward;
+    running_torque: ((output speed [rpm], no-load running torque at the input [N*m]), ...)."""
 
     torsional_rigidity_Nm_per_arcmin: float | None = None
     lost_motion_arcmin: float | None = None
     rated_torque_Nm: float | None = None
+    efficiency: tuple = ()
+    running_torque: tuple = ()
 
     def figures(self) -> dict:
+        """The stiffness figures given: {name: value}."""
         return {k: v for k, v in (("torsional_rigidity_Nm_per_arcmin",
                                    self.torsional_rigidity_Nm_per_arcmin),
                                   ("lost_motion_arcmin", self.lost_motion_arcmin)) if v is not None}
+
+    def labels(self) -> list[str]:
+        """A name for each of `values`."""
+        return (list(self.figures())
+                + [f"1 - efficiency, {v:g} rpm {t:g} N*m" for v, t, _ in self.efficiency]
+                + [f"running torque N*m, {v:g} rpm" for v, _ in self.running_torque])
+
+    def values(self) -> np.ndarray:
+        """Every figure as calibration compares it: the stiffness figures, the loss share
+        1 - efficiency of each efficiency point, the running torques."""
+        return np.array(list(self.figures().values()) + [1.0 - e for _, _, e in self.efficiency]
+                        + [t for _, t in self.running_torque], dtype=float)
 
 
 @dataclass(frozen=True)
@@ -202,7 +239,7 @@ class DataSet:
     def target_value(self, target: str) -> np.ndarray:
         """The measured quantity this data set brings to `target`, as an array."""
         if target == "catalogue":
-            return np.array(list(self.catalogue.figures().values()))
+            return self.catalogue.values()
         if target == "curve":
             return self.measured.te_reducer_arcsec
         if self.te_pp_arcsec is not None:
@@ -257,7 +294,10 @@ def resolve_name(name: str) -> tuple[str, str]:
         return text, OTHER_NAMES[text][0]
     if text in _BY_NAME:
         return _BY_NAME[text].field, _BY_NAME[text].field
-    allowed = ", ".join(list(SEED003_NAMES) + [s.field for s in STIFFNESS_FIELDS] + list(OTHER_NAMES))
+    if text in _FRICTION_BY_NAME:
+        return _FRICTION_BY_NAME[text].field, _FRICTION_BY_NAME[text].field
+    allowed = ", ".join(list(SEED003_NAMES) + [s.field for s in STIFFNESS_FIELDS] + list(OTHER_NAMES)
+                        + list(FRICTION_UNITS))
     raise InputError("fit", text, f"is not a value the calibration fits; fit one or more of {allowed} "
                      "(or their file keys, e.g. pin_disc_stiffness_N_per_m)")
 
@@ -316,6 +356,15 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
         if name in OTHER_NAMES:
             out.append(_other_parameter(design, name, given.get(name)))
             continue
+        if name in FRICTION_UNITS:
+            current = getattr(design, field)
+            if not current > 0.0:
+                raise InputError("fit", name, f"is fitted on its logarithm, and the design's "
+                                 f"{_FRICTION_BY_NAME[name].file_key} is {current:g}: give it a "
+                                 "starting value > 0")
+            lower, upper = given.get(name, (current / factor, current * factor))
+            out.append(Parameter(name, field, current, lower, upper, unit=FRICTION_UNITS[name]))
+            continue
         law = {"crank_disc_bearing_stiffness": ("crank_disc", "needle_rollers"),
                "crank_carrier_bearing_stiffness": ("crank_carrier", "tapered_rollers")}.get(field)
         if law is not None and law[0] in design.roller_laws:
@@ -358,7 +407,7 @@ def _other_parameter(design: RVDesign, name: str, bounds) -> Parameter:
 
 def _bound_pair(name, pair):
     field = f"bounds.{name}"
-    unit = OTHER_NAMES[name][1] if name in OTHER_NAMES else "N/m"
+    unit = OTHER_NAMES[name][1] if name in OTHER_NAMES else FRICTION_UNITS.get(name, "N/m")
     try:
         lower, upper = pair
     except (TypeError, ValueError):
@@ -375,6 +424,12 @@ def _bound_pair(name, pair):
 # -- the data files ------------------------------------------------------------------------
 
 CATALOGUE_KEYS = ("torsional_rigidity_Nm_per_arcmin", "lost_motion_arcmin", "rated_torque_Nm")
+# Friction figures of a catalogue file: arrays of tables, each with its conditions.
+FRICTION_CATALOGUE_KEYS = {
+    "efficiency": ("output_speed_rpm", "load_Nm", "efficiency", "lubricant_temperature_C", "note"),
+    "running_torque": ("output_speed_rpm", "input_torque_Nm", "lubricant_temperature_C", "note"),
+}
+CATALOGUE_NOTES = ("source", "note")
 DATASETS_KEYS = ("load_Nm", "errors", "error_scale", "source", "dataset")
 DATASET_KEYS = ("name", "te_pp_arcsec", "data", "load_Nm", "errors", "error_scale", "note")
 
@@ -390,22 +445,49 @@ def read_toml(field: str, path) -> dict:
 
 
 def is_catalogue(values: dict) -> bool:
-    return any(k in values for k in CATALOGUE_KEYS) and "dataset" not in values
+    return any(k in values for k in CATALOGUE_KEYS + tuple(FRICTION_CATALOGUE_KEYS)) and \
+        "dataset" not in values
 
 
 def catalogue_dataset(path, values: dict, load: float = 0.0, errors=None) -> DataSet:
-    """A catalogue TOML (torsional_rigidity_Nm_per_arcmin, lost_motion_arcmin, optional
-    rated_torque_Nm) as a data set."""
+    """A catalogue TOML as a data set: torsional_rigidity_Nm_per_arcmin, lost_motion_arcmin,
+    optional rated_torque_Nm; [[efficiency]] tables (output_speed_rpm, load_Nm: the resisting
+    torque, efficiency: forward, 0 < eta < 1) and [[running_torque]] tables (output_speed_rpm,
+    input_torque_Nm: the no-load running torque at the input), each optionally with
+    lubricant_temperature_C and a note; source and note: free text."""
     where = Path(path).name
-    unknown = [k for k in values if k not in CATALOGUE_KEYS]
+    known = CATALOGUE_KEYS + tuple(FRICTION_CATALOGUE_KEYS) + CATALOGUE_NOTES
+    unknown = [k for k in values if k not in known]
     if unknown:
         raise InputError(unknown[0], values[unknown[0]], "is not a catalogue key; known: "
-                         + ", ".join(CATALOGUE_KEYS), where)
+                         + ", ".join(known), where)
     figures = {k: positive(k, values[k], where) for k in CATALOGUE_KEYS if k in values}
-    if not set(figures) - {"rated_torque_Nm"}:
-        raise InputError("data", str(path), "a catalogue file needs torsional_rigidity_Nm_per_arcmin "
-                         "and/or lost_motion_arcmin")
-    return DataSet(where, load, errors, catalogue=Catalogue(**figures))
+    points = {}
+    for key, allowed in FRICTION_CATALOGUE_KEYS.items():
+        entries = values.get(key, [])
+        if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+            raise InputError(key, entries, f"must be [[{key}]] tables", where)
+        rows = []
+        for k, entry in enumerate(entries):
+            at = f"{where} {key} {k + 1}"
+            unknown = [x for x in entry if x not in allowed]
+            if unknown:
+                raise InputError(unknown[0], entry[unknown[0]], f"is not a [[{key}]] key; known: "
+                                 + ", ".join(allowed), at)
+            needed = allowed[:3] if key == "efficiency" else allowed[:2]
+            missing = [x for x in needed if x not in entry]
+            if missing:
+                raise InputError(missing[0], None, f"every [[{key}]] needs " + ", ".join(needed), at)
+            numbers = [positive(x, entry[x], at) for x in needed]
+            if key == "efficiency" and not numbers[2] < 1.0:
+                raise InputError("efficiency", numbers[2], "must be below 1 (a fraction: 0.85, "
+                                 "not 85 %)", at)
+            rows.append(tuple(numbers))
+        points[key] = tuple(rows)
+    if not set(figures) - {"rated_torque_Nm"} and not any(points.values()):
+        raise InputError("data", str(path), "a catalogue file needs torsional_rigidity_Nm_per_arcmin, "
+                         "lost_motion_arcmin, [[efficiency]] or [[running_torque]]")
+    return DataSet(where, load, errors, catalogue=Catalogue(**figures, **points))
 
 
 def peaks_datasets(path, values: dict, design: RVDesign, load: float = 0.0,
@@ -499,7 +581,8 @@ def check_target(datasets, target: str | None) -> str:
               d.catalogue is None)
         if not ok:
             what = ("catalogue figures (a TOML with torsional_rigidity_Nm_per_arcmin, "
-                    "lost_motion_arcmin)" if target == "catalogue" else
+                    "lost_motion_arcmin, [[efficiency]], [[running_torque]])"
+                    if target == "catalogue" else
                     "a bench record (CSV)" if target == "curve" else
                     "a TE peak (te_pp_arcsec) or a bench record")
             raise InputError("target", target, f"needs {what} in every data set; {d.name} has none")
@@ -533,13 +616,20 @@ def evaluate(problem: Problem, design: RVDesign) -> tuple[list[np.ndarray], bool
     if problem.target == "catalogue":
         for k, d in enumerate(problem.datasets):
             c = d.catalogue
-            model = design if c.rated_torque_Nm is None else design.with_fields(
-                rated_torque=c.rated_torque_Nm)
-            w = windup(model, _errors(design, d))
-            figures = {"torsional_rigidity_Nm_per_arcmin": w.torsional_rigidity_Nm_per_arcmin()[0],
-                       "lost_motion_arcmin": w.lost_motion_arcmin()[0]}
-            out[k] = np.array([figures[key] for key in c.figures()])
-            converged &= bool(w.converged[0])
+            parts = []
+            if c.figures():
+                model = design if c.rated_torque_Nm is None else design.with_fields(
+                    rated_torque=c.rated_torque_Nm)
+                w = windup(model, _errors(design, d))
+                figures = {"torsional_rigidity_Nm_per_arcmin": w.torsional_rigidity_Nm_per_arcmin()[0],
+                           "lost_motion_arcmin": w.lost_motion_arcmin()[0]}
+                parts.append(np.array([figures[key] for key in c.figures()]))
+                converged &= bool(w.converged[0])
+            if c.efficiency or c.running_torque:
+                values, ok = _friction_figures(design, d)
+                parts.append(values)
+                converged &= ok
+            out[k] = np.concatenate(parts)
         return out, converged
     groups = {}
     for k, d in enumerate(problem.datasets):
@@ -565,6 +655,34 @@ def evaluate(problem: Problem, design: RVDesign) -> tuple[list[np.ndarray], bool
 
 def _errors(design, dataset):
     return zero_errors(design) if dataset.errors is None else dataset.errors
+
+
+_LOADS: dict = {}
+
+
+def _friction_figures(design: RVDesign, dataset: DataSet) -> tuple[np.ndarray, bool]:
+    """(the model's 1 - efficiency at each efficiency point and running torque at each
+    speed of the data set's catalogue, every equilibrium converged), from the power
+    balance (`friction.efficiency_from_loads`) on the data set's contact loads, solved
+    once for each state of the fields that set them (module docstring)."""
+    from .core.friction import contact_loads, crank_turn_angles, efficiency_from_loads
+
+    c = dataset.catalogue
+    speeds = sorted({row[0] for row in c.efficiency + c.running_torque})
+    loads = sorted({row[1] for row in c.efficiency})
+    key = (id(dataset), design.with_fields(**{f: 0.0 for f in LOAD_FREE_FIELDS}), tuple(loads))
+    hit = _LOADS.get(key)
+    if hit is None or hit[0] is not dataset:
+        if len(_LOADS) > 32:
+            _LOADS.clear()
+        forward = contact_loads(design, _errors(design, dataset),
+                                np.concatenate([[0.0], -np.asarray(loads, dtype=float)]),
+                                crank_turn_angles(design))
+        hit = _LOADS[key] = (dataset, forward)
+    emap = efficiency_from_loads(design, hit[1], speeds, loads)
+    efficiency = [emap.efficiency[speeds.index(v), loads.index(t)] for v, t, _ in c.efficiency]
+    running = [emap.no_load_running_torque_Nm[speeds.index(v)] for v, _ in c.running_torque]
+    return np.array([1.0 - e for e in efficiency] + running), emap.converged
 
 
 def residuals_of(problem: Problem, model: list[np.ndarray]) -> np.ndarray:
@@ -648,7 +766,7 @@ class Calibration:
             else:
                 b = float(np.sqrt(np.mean(((before - measured) / measured) ** 2)))
                 a = float(np.sqrt(np.mean(((after - measured) / measured) ** 2)))
-                row = {"name": d.name, "figures": list(d.catalogue.figures()),
+                row = {"name": d.name, "figures": d.catalogue.labels(),
                        "measured": measured.tolist(), "before": before.tolist(),
                        "after": after.tolist(), "misfit_before": b, "misfit_after": a}
             row["improvement_percent"] = (100.0 * (abs(b) - abs(a)) / abs(b)) if b else float("nan")

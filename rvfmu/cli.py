@@ -402,20 +402,22 @@ def add_model_data_commands(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(run=_compare)
 
-    p = sub.add_parser("calibrate", help="identify stiffnesses of a design from measured TE "
-                       "peaks, curves or catalogue figures (least squares)")
+    p = sub.add_parser("calibrate", help="identify stiffnesses and friction of a design from "
+                       "measured TE peaks, curves or catalogue figures (least squares)")
     _reducer_arguments(p, "resisting output torque [N*m] of the bench CSVs (a data-set TOML "
                           "gives its own)")
     p.add_argument("data", nargs="+", help="bench CSVs, data-set TOMLs ([[dataset]] with "
                    "te_pp_arcsec or data, load_Nm, errors) or a catalogue TOML "
-                   "(torsional_rigidity_Nm_per_arcmin, lost_motion_arcmin, rated_torque_Nm)")
+                   "(torsional_rigidity_Nm_per_arcmin, lost_motion_arcmin, rated_torque_Nm, "
+                   "[[efficiency]], [[running_torque]])")
     p.add_argument("--fit", type=_names, required=True, metavar="NAME[,NAME...]",
-                   help="R_ca, R_b, R_pd (seed 003) or stiffness fields, e.g. pin_disc_stiffness")
+                   help="R_ca, R_b, R_pd (seed 003), stiffness fields (e.g. pin_disc_stiffness), "
+                   "output_stiffness, modification_scale or friction fields (e.g. mesh_friction)")
     p.add_argument("--target", choices=("peaks", "curve", "catalogue"),
                    help="what is matched (default: what the data bring)")
     p.add_argument("--bounds", type=_bound, action="append", metavar="NAME=LOWER:UPPER",
-                   help="bounds of a fitted value in N/m (default: its start /4 to x4); repeat "
-                   "for each")
+                   help="bounds of a fitted value in its unit (N/m for a stiffness; default: its "
+                   "start /4 to x4); repeat for each")
     _record_arguments(p)
     p.add_argument("--points", type=int, help="model points per output revolution (default "
                    "32*z_p: under load the peaks within ~1 %% of the fully resolved model's)")

@@ -108,18 +108,20 @@ def test_the_motor_torque_stays_within_its_limit(joint):
 
 def test_the_motor_lifts_the_arm_and_pays_for_the_reducers_friction(joint):
     """The motor's work over the run (its torque times its turn) is more than the arm's rise
-    in potential energy, and the quasi-static reducer's friction (docs/model.md section 9)
-    costs work that the frictionless dynamic reducer does not."""
+    in potential energy; the reducer's friction (docs/model.md section 9) costs about the
+    same in the quasi-static and the dynamic reducer, and more with the errors' preload."""
     runs, summary, _, _ = joint
     arm = run_joint.ARM
-    work = {name: summary["runs"][name]["motor_work_J"] for name in runs}
+    work, excess = {}, {}
     for name, run in runs.items():
+        work[name] = summary["runs"][name]["motor_work_J"]
         assert work[name] == pytest.approx(run_joint.motor_work(run))
         rise = arm["mass"] * arm["g"] * arm["com_distance"] * (
             math.sin(run.theta_arm[-1]) - math.sin(run.theta_arm[0]))
         assert work[name] > rise > 0.0, name
-    assert work["errors"] > 1.03 * work["dynamic"]
-    assert work["no-errors"] > 1.03 * work["dynamic"]
+        excess[name] = work[name] - rise
+    assert excess["dynamic"] == pytest.approx(excess["errors"], rel=0.05)
+    assert excess["errors"] > excess["no-errors"]
 
 
 def test_the_dynamic_reducer_stays_stable_in_the_joint(joint):

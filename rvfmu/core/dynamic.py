@@ -56,6 +56,7 @@ import numpy as np
 from .design import RVDesign
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
+from .friction import RPM, drag_moments, mesh_loss_factor
 from .kernels import Elements, Geometry, element_forces, gather, touched_columns
 from .pin_law import contacts
 from .stiffness import transverse_contact_ratio
@@ -231,8 +232,6 @@ class DynamicModel:
         "source" (E,): the element pressing it (`Elements.turn_source`); "friction" (E,);
         "radius" (E,) [m]: the arm its drag moment acts at (0: no drag); "kind": the
         `friction.drag_moments` key of its drag, or None}."""
-        from .friction import mesh_loss_factor
-
         d, idx, s = self.design, self.index, self.scale
         nb = self.bearing_k.size
         carrier = idx["carrier_rot"]
@@ -340,8 +339,6 @@ class DynamicModel:
         """(A, E) load-free resistance [N] of the turning contacts at their nominal slips
         (A, E): a bearing's Palmgren moment at its speed over its pitch radius, the seal's
         torque over R_p; zero without friction."""
-        from .friction import RPM, drag_moments
-
         drag = np.zeros(turn_slip.shape)
         if not self.friction:
             return drag

@@ -347,22 +347,37 @@ def efficiency_map(design: RVDesign, errors: ErrorSet | None = None, output_spee
     forward = contact_loads(design, errors, np.concatenate([[0.0], -loads]), theta_in, [sample],
                             progress=progress)
     backward = contact_loads(design, errors, loads, theta_in, [sample], progress=progress)
+    return efficiency_from_loads(design, forward, speeds, loads, backward)
+
+
+def efficiency_from_loads(design: RVDesign, forward: ContactLoads, output_speed_rpm, load_Nm,
+                          backward: ContactLoads | None = None) -> EfficiencyMap:
+    """`efficiency_map` from its contact loads: `forward` (one reducer) at the torques
+    [0, -load_Nm...], `backward` at +load_Nm (None: the backdriving efficiency is nan).  The
+    loads do not depend on the friction fields, so a calibration of those solves them once."""
+    speeds = np.atleast_1d(np.asarray(output_speed_rpm, dtype=float))
+    loads = np.atleast_1d(np.asarray(load_Nm, dtype=float))
     lost = {k: v[:, 0] for k, v in contact_losses(design, forward, speeds).items()}
     total = sum(lost.values())                                                     # (V, 1 + L)
-    total_back = sum(contact_losses(design, backward, speeds).values())[:, 0]     # (V, L)
     w = speeds[:, None] * RPM
     p_out = loads[None] * w
     p_in = p_out + total[:, 1:]
+    if backward is None:
+        back = np.full(p_out.shape, np.nan)
+    else:
+        total_back = sum(contact_losses(design, backward, speeds).values())[:, 0]     # (V, L)
+        back = np.maximum(1.0 - total_back / p_out, 0.0)
     standstill = sum(contact_losses(design, forward, [STANDSTILL_RPM]).values())[0, 0, 0]
     start = standstill / (design.ratio * STANDSTILL_RPM * RPM)
     return EfficiencyMap(
         design=design, output_speed_rpm=speeds, load_Nm=loads,
         efficiency=p_out / p_in,
-        backdriving_efficiency=np.maximum(1.0 - total_back / p_out, 0.0),
+        backdriving_efficiency=back,
         input_torque_Nm=p_in / (design.ratio * w),
         loss_W=total[:, 1:],
         losses={k: v[:, 1:] for k, v in lost.items()},
         no_load_running_torque_Nm=total[:, 0] / (design.ratio * speeds * RPM),
         starting_torque_input_Nm=float(start),
         backdriving_torque_output_Nm=float(design.ratio * start),
-        converged=bool(forward.converged.all() and backward.converged.all()))
+        converged=bool(forward.converged.all()
+                       and (backward is None or backward.converged.all())))
