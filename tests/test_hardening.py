@@ -186,3 +186,48 @@ def test_the_study_commands_join_rvte_through_the_entry_point_group():
     assert entries["studies"] == "tolerance.cli:add_study_commands"
     commands = cli.build_parser()._subparsers._group_actions[0].choices
     assert {"te", "presets", "profile", "fmu", "mc", "sobol"} <= set(commands)
+
+
+# -- 5. hostile input: a binary file, a count of points no memory holds --------------------------
+
+@pytest.fixture
+def no_solver(monkeypatch):
+    """Fail the test if the quasi-static solver is called."""
+    def refuse(*args, **kwargs):
+        raise AssertionError("the solver ran before the input was refused")
+
+    for target in ("rvfmu.core.quasistatic.solve_pairs", "rvfmu.core.friction.solve_pairs"):
+        monkeypatch.setattr(target, refuse)
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["te", "RV-40E-121", "--points", "100000000"],
+     "error: points = 100000000: gives 100000000 input angles whose element geometry alone takes"),
+    (["fmu", "build", "RV-40E-121", "--points", "100000000", "-o", "big.fmu"],
+     "error: points = 100000000: gives 100000000 input angles"),
+    (["te", "RV-110E", "--points", "10000000000"], "error: points = 10000000000: "),
+])
+def test_points_no_memory_holds_are_one_line_before_the_solver(args, expected, tmp_path, capsys,
+                                                               monkeypatch, no_solver):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_cli(args, capsys)
+    assert code == 2 and err.count("\n") == 1 and expected in err, err
+    assert "choose a smaller points" in err
+    assert not (tmp_path / "big.fmu").exists()
+
+
+def test_a_binary_bench_file_is_one_line_naming_the_file(tmp_path, capsys, no_solver):
+    data = tmp_path / "scope.csv"
+    data.write_bytes(b"theta_in_deg,theta_out_deg\n" + bytes(range(128, 256)) * 4)
+    for args in (["measure", data, "--ratio", "121"],
+                 ["simulate", "RV-40E-121", "--load-csv", data],
+                 ["compare", "RV-40E-121", data]):
+        code, _, err = run_cli(args, capsys)
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"= '{data}': is not a text (UTF-8) CSV file: byte 27 is b'\\x80'" in err, err
+
+
+def test_a_study_whose_points_no_memory_holds_is_refused_when_loaded(tmp_path):
+    path = write_study(tmp_path, operating={"points": 100000000})
+    with pytest.raises(InputError, match=r"points = 100000000: gives 100000000 input angles"):
+        load_study(path)

@@ -59,6 +59,7 @@ from pathlib import Path
 
 from rvfmu.core.checks import InputError, finite_number, integer
 from rvfmu.core.design import ESTIMATE_NAMES, PRESET_NAMES, RVDesign, load_design
+from rvfmu.core.equivalent import check_angles
 from rvfmu.core.errors import ERROR_NAMES, ErrorSet, error_file_values, load_errors
 from rvfmu.core.limits import check_load
 from rvfmu.core.quasistatic import default_points
@@ -193,6 +194,7 @@ class Study:
         if self.points is None:
             object.__setattr__(self, "points", default_points(self.design))
         integer("points", self.points, 8, where=where)
+        check_angles(self.design, self.points, "points", where)
         integer("windup_positions", self.windup_positions, 1, where=where)
         integer("batch_size", self.batch_size, 1, MAX_BATCH, where=where)
         integer("seed", self.seed, 0, 2 ** 63 - 1, where=where)

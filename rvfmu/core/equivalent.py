@@ -27,8 +27,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import fits_in_memory
 from .design import RVDesign
 from .errors import CLEARANCES, ErrorSet
+
+# Peak memory of the element geometry, measured on the RV-40E-121 and RV-110E at 12 480 angles
+# (tracemalloc): the rows of the meshes and bearings plus 24 floats per angle for each (disc,
+# pin) contact, its rows, gaps, levers and the temporaries that build them.
+FLOATS_PER_PIN_CONTACT = 24
+
+
+def geometry_bytes(design: RVDesign, angles: int, sun_rotation: bool = False) -> int:
+    """Peak bytes of `EquivalentModel`'s element geometry at `angles` input angles."""
+    n = len(dof_names(design.n_c, sun_rotation))
+    meshes, bearings = design.n_c + 2, 3 * design.n_c + 1
+    per_angle = meshes * n + 2 * bearings * n + 2 * design.z_p * FLOATS_PER_PIN_CONTACT
+    return 8 * int(angles) * per_angle
+
+
+def check_angles(design: RVDesign, angles: int, field: str = "points", where: str = "") -> None:
+    """Refuse, before any work, a count of input angles whose geometry alone would not fit in
+    memory (`checks.fits_in_memory`): what every route that sizes its angles from an input
+    goes through."""
+    fits_in_memory(field, angles, geometry_bytes(design, angles),
+                   f"gives {int(angles)} input angles whose element geometry alone", where)
 
 
 def dof_names(n_c: int, sun_rotation: bool = False) -> list[str]:
@@ -172,6 +194,7 @@ class EquivalentModel:
 
     def __init__(self, design: RVDesign, theta_in, flank: int = 1, sun_rotation: bool = False):
         self.design = design
+        check_angles(design, np.size(theta_in))
         self.pose = Pose.at(design, theta_in)
         self.flank = 1 if flank >= 0 else -1
         self.sun_rotation = sun_rotation

@@ -29,7 +29,7 @@ import numpy as np
 from . import metrics
 from .checks import InputError, finite_number, integer
 from .design import RVDesign
-from .equivalent import EquivalentModel
+from .equivalent import EquivalentModel, check_angles
 from .limits import check_load
 from .errors import ErrorSet, zero_errors
 from .solver import solve_pairs
@@ -92,7 +92,9 @@ class TECurve:
 
 
 def input_angles(design: RVDesign, points: int) -> np.ndarray:
-    """(points,) input angles evenly over one output revolution, end excluded [rad]."""
+    """(points,) input angles evenly over one output revolution, end excluded [rad]; points
+    whose model would not fit in memory are refused here, before any work."""
+    check_angles(design, points)
     return 2.0 * np.pi * design.ratio * np.arange(points) / points
 
 
