@@ -180,9 +180,6 @@ class SimulationReport:
         d = sim.design
         te = sim.steady_te_arcsec()
         start, stop = sim.time[sim.steady], sim.time[-1]
-        from .core.simulation import Excitations
-
-        ex = Excitations.at(d, sim.speed_rpm)
         load = -sim.tau_load
         if np.ptp(load) == 0.0:
             load_text = f"load {load[0]:g} N*m resisting"
@@ -200,8 +197,11 @@ class SimulationReport:
             f"te_pp             {te.max() - te.min():.3f} arcsec",
             "largest peaks     " + (", ".join(f"{f:.1f} Hz: {a:.3f}\u2033" for f, a in self.peaks)
                                     or f"none above {metrics.NOISE_FLOOR_ARCSEC:g}\u2033"),
-            "excitations       " + ", ".join(f"{name} {hz:.1f} Hz" for name, hz in ex.items()),
+            f"{'excitation':<24} {'frequency [Hz]':>14} {'TE amplitude [arcsec]':>22}",
         ]
+        lines += [f"  {name:<22} {hz:>14.2f} " + (f"{amp:>22.4f}" if amp is not None else
+                                                  f"{'above Nyquist':>22}")
+                  for name, hz, amp in sim.excitation_amplitudes()]
         power = sim.mean_powers()
         efficiency = power["efficiency"]
         lines.append(
@@ -223,6 +223,8 @@ class SimulationReport:
                 "step_s": sim.step, "te_range_arcsec": [float(te.min()), float(te.max())],
                 "te_pp_arcsec": float(te.max() - te.min()),
                 "peaks": [[f, a] for f, a in self.peaks], "failed_steps": sim.failed_steps,
+                "excitations": [{"name": name, "frequency_hz": hz, "amplitude_arcsec": amp}
+                                for name, hz, amp in sim.excitation_amplitudes()],
                 "power_W": {k[:-2]: v for k, v in sim.mean_powers().items() if k.endswith("_W")},
                 "efficiency": sim.mean_powers()["efficiency"]}
 

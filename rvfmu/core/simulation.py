@@ -28,6 +28,7 @@ from .reducer_model import step_efficiency
 from .solver import solve_pairs
 from .units import rad_to_arcsec
 
+HARMONICS = (1, 2)         # the excitations' orders whose TE amplitude a run reports
 STEPS_PER_PERIOD = 20      # default step: 20 per period of the fastest excitation (mesh or pin passing)
 MIN_STEPS_PER_PERIOD = 8   # coarser than this misses the excitation: refused
 NATURAL_STEPS_PER_PERIOD = 15  # and 15 per period of a natural frequency the excitations reach: the
@@ -56,6 +57,25 @@ class Excitations:
     def items(self):
         return (("input rotation", self.input), ("crank rotation", self.crank),
                 ("pin passing", self.pin_passing), ("stage-1 mesh", self.mesh))
+
+    def with_harmonics(self, orders=HARMONICS):
+        """((name, frequency [Hz]), ...): each excitation and its harmonics (name "x2", ...)."""
+        return tuple((name if k == 1 else f"{name} x{k}", k * hz)
+                     for name, hz in self.items() for k in orders)
+
+
+def amplitude_at(signal, step: float, frequency: float) -> float:
+    """Amplitude of the sine at `frequency` [Hz] in `signal` (its unit) sampled every `step` [s]:
+    the Hann-windowed Fourier sum of the signal less its mean, evaluated at exactly that
+    frequency (not at the nearest bin, so no scalloping and no interpolation), times
+    2 / sum(window).  A neighbouring component at df leaks into it by the Hann window's
+    sidelobes, below 1 % from 3 / T (T the record's length) on, where a sine at a bin
+    frequency and one half a bin off read the same."""
+    x = np.asarray(signal, dtype=float)
+    x = x - x.mean()
+    window = np.hanning(x.size)
+    phase = np.exp(-2j * np.pi * frequency * step * np.arange(x.size))
+    return float(2.0 * abs(np.sum(window * x * phase)) / window.sum())
 
 
 @dataclass(frozen=True)
@@ -140,6 +160,15 @@ class Simulation:
         window = np.hanning(te.size)
         amplitude = 2.0 * np.abs(np.fft.rfft(te * window)) / window.sum()
         return np.fft.rfftfreq(te.size, self.step), amplitude
+
+    def excitation_amplitudes(self) -> list[tuple[str, float, float | None]]:
+        """[(name, frequency [Hz], TE amplitude [arcsec])] of every excitation and its 2nd
+        harmonic at the run's speed (`Excitations`), after the start ramp (`amplitude_at`);
+        None above the Nyquist frequency of the step."""
+        te = self.steady_te_arcsec()
+        nyquist = 0.5 / self.step
+        return [(name, hz, amplitude_at(te, self.step, hz) if hz < nyquist else None)
+                for name, hz in Excitations.at(self.design, self.speed_rpm).with_harmonics()]
 
     def peaks_hz(self, count: int = 5, floor: float = NOISE_FLOOR_ARCSEC):
         """Up to `count` largest local maxima of the spectrum above `floor` arcsec: [(Hz, arcsec)]."""
