@@ -299,9 +299,10 @@ class ModesReport:
         m, ex = self.modes, self.excitations()
         lines = [f"design            {self.design.name}: natural frequencies of the dynamic model "
                  f"linearised at its equilibrium under {-m.tau_load:g} N*m resisting",
-                 f"{'mode':>4} {'frequency [Hz]':>15}  dominant parts (share of kinetic energy)"]
+                 f"{'mode':>4} {'frequency [Hz]':>15} {'damping':>8}  dominant parts (share of "
+                 "kinetic energy)"]
         for k, hz, parts in m.table(self.count, parts=3):
-            lines.append(f"{k + 1:>4} {hz:>15.1f}  " + ", ".join(
+            lines.append(f"{k + 1:>4} {hz:>15.1f} {100 * m.damping_ratios[k]:>7.2f}%  " + ", ".join(
                 f"{label} {100 * share:.0f} %" for label, share in parts if share >= 0.005))
         lines.append(f"excitations at {self.speed_rpm:g} rpm: " + ", ".join(
             f"{name} {hz:.1f} Hz" for name, hz in ex.items()))
@@ -319,8 +320,9 @@ class ModesReport:
     def to_json(self) -> dict:
         m = self.modes
         return {"design": self.design.name, "load_Nm": float(-m.tau_load),
-                "modes": [{"hz": hz, "parts": [[label, share] for label, share in parts]}
-                          for _, hz, parts in m.table(self.count, parts=3)],
+                "modes": [{"hz": hz, "damping_ratio": float(m.damping_ratios[k]),
+                           "parts": [[label, share] for label, share in parts]}
+                          for k, hz, parts in m.table(self.count, parts=3)],
                 "speed_rpm": self.speed_rpm,
                 "excitations_hz": {name: hz for name, hz in self.excitations().items()}}
 

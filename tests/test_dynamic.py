@@ -189,6 +189,7 @@ def test_bad_simulation_input_is_refused_naming_the_field(rv40, changes, field):
 
 def test_rvte_simulate_prints_writes_and_speaks_json(tmp_path, capsys):
     import json
+    import re
 
     from rvfmu import cli
 
@@ -197,7 +198,7 @@ def test_rvte_simulate_prints_writes_and_speaks_json(tmp_path, capsys):
                      "--csv", str(csv_path), "--plot", str(plot)]) == 0
     out = capsys.readouterr().out
     assert "at constant speed (after the start ramp)" in out and "te_pp" in out
-    assert "stage-1 mesh 317.4 Hz" in out and plot.stat().st_size > 0
+    assert re.search(r"\n  stage-1 mesh +317\.36 +\d+\.\d{4}\n", out) and plot.stat().st_size > 0
     rows = np.loadtxt(csv_path, delimiter=",", skiprows=1)
     header = csv_path.read_text().splitlines()[0]
     assert header == "time_s,theta_in_rad,theta_out_rad,te_arcsec,tau_in_Nm"
@@ -265,6 +266,7 @@ def test_tangent_stiffness_and_damping_are_the_derivatives_of_the_forces(rv40, r
     model = DynamicModel(design, seed002, contact=contact, mesh="varying")
     model.prepare(ramp_motion(np.array([0.0, 1e-4]), 100.0, 0.0))
     q = _quasi_static_start(model, design, seed002, -300.0, 1)
+    model.set_modal_damping(q)
     rng = np.random.default_rng(3)
     v = rng.normal(0.0, 1e-4, model.n)
     f, K, C = model.forces(1, q, v)
@@ -273,8 +275,8 @@ def test_tangent_stiffness_and_damping_are_the_derivatives_of_the_forces(rv40, r
         dq[k] = 1e-11
         df = (model.forces(1, q + dq, v)[0] - model.forces(1, q - dq, v)[0]) / 2e-11
         np.testing.assert_allclose(df, K[:, k], rtol=1e-4, atol=1e-6 * np.abs(K).max())
-        dv = dq * 10.0
-        dfv = (model.forces(1, q, v + dv)[0] - model.forces(1, q, v - dv)[0]) / 2e-10
+        dv = dq * 1e3
+        dfv = (model.forces(1, q, v + dv)[0] - model.forces(1, q, v - dv)[0]) / 2e-8
         np.testing.assert_allclose(dfv, C[:, k], rtol=1e-4, atol=1e-6 * np.abs(C).max())
 
 

@@ -63,16 +63,19 @@ def test_the_tangent_is_the_derivative_of_the_forces_with_friction(rv40f, seed00
         model.prepare(ramp_motion(np.array([0.0, 1e-4]), omega, 0.0, -300.0))
         q = static_start(model, -300.0, 0.0) + 1e-8 * rng.standard_normal(model.n)
         v = 1e-6 * rng.standard_normal(model.n)
-        _, K, C = model.forces(1, q, v)
+        f, K, C = model.forces(1, q, v)
         scale = np.abs(K).max()
+        # the differences' rounding: |f| eps / step, where friction's C is small (at speed)
+        noise = 10.0 * np.abs(f).max() * np.finfo(float).eps / 1e-9
         for k in range(model.n):
             d = np.zeros(model.n)
             d[k] = 1e-12
             dq = (model.forces(1, q + d, v)[0] - model.forces(1, q - d, v)[0]) / 2e-12
             np.testing.assert_allclose(dq, K[:, k], rtol=1e-4, atol=1e-6 * scale)
-            d[k] = 1e-10
-            dv = (model.forces(1, q, v + d)[0] - model.forces(1, q, v - d)[0]) / 2e-10
-            np.testing.assert_allclose(dv, C[:, k], rtol=1e-4, atol=1e-6 * np.abs(C).max())
+            d[k] = 1e-9                 # 1e-4 of the regularised sign's slip scale
+            dv = (model.forces(1, q, v + d)[0] - model.forces(1, q, v - d)[0]) / 2e-9
+            np.testing.assert_allclose(dv, C[:, k], rtol=1e-4,
+                                       atol=max(1e-6 * np.abs(C).max(), noise))
 
 
 def _balance(design, errors, load, step, duration=0.04, speed_rpm=1600.0):
@@ -95,6 +98,7 @@ def _balance(design, errors, load, step, duration=0.04, speed_rpm=1600.0):
     model = DynamicModel(design, errors, mesh="constant", flank=flank)
     model.prepare(motion)
     q0 = static_start(model, -load, 0.0, model.external(0))
+    model.set_modal_damping(q0)
     stepper = NewmarkStepper.starting_at(model, q0)
     q, v, power = np.empty((count, model.n)), np.empty((count, model.n)), np.empty((count, 2))
     q[0], v[0] = q0, 0.0
@@ -108,6 +112,7 @@ def _balance(design, errors, load, step, duration=0.04, speed_rpm=1600.0):
     energy = []
     for shift in (1e-6, -1e-6):
         twin = DynamicModel(design, errors, mesh="constant", flank=flank, friction=False)
+        twin.elements = twin.elements._replace(modal_c=model.elements.modal_c)
         twin.prepare(Motion(t, motion.theta_in + shift, motion.omega_in, motion.alpha_in,
                             motion.tau_load))
         energy.append(np.array([twin.elastic_energy(k, q[k]) for k in range(count)]))
@@ -139,12 +144,13 @@ def _closing(w):
                          ids=["unloaded", "unloaded, seed 002", "206 N*m", "206 N*m, seed 002"])
 def test_the_input_work_is_the_output_the_losses_and_the_stored_energy(rv40f, seed002, load,
                                                                        errors):
-    """To 1e-6 of the input work with the kinematic work, which stays below 2e-3 of it (1e-5
-    without load and errors: only the profile modifications' gaps turn with the input)."""
+    """To 1e-6 of the input work with the kinematic work, which stays below 2e-3 of it: the
+    rows and offsets turning with the input, and the modal damping's forces on the nominal
+    motion while the start ramp winds the unknowns up (docs/model.md section 9)."""
     w = _balance(rv40f, seed002 if errors else None, load, 4e-6)
     assert w["friction"] > 0.05 * w["input"] if load else w["friction"] > 0.02 * w["input"]
     assert abs(_closing(w)) < 1e-6
-    assert abs(w["kinematic"]) < (2e-3 if load or errors else 1e-5) * w["input"]
+    assert abs(w["kinematic"]) < 2e-3 * w["input"]
     if load:
         assert w["output"] > 0.7 * w["input"]
 

@@ -67,7 +67,7 @@ DESIGN_FIELDS = (
     FieldSpec("sun_support_stiffness", "sun_support_stiffness_N_per_m", 1.0, "positive",
               "input shaft radial support of the sun"),
     FieldSpec("damping_ratio", "damping_ratio", 1.0, "fraction",
-              "modal damping ratio of meshes and bearings"),
+              "damping ratio of every mode of the dynamic model"),
     FieldSpec("sun_mass", "sun_mass_kg", 1.0, "positive", "sun gear with input shaft"),
     FieldSpec("sun_inertia", "sun_inertia_kg_m2", 1.0, "positive", "sun gear with input shaft"),
     FieldSpec("crank_mass", "crank_mass_kg", 1.0, "positive", "one planet with its crankshaft"),

@@ -29,9 +29,10 @@ angular accelerations during a speed ramp) times its mass.
 - The mesh stiffness varies over the mesh cycle (`mesh_stiffness_factor`):
   single pair c' and double pair 1.75 c', whose mean over the cycle is ISO
   6336-1's c_gamma = c' (0.75 eps_alpha + 0.25), the preset's mesh stiffness.
-- Damping: each element a dashpot c = 2 zeta sqrt(k m), zeta the design's
-  damping ratio and m the reduced translational mass of the two bodies it joins
-  (bodies fixed to the housing count as infinite).
+- Damping: modal, the design's ratio zeta on every mode of the model linearised
+  at the run's starting equilibrium (`set_modal_damping`):
+  C = M Phi diag(2 zeta w_k) Phi^T M, Phi the mass-normalised shapes; the
+  IMPACT law keeps its own contact damping besides.
 - Friction (docs/model.md section 9), at the contacts and with the coefficients of
   the quasi-static power balance (`friction.py`): each contact resists its slip w
   (its sliding speed [m/s]: the nominal kinematics' plus the unknowns') with
@@ -67,6 +68,7 @@ DOUBLE_PAIR = 1.75         # double-pair / single-pair mesh stiffness: ISO 6336-
 IMPACT_EXPONENT = 1.5      # IMPACT law exponent e (Hertz-like, seeds 000/001)
 IMPACT_PENETRATION = 1e-6  # d_max [m]: the damping reaches c_max over 1 um of penetration
 CHUNK = 512                # time steps whose geometry is built at once
+FLOATING_HZ = 1e-3         # a mode below this is a part floating in a clearance: not damped
 SLIP_SCALE = 1e-5          # [m/s] friction's regularised sign: a contact slipping at 10 um/s
                            # carries 71 % of its Coulomb force, at 0.1 mm/s 99.5 %
 CONTACT_LAWS = ("linear", "hertz", "impact")
@@ -176,18 +178,15 @@ class DynamicModel:
         self.mass = self._mass_diagonal()
         r_b = design.sun_base_radius
         self.shaft_k = INPUT_SHAFT_FACTOR * design.n_c * design.mesh_stiffness * r_b ** 2  # N*m/rad
-        zeta = design.damping_ratio
-        m = {body: mass for body, (mass, _) in self._bodies().items()}
-        reduced = lambda a, b: a * b / (a + b) if math.isfinite(b) else a  # noqa: E731
-        self.linear_c = 2 * zeta * np.sqrt(
-            np.array([design.mesh_stiffness] * design.n_c + [design.sun_support_stiffness] * 2)
-            * np.array([reduced(m["sun"], m["crank"])] * design.n_c + [m["sun"]] * 2))
-        pairs = ([(m["crank"], m["carrier"])] * design.n_c + [(m["crank"], m["disc"])] * 2 * design.n_c
-                 + [(m["carrier"], math.inf)])
-        self.bearing_c = 2 * zeta * np.sqrt(self.bearing_k * np.array([reduced(a, b) for a, b in pairs]))
+        # Damping is modal (`set_modal_damping`): the element dashpots are none, but IMPACT's,
+        # whose law carries its own (c_max = 2 zeta sqrt(k m_disc), ramped over d_max)
+        n_c = design.n_c
+        self.linear_c = np.zeros(n_c + 2)
+        self.bearing_c = np.zeros(self.bearing_k.size)
         self.pin_k = design.pin_disc_stiffness
-        self.pin_c = 2 * zeta * math.sqrt(self.pin_k * m["disc"])
-        self.shaft_c = 2 * zeta * math.sqrt(self.shaft_k * design.sun_inertia)
+        self.pin_c = 2 * design.damping_ratio * math.sqrt(self.pin_k * design.disc_mass) \
+            if contact == "impact" else 0.0
+        self.shaft_c = 0.0
         # IMPACT: k delta^e equals the linear law at the pin deflection under rated torque
         self.impact_k = self.pin_k * self._rated_pin_deflection() ** (1.0 - IMPACT_EXPONENT)
         self.friction = bool(friction)
@@ -206,7 +205,8 @@ class DynamicModel:
             min(design.pin_disc_friction, design.pin_groove_friction) if friction else 0.0,
             turning["cols"], turning["rows"], turning["source"],
             turning["friction"] if friction else np.zeros(turning["friction"].size),
-            SLIP_SCALE, friction and self._resists(turning))
+            SLIP_SCALE, friction and self._resists(turning), np.zeros((self.n, self.n)))
+        self.modal_frequencies = np.empty(0)
         self._drag_radius, self._drag_kind = turning["radius"], turning["kind"]
         counts = {"crank": design.n_c, "disc": 2}
         self._nominal_index = tuple({body: [self.index[f"{body}{k}_{axis}"] for k in range(count)]
@@ -214,6 +214,24 @@ class DynamicModel:
         self._geometry = None
 
     # -- constant parts --------------------------------------------------------------
+    def set_modal_damping(self, q: np.ndarray, step: int = 0) -> None:
+        """Damp every mode of the model linearised at the state q (at rest) by the design's
+        ratio: K the tangent stiffness there (symmetrised), K phi = w^2 M phi, and
+        C = M Phi diag(2 zeta w) Phi^T M on the unknowns' velocities, kept for the run (the
+        Newmark step and the FMU apply the same matrix).  A part floating in a clearance
+        (w = 0) is left undamped; `modal_frequencies` [rad/s] are those damped."""
+        from scipy.linalg import eigh
+
+        self.elements = self.elements._replace(modal_c=np.zeros((self.n, self.n)))
+        _, K, _ = self.forces(step, np.asarray(q, dtype=float), np.zeros(self.n))
+        w2, shapes = eigh(0.5 * (K + K.T), np.diag(self.mass))
+        w = np.sqrt(np.maximum(w2, 0.0))
+        keep = w > 2.0 * math.pi * FLOATING_HZ
+        weighted = self.mass[:, None] * shapes[:, keep]                       # M Phi
+        modal = (weighted * (2.0 * self.design.damping_ratio * w[keep])) @ weighted.T
+        self.elements = self.elements._replace(modal_c=np.ascontiguousarray(0.5 * (modal + modal.T)))
+        self.modal_frequencies = w[keep]
+
     def _resists(self, turning: dict) -> bool:
         """Whether any contact has friction or drag (with none, the run is the frictionless
         one to the bit)."""

@@ -6,9 +6,10 @@ line from its previous value (constant speed over the step, the only motion
 the host's samples define) and the load is held at its new value, and the
 Newmark stepper runs internal steps of at most `internal_step` seconds.  The
 outputs are those at the end of the step, but for tau_in, its mean over the
-step, and p_loss and the efficiency, the power the reducer's friction and dashpots
-dissipate over the step and what it leaves of the power that passes.  The state is the displacements, velocities and accelerations of every unknown with
-the last input angle and time: a master can save it, roll back and re-step to
+step, and p_loss and the efficiency, the power the reducer's friction and damping
+dissipate over the step and what it leaves of the power that passes.  The state
+is the displacements, velocities and accelerations of every unknown with the
+last input angle and time: a master can save it, roll back and re-step to
 the same results.
 """
 
@@ -46,7 +47,11 @@ class DynamicReducer:
     def _model(self, tau_load: float) -> DynamicModel:
         flank = 1 if tau_load <= 0 else -1
         if self.model is None or self.model.flank != flank:
+            before = self.model
             self.model = DynamicModel(self.design, self.errors, self.contact, self.mesh, flank)
+            if before is not None:      # the modes damped at the start stay damped alike
+                self.model.elements = self.model.elements._replace(modal_c=before.elements.modal_c)
+                self.model.modal_frequencies = before.modal_frequencies
         return self.model
 
     def _outputs(self, omega_in: float, tau_in: float, tau_load: float,
@@ -65,6 +70,7 @@ class DynamicReducer:
         model = self._model(tau_load)
         model.prepare(at_rest(theta_in, time, tau_load))
         q = static_start(model, tau_load, theta_in)
+        model.set_modal_damping(q)
         self.time, self.theta_in = float(time), float(theta_in)
         self.state = State(q, np.zeros(model.n), np.zeros(model.n))
         self.omega_in, self.tau_load = 0.0, float(tau_load)

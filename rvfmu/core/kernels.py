@@ -58,6 +58,7 @@ Elements = namedtuple("Elements", [
     "turn_friction",   # (E,) its Coulomb coefficient (0: none)
     "slip_scale",      # [m/s] the regularised sign's slip scale
     "line_search",     # True: Newton updates halved until the residual falls (with friction)
+    "modal_c",         # (n, n) modal damping on the unknowns' velocities [N s/m]
 ])
 
 Geometry = namedtuple("Geometry", [
@@ -118,7 +119,7 @@ def element_forces(el, g, a, q, v, f, K, C):
     """Forces of every element at step a of geometry g into f (n,), with their derivatives in
     q and v into K and C (n, n): the EOM is M q'' + f = F.  f, K, C are overwritten.
     Returns (friction power, damper power) [W]: what the contacts' friction and the
-    elements' dashpots dissipate at this state (each >= 0)."""
+    damping (dashpots and the modal matrix) dissipate at this state (each >= 0)."""
     f[:] = 0.0
     K[:, :] = 0.0
     C[:, :] = 0.0
@@ -243,6 +244,14 @@ def element_forces(el, g, a, q, v, f, K, C):
     K[s, s] += el.shaft_k
     C[s, s] += el.shaft_c
     damper_power += el.shaft_c * v[s] * v[s]
+    # modal damping (DynamicModel.set_modal_damping): a constant matrix on the velocities
+    for i in range(el.modal_c.shape[0]):
+        force = 0.0
+        for j in range(el.modal_c.shape[1]):
+            force += el.modal_c[i, j] * v[j]
+            C[i, j] += el.modal_c[i, j]
+        f[i] += force
+        damper_power += v[i] * force
     # turning contacts: bearings, meshes and the seal resist their slip with R s(w),
     # R = mu N + drag; N's gradient reaches the unknowns of the element that presses them
     cols, S = el.turn_cols, el.turn_rows
@@ -293,7 +302,7 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
     """Advance the state (q, v, a), given at the step before `first`, through steps first..stop-1
     of g by the Newmark rule with Newton iterations; q, v, a are updated in place and the
     state after each step is written to out_q[k], out_v[k], the power its friction and
-    dashpots dissipate to out_power[k] ((friction, dampers) [W], at the last iteration's
+    damping dissipate to out_power[k] ((friction, dampers) [W], at the last iteration's
     state: within the update's tolerance of the step's).
 
     A step has converged when the Newton update is below `tolerance`, or when the

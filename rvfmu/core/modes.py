@@ -39,7 +39,7 @@ from scipy.linalg import eigh
 
 from .checks import InputError, finite_number
 from .design import RVDesign
-from .dynamic import DynamicModel, at_rest
+from .dynamic import FLOATING_HZ, DynamicModel, at_rest
 from .errors import ErrorSet, zero_errors
 from .limits import check_load
 from .simulation import Excitations, static_start
@@ -47,9 +47,6 @@ from .simulation import Excitations, static_start
 # Resisting probe torque at zero load, x rated torque (0.41 N*m on an RV-40E): enough to close
 # the pin contacts on the resisting side, far too small to change their stiffness.
 MODES_NO_LOAD_PROBE = 1e-3
-# Modes below this [Hz] are a part floating in a bearing clearance (no stiffness holds it in
-# the linearisation): rigid-body motions, not vibrations; they are dropped.
-FLOATING_HZ = 1e-3
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,7 +58,9 @@ class Modes:
     model's unknowns (rotations as arc length at R_p); names: (n,) the unknowns;
     mass: (n,) the diagonal mass matrix [kg; rotations inertia / R_p^2];
     tau_load [N*m] and theta_in [rad]: where the model was linearised;
-    dropped: how many rigid-body modes (below FLOATING_HZ) were dropped.
+    dropped: how many rigid-body modes (below FLOATING_HZ) were dropped;
+    damping_ratios: (N,) each mode's ratio under the dynamic model's damping C at that
+    equilibrium, phi^T C phi / (2 w) (`DynamicModel.set_modal_damping`).
     """
 
     frequencies_hz: np.ndarray
@@ -71,6 +70,7 @@ class Modes:
     tau_load: float = 0.0
     theta_in: float = 0.0
     dropped: int = 0
+    damping_ratios: np.ndarray | None = None
 
     @property
     def groups(self) -> dict:
@@ -132,7 +132,8 @@ def modes(design: RVDesign, errors: ErrorSet | None = None, load: float = 0.0,
     The equilibrium is found from the quasi-static solution (the sun held at
     theta_in), refined with the input shaft's twist; the tangent stiffness K
     there (zero velocity) with the diagonal mass matrix M gives K phi = w^2 M phi
-    (scipy.linalg.eigh, K symmetrised).  The input shaft's torsional spring
+    (scipy.linalg.eigh, K symmetrised); each mode's damping ratio is that of the
+    dynamic model's damping there (modal: the design's ratio).  The input shaft's torsional spring
     grounds the chain, so with the pins in contact there is no rigid-body mode;
     a part inside a bearing clearance, though, is held by no spring in the
     linearisation and would float: such zero-frequency modes (below FLOATING_HZ)
@@ -154,8 +155,12 @@ def modes(design: RVDesign, errors: ErrorSet | None = None, load: float = 0.0,
     w2, shapes = eigh(K, np.diag(mass))
     frequencies = np.sqrt(np.maximum(w2, 0.0)) / (2.0 * math.pi)
     keep = frequencies >= FLOATING_HZ
-    return Modes(frequencies[keep], shapes[:, keep], tuple(model.names), mass, float(tau_load),
-                 theta_in, int(np.count_nonzero(~keep)))
+    model.set_modal_damping(q)
+    _, _, C = model.forces(0, q, np.zeros(model.n))
+    kept = shapes[:, keep]
+    ratios = np.einsum("ik,ij,jk->k", kept, C, kept) / (4.0 * math.pi * frequencies[keep])
+    return Modes(frequencies[keep], kept, tuple(model.names), mass, float(tau_load),
+                 theta_in, int(np.count_nonzero(~keep)), ratios)
 
 
 def campbell(design: RVDesign, errors: ErrorSet | None, load: float, speeds_rpm):

@@ -64,7 +64,7 @@ class NewmarkStepper:
     def advance(self, stop: int, q_out=None, v_out=None, power_out=None) -> State:
         """Run to time step `stop`; the states of steps k + 1 .. stop go into q_out[k + 1 ..],
         v_out[k + 1 ..] ((T, n) arrays indexed by step) when given, and the power the
-        friction and the dashpots dissipate there into power_out[k + 1 ..] ((T, 2) [W])."""
+        friction and the damping dissipate there into power_out[k + 1 ..] ((T, 2) [W])."""
         model = self.model
         q, v, a = (np.array(x, dtype=float) for x in (self.state.q, self.state.v, self.state.a))
         k = self.k

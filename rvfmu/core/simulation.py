@@ -331,6 +331,7 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
                          friction)
     model.prepare(motion)
     q0 = static_start(model, tau_load[0], float(motion.theta_in[0]), model.external(0))
+    model.set_modal_damping(q0)
     if method != "newmark":
         return _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive)
     stepper = NewmarkStepper.starting_at(model, q0)

@@ -99,7 +99,7 @@ class RVReducer(Fmi2Slave):
                            ("tau_in", "torque of the reducer on the input shaft [N.m], its "
                                       "friction included"),
                            ("P_loss", "power lost to friction over the last step [W] "
-                                      "(model dynamic: with its dashpots', the mean)"),
+                                      "(model dynamic: with its damping's, the mean)"),
                            ("efficiency", "efficiency over the last step [1]: forward the "
                                           "transmitted power over it plus the loss, backdriving "
                                           "what is left after the loss; 0 at standstill")):
