@@ -55,8 +55,28 @@ def marker_orders(curve: TECurve) -> list[tuple[int, str]]:
     return out
 
 
-def figure_te(curve: TECurve, sample: int = 0, title: str | None = None):
+ZOOM_PERIODS = 4            # pin-passing periods the zoom panel shows
+ZOOM_MIN_POINTS = 4         # points per pin-passing period below which the ripple is not drawn
+RIPPLE_SHARE = 0.25         # the ripple dominates when its peak to peak is this share of te_pp
+
+
+def ripple(curve: TECurve, sample: int = 0) -> tuple[float, bool]:
+    """(peak to peak [arcsec] of the TE's orders from half the pin-passing order up, whether
+    the curve resolves them: at least ZOOM_MIN_POINTS points per pin-passing period)."""
+    order = curve.design.z_p * curve.design.z_c
+    te = curve.te_arcsec[sample]
+    spectrum = np.fft.rfft(te)
+    spectrum[:order // 2] = 0.0
+    return float(np.ptp(np.fft.irfft(spectrum, te.size))), curve.points >= ZOOM_MIN_POINTS * order
+
+
+def figure_te(curve: TECurve, sample: int = 0, title: str | None = None, zoom: bool | None = None):
     """TE against output angle (top) and its order spectrum (bottom): a matplotlib Figure.
+
+    zoom: a middle panel over ZOOM_PERIODS pin-passing periods, where the ripple's shape
+    can be read (over a whole revolution it is drawn as a solid band); None: where the
+    curve resolves the ripple and it dominates the curve (`ripple`: RIPPLE_SHARE of te_pp
+    or more), True: wherever it is resolved.
 
     The spectrum shows only the orders above the noise floor
     (`metrics.significant_spectrum`): below it the amplitudes are round-off,
@@ -73,8 +93,13 @@ def figure_te(curve: TECurve, sample: int = 0, title: str | None = None):
     orders, amplitude, significant = metrics.significant_spectrum(te)
     amplitude, significant = amplitude[0], significant[0]
     floor = float(metrics.noise_floor(te)[0])
-    fig = Figure(figsize=(9, 7), layout="constrained")
-    ax_te, ax_sp = fig.subplots(2, 1)
+    share, resolved = ripple(curve, sample)
+    zoom = resolved and (share >= RIPPLE_SHARE * np.ptp(te) if zoom is None else bool(zoom))
+    fig = Figure(figsize=(9, 10 if zoom else 7), layout="constrained")
+    if zoom:
+        ax_te, ax_zoom, ax_sp = fig.subplots(3, 1, height_ratios=(1.0, 0.8, 1.0))
+    else:
+        ax_te, ax_sp = fig.subplots(2, 1)
     ax_te.plot(out_deg, te, lw=0.8, color="C0")
     ax_te.axhline(te.mean(), color="0.5", lw=0.6, ls="--", label=f"mean {te.mean():.2f}″")
     ax_te.set_xlabel("output angle θ_out [deg]")
@@ -89,6 +114,24 @@ def figure_te(curve: TECurve, sample: int = 0, title: str | None = None):
                               f"(te_pp {np.ptp(te):.2f}″, {curve.points} points/rev)"))
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
+    if zoom:
+        period = 360.0 / (design.z_p * design.z_c)
+        start = float(out_deg[np.argmax(te)]) - 0.5 * ZOOM_PERIODS * period
+        start = min(max(start, 0.0), 360.0 - ZOOM_PERIODS * period)
+        inside = (out_deg >= start) & (out_deg <= start + ZOOM_PERIODS * period)
+        ax_te.axvspan(start, start + ZOOM_PERIODS * period, color="C3", alpha=0.35, lw=0)
+        ax_te.annotate("zoom", (start + 0.5 * ZOOM_PERIODS * period, 1.0), xycoords=("data", "axes fraction"),
+                       xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
+                       fontsize=7, color="C3")
+        ax_zoom.plot(out_deg[inside], te[inside], ".-", lw=0.8, ms=3, color="C0")
+        ax_zoom.set_xlim(start, start + ZOOM_PERIODS * period)
+        ax_zoom.set_xlabel("output angle θ_out [deg]")
+        ax_zoom.set_ylabel("transmission error [arcsec]")
+        ax_zoom.ticklabel_format(axis="both", useOffset=False)
+        ax_zoom.set_title(f"zoom (shaded above): {ZOOM_PERIODS} pin-passing periods of "
+                          f"{period * 3600:.1f}″ at the TE's peak, ripple {share:.3f}″ peak to "
+                          "peak", fontsize=8)
+        ax_zoom.grid(alpha=0.3)
 
     shown = orders[significant]
     ax_sp.vlines(shown, 0, amplitude[significant], color="C1", lw=1.0, zorder=3)
@@ -225,6 +268,24 @@ def plot_simulation(sim, path: str | Path) -> Path:
                     f"{-sim.tau_load[0]:g} N·m (te_pp {sim.te_pp_arcsec:.2f}″ after the ramp)")
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
+    if zoom:
+        period = 360.0 / (design.z_p * design.z_c)
+        start = float(out_deg[np.argmax(te)]) - 0.5 * ZOOM_PERIODS * period
+        start = min(max(start, 0.0), 360.0 - ZOOM_PERIODS * period)
+        inside = (out_deg >= start) & (out_deg <= start + ZOOM_PERIODS * period)
+        ax_te.axvspan(start, start + ZOOM_PERIODS * period, color="C3", alpha=0.35, lw=0)
+        ax_te.annotate("zoom", (start + 0.5 * ZOOM_PERIODS * period, 1.0), xycoords=("data", "axes fraction"),
+                       xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
+                       fontsize=7, color="C3")
+        ax_zoom.plot(out_deg[inside], te[inside], ".-", lw=0.8, ms=3, color="C0")
+        ax_zoom.set_xlim(start, start + ZOOM_PERIODS * period)
+        ax_zoom.set_xlabel("output angle θ_out [deg]")
+        ax_zoom.set_ylabel("transmission error [arcsec]")
+        ax_zoom.ticklabel_format(axis="both", useOffset=False)
+        ax_zoom.set_title(f"zoom (shaded above): {ZOOM_PERIODS} pin-passing periods of "
+                          f"{period * 3600:.1f}″ at the TE's peak, ripple {share:.3f}″ peak to "
+                          "peak", fontsize=8)
+        ax_zoom.grid(alpha=0.3)
     f, a = sim.spectrum_hz()
     ex = Excitations.at(sim.design, sim.speed_rpm)
     top = 3.0 * max(ex.mesh, ex.pin_passing)
@@ -297,6 +358,24 @@ def plot_measured(measured, path: str | Path, title: str | None = None) -> Path:
                              f"{m.points_per_revolution} rows per revolution")
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
+    if zoom:
+        period = 360.0 / (design.z_p * design.z_c)
+        start = float(out_deg[np.argmax(te)]) - 0.5 * ZOOM_PERIODS * period
+        start = min(max(start, 0.0), 360.0 - ZOOM_PERIODS * period)
+        inside = (out_deg >= start) & (out_deg <= start + ZOOM_PERIODS * period)
+        ax_te.axvspan(start, start + ZOOM_PERIODS * period, color="C3", alpha=0.35, lw=0)
+        ax_te.annotate("zoom", (start + 0.5 * ZOOM_PERIODS * period, 1.0), xycoords=("data", "axes fraction"),
+                       xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
+                       fontsize=7, color="C3")
+        ax_zoom.plot(out_deg[inside], te[inside], ".-", lw=0.8, ms=3, color="C0")
+        ax_zoom.set_xlim(start, start + ZOOM_PERIODS * period)
+        ax_zoom.set_xlabel("output angle θ_out [deg]")
+        ax_zoom.set_ylabel("transmission error [arcsec]")
+        ax_zoom.ticklabel_format(axis="both", useOffset=False)
+        ax_zoom.set_title(f"zoom (shaded above): {ZOOM_PERIODS} pin-passing periods of "
+                          f"{period * 3600:.1f}″ at the TE's peak, ripple {share:.3f}″ peak to "
+                          "peak", fontsize=8)
+        ax_zoom.grid(alpha=0.3)
 
     def spectrum(ax, axis, amplitude, unit):
         ax.vlines(axis[1:], 0, amplitude[0, 1:], color="0.6", lw=0.8, label="measured")
@@ -342,6 +421,24 @@ def plot_comparison(comparison, path: str | Path, title: str | None = None) -> P
     ax_te.set_title(title or f"measured against {c.design.name} at {c.load_Nm:g} N·m")
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
+    if zoom:
+        period = 360.0 / (design.z_p * design.z_c)
+        start = float(out_deg[np.argmax(te)]) - 0.5 * ZOOM_PERIODS * period
+        start = min(max(start, 0.0), 360.0 - ZOOM_PERIODS * period)
+        inside = (out_deg >= start) & (out_deg <= start + ZOOM_PERIODS * period)
+        ax_te.axvspan(start, start + ZOOM_PERIODS * period, color="C3", alpha=0.35, lw=0)
+        ax_te.annotate("zoom", (start + 0.5 * ZOOM_PERIODS * period, 1.0), xycoords=("data", "axes fraction"),
+                       xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
+                       fontsize=7, color="C3")
+        ax_zoom.plot(out_deg[inside], te[inside], ".-", lw=0.8, ms=3, color="C0")
+        ax_zoom.set_xlim(start, start + ZOOM_PERIODS * period)
+        ax_zoom.set_xlabel("output angle θ_out [deg]")
+        ax_zoom.set_ylabel("transmission error [arcsec]")
+        ax_zoom.ticklabel_format(axis="both", useOffset=False)
+        ax_zoom.set_title(f"zoom (shaded above): {ZOOM_PERIODS} pin-passing periods of "
+                          f"{period * 3600:.1f}″ at the TE's peak, ripple {share:.3f}″ peak to "
+                          "peak", fontsize=8)
+        ax_zoom.grid(alpha=0.3)
     ax_diff.plot(out_deg, c.difference_arcsec, lw=0.7, color="C3")
     ax_diff.set_xlim(0, 360 * m.revolutions)
     ax_diff.set_xlabel("output angle turned, θ_in / i [deg]")

@@ -553,7 +553,9 @@ def _nominal_section(study: Study, nominal: Nominal) -> Section:
              f"computed with the model as it is now. Its metrics follow the study's definitions; "
              f"the orders are those above the spectrum's noise floor."),
         Table(("quantity", "nominal"), rows),
-        Figure(_png(figure_te(c, title=title)), "Nominal TE over one output revolution (top) and "
+        Figure(_png(figure_te(c, title=title, zoom=True)), "Nominal TE over one output "
+               "revolution (top), a few pin-passing periods of it where the ripple's shape shows "
+               "(middle, where the points resolve it) and "
                f"its order spectrum (bottom), {nominal.errors}, at {c.points} points per "
                "revolution" + ("" if c.points == study.points else
                                f" (resolving the pin-passing order; the study's metrics use its "
