@@ -203,11 +203,11 @@ class SimulationReport:
                                                   f"{'above Nyquist':>22}")
                   for name, hz, amp in sim.excitation_amplitudes()]
         power = sim.mean_powers()
-        efficiency = power["efficiency"]
+        eta = power["efficiency"]
         lines.append(
             f"power (mean)      input {power['input_W']:.4g} W, output {power['output_W']:.4g} W, "
             f"friction {power['friction_W']:.4g} W, damping {power['damping_W']:.3g} W"
-            + (f"; efficiency {100 * efficiency:.1f} %" if efficiency is not None else ""))
+            + (f"; efficiency {100 * eta:.1f} %" if eta is not None else ""))
         if sim.failed_steps:
             lines.append(f"warning           {sim.failed_steps} steps did not converge")
         return "\n".join(lines)

@@ -268,24 +268,6 @@ def plot_simulation(sim, path: str | Path) -> Path:
                     f"{-sim.tau_load[0]:g} N·m (te_pp {sim.te_pp_arcsec:.2f}″ after the ramp)")
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
-    if zoom:
-        period = 360.0 / (design.z_p * design.z_c)
-        start = float(out_deg[np.argmax(te)]) - 0.5 * ZOOM_PERIODS * period
-        start = min(max(start, 0.0), 360.0 - ZOOM_PERIODS * period)
-        inside = (out_deg >= start) & (out_deg <= start + ZOOM_PERIODS * period)
-        ax_te.axvspan(start, start + ZOOM_PERIODS * period, color="C3", alpha=0.35, lw=0)
-        ax_te.annotate("zoom", (start + 0.5 * ZOOM_PERIODS * period, 1.0), xycoords=("data", "axes fraction"),
-                       xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
-                       fontsize=7, color="C3")
-        ax_zoom.plot(out_deg[inside], te[inside], ".-", lw=0.8, ms=3, color="C0")
-        ax_zoom.set_xlim(start, start + ZOOM_PERIODS * period)
-        ax_zoom.set_xlabel("output angle θ_out [deg]")
-        ax_zoom.set_ylabel("transmission error [arcsec]")
-        ax_zoom.ticklabel_format(axis="both", useOffset=False)
-        ax_zoom.set_title(f"zoom (shaded above): {ZOOM_PERIODS} pin-passing periods of "
-                          f"{period * 3600:.1f}″ at the TE's peak, ripple {share:.3f}″ peak to "
-                          "peak", fontsize=8)
-        ax_zoom.grid(alpha=0.3)
     f, a = sim.spectrum_hz()
     ex = Excitations.at(sim.design, sim.speed_rpm)
     top = 3.0 * max(ex.mesh, ex.pin_passing)
@@ -358,24 +340,6 @@ def plot_measured(measured, path: str | Path, title: str | None = None) -> Path:
                              f"{m.points_per_revolution} rows per revolution")
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
-    if zoom:
-        period = 360.0 / (design.z_p * design.z_c)
-        start = float(out_deg[np.argmax(te)]) - 0.5 * ZOOM_PERIODS * period
-        start = min(max(start, 0.0), 360.0 - ZOOM_PERIODS * period)
-        inside = (out_deg >= start) & (out_deg <= start + ZOOM_PERIODS * period)
-        ax_te.axvspan(start, start + ZOOM_PERIODS * period, color="C3", alpha=0.35, lw=0)
-        ax_te.annotate("zoom", (start + 0.5 * ZOOM_PERIODS * period, 1.0), xycoords=("data", "axes fraction"),
-                       xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
-                       fontsize=7, color="C3")
-        ax_zoom.plot(out_deg[inside], te[inside], ".-", lw=0.8, ms=3, color="C0")
-        ax_zoom.set_xlim(start, start + ZOOM_PERIODS * period)
-        ax_zoom.set_xlabel("output angle θ_out [deg]")
-        ax_zoom.set_ylabel("transmission error [arcsec]")
-        ax_zoom.ticklabel_format(axis="both", useOffset=False)
-        ax_zoom.set_title(f"zoom (shaded above): {ZOOM_PERIODS} pin-passing periods of "
-                          f"{period * 3600:.1f}″ at the TE's peak, ripple {share:.3f}″ peak to "
-                          "peak", fontsize=8)
-        ax_zoom.grid(alpha=0.3)
 
     def spectrum(ax, axis, amplitude, unit):
         ax.vlines(axis[1:], 0, amplitude[0, 1:], color="0.6", lw=0.8, label="measured")
@@ -421,24 +385,6 @@ def plot_comparison(comparison, path: str | Path, title: str | None = None) -> P
     ax_te.set_title(title or f"measured against {c.design.name} at {c.load_Nm:g} N·m")
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
-    if zoom:
-        period = 360.0 / (design.z_p * design.z_c)
-        start = float(out_deg[np.argmax(te)]) - 0.5 * ZOOM_PERIODS * period
-        start = min(max(start, 0.0), 360.0 - ZOOM_PERIODS * period)
-        inside = (out_deg >= start) & (out_deg <= start + ZOOM_PERIODS * period)
-        ax_te.axvspan(start, start + ZOOM_PERIODS * period, color="C3", alpha=0.35, lw=0)
-        ax_te.annotate("zoom", (start + 0.5 * ZOOM_PERIODS * period, 1.0), xycoords=("data", "axes fraction"),
-                       xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
-                       fontsize=7, color="C3")
-        ax_zoom.plot(out_deg[inside], te[inside], ".-", lw=0.8, ms=3, color="C0")
-        ax_zoom.set_xlim(start, start + ZOOM_PERIODS * period)
-        ax_zoom.set_xlabel("output angle θ_out [deg]")
-        ax_zoom.set_ylabel("transmission error [arcsec]")
-        ax_zoom.ticklabel_format(axis="both", useOffset=False)
-        ax_zoom.set_title(f"zoom (shaded above): {ZOOM_PERIODS} pin-passing periods of "
-                          f"{period * 3600:.1f}″ at the TE's peak, ripple {share:.3f}″ peak to "
-                          "peak", fontsize=8)
-        ax_zoom.grid(alpha=0.3)
     ax_diff.plot(out_deg, c.difference_arcsec, lw=0.7, color="C3")
     ax_diff.set_xlim(0, 360 * m.revolutions)
     ax_diff.set_xlabel("output angle turned, θ_in / i [deg]")
