@@ -291,7 +291,7 @@ class ModesReport:
     count: int
 
     def excitations(self):
-        from .core.simulation import Excitations
+        from .core.excitations import Excitations
 
         return Excitations.at(self.design, self.speed_rpm)
 

@@ -255,7 +255,7 @@ __all__ = ["figure_te", "marker_orders", "plot_te", "plot_windup", "plot_catalog
 def plot_simulation(sim, path: str | Path) -> Path:
     """TE against time (top, the start ramp shaded) and its spectrum in Hz after the ramp
     (bottom) with the crank, pin-passing and stage-1 mesh frequencies marked."""
-    from .core.simulation import Excitations
+    from .core.excitations import Excitations
 
     plt = _pyplot()
     fig, (ax_te, ax_sp) = plt.subplots(2, 1, figsize=(9, 7), constrained_layout=True)

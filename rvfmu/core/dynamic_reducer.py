@@ -23,7 +23,7 @@ from .dynamic import DynamicModel, Motion, at_rest
 from .errors import ErrorSet
 from .newmark import NewmarkStepper, State
 from .reducer_model import Outputs, step_efficiency
-from .simulation import static_start
+from .newmark import static_start
 
 DEFAULT_INTERNAL_STEP = 1e-4   # [s]: 10 kHz, 25 steps per stage-1 mesh period of an RV-110E at 1600 rpm
 

@@ -42,7 +42,8 @@ from .design import RVDesign
 from .dynamic import FLOATING_HZ, DynamicModel, at_rest
 from .errors import ErrorSet, zero_errors
 from .limits import check_load
-from .simulation import Excitations, static_start
+from .excitations import Excitations
+from .newmark import static_start
 
 # Resisting probe torque at zero load, x rated torque (0.41 N*m on an RV-40E): enough to close
 # the pin contacts on the resisting side, far too small to change their stiffness.

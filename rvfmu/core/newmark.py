@@ -11,8 +11,8 @@ the contacts that are closed, until the displacement update is below
 `CYCLE_TOLERANCE` (a contact exactly at its switch, where the tangent jumps).
 The loop is `kernels.newmark_steps`, compiled when numba is installed.
 
-`static_equilibrium` gives the starting state: the elastic equilibrium at the
-first instant, from the quasi-static solution.
+`static_equilibrium` gives the elastic equilibrium at a step, and `static_start`
+the run's starting state: that equilibrium from the quasi-static solution.
 """
 
 from __future__ import annotations
@@ -21,7 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .equivalent import EquivalentModel
 from .kernels import newmark_steps
+from .quasistatic import NO_LOAD_PROBE
+from .solver import solve_pairs
 
 BETA, GAMMA = 0.25, 0.5     # average acceleration (trapezoidal rule)
 TOLERANCE = 1e-13           # [m] Newton update: 1e-7 um, far below any error or deflection
@@ -110,3 +113,23 @@ def static_equilibrium(model, load_force, step: int = 0, q0=None) -> np.ndarray:
         if np.max(np.abs(dq)) < TOLERANCE:
             break
     return q
+
+
+def static_start(model, tau_load: float, theta_in: float = 0.0, force=None) -> np.ndarray:
+    """(n,) the elastic equilibrium of a prepared model at its step 0 under tau_load [N*m]
+    (force: the whole generalised load instead, e.g. with the nominal motion's), found
+    from the quasi-static solution at theta_in refined with the input shaft's twist."""
+    force = tau_load * model.load_vector() if force is None else force
+    start = _quasi_static_start(model, model.design, model.errors, tau_load, model.flank, theta_in)
+    return static_equilibrium(model, force, 0, start)
+
+
+def _quasi_static_start(model, design, errors, tau_load, flank, theta_in: float = 0.0) -> np.ndarray:
+    """The quasi-static equilibrium at theta_in in the dynamic model's unknowns."""
+    qs_model = EquivalentModel(design, [theta_in], flank)
+    eq = solve_pairs(qs_model, errors, [0], [0], [tau_load],
+                     no_load_probe=NO_LOAD_PROBE * design.rated_torque)
+    q0 = np.zeros(model.n)
+    for name, k in qs_model.index.items():
+        q0[model.index[name]] = eq.q[0, k]
+    return q0

@@ -18,64 +18,21 @@ import numpy as np
 from .checks import InputError, finite_number, fits_in_memory, positive
 from .design import RVDesign
 from .dynamic import MESH_MODELS, DynamicModel, Motion, contact_law, ramp_motion
-from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
 from .limits import check_load
 from .metrics import NOISE_FLOOR_ARCSEC
-from .newmark import NewmarkStepper, static_equilibrium
-from .quasistatic import NO_LOAD_PROBE
+from .excitations import HARMONICS, Excitations, amplitude_at  # noqa: F401 (this module's face)
+from .modes import modes
+from .newmark import NewmarkStepper, _quasi_static_start, static_start  # noqa: F401 (as above)
 from .reducer_model import step_efficiency
-from .solver import solve_pairs
 from .units import rad_to_arcsec
 
-HARMONICS = (1, 2)         # the excitations' orders whose TE amplitude a run reports
 STEPS_PER_PERIOD = 20      # default step: 20 per period of the fastest excitation (mesh or pin passing)
 MIN_STEPS_PER_PERIOD = 8   # coarser than this misses the excitation: refused
 NATURAL_STEPS_PER_PERIOD = 15  # and 15 per period of a natural frequency the excitations reach: the
                                # average-acceleration rule's period error (pi^2/12)(h/T)^2 < 0.4 %
 METHODS = ("newmark", "Radau", "BDF")
 DEFAULT_RAMP_OUTPUT_TURNS = 0.02   # start ramp: 2 % of an output revolution's time at speed, >= 0.05 s
-
-
-@dataclass(frozen=True)
-class Excitations:
-    """Excitation frequencies [Hz] at an input speed (docs/model.md section 7)."""
-
-    input: float
-    output: float
-    crank: float
-    pin_passing: float
-    mesh: float
-
-    @classmethod
-    def at(cls, design: RVDesign, speed_rpm: float) -> "Excitations":
-        f_in = speed_rpm / 60.0
-        f_out = f_in / design.ratio
-        crank = (f_in - f_out) * design.z_s / design.z_pl
-        return cls(f_in, f_out, crank, design.z_c * crank, design.z_s * (f_in - f_out))
-
-    def items(self):
-        return (("input rotation", self.input), ("crank rotation", self.crank),
-                ("pin passing", self.pin_passing), ("stage-1 mesh", self.mesh))
-
-    def with_harmonics(self, orders=HARMONICS):
-        """((name, frequency [Hz]), ...): each excitation and its harmonics (name "x2", ...)."""
-        return tuple((name if k == 1 else f"{name} x{k}", k * hz)
-                     for name, hz in self.items() for k in orders)
-
-
-def amplitude_at(signal, step: float, frequency: float) -> float:
-    """Amplitude of the sine at `frequency` [Hz] in `signal` (its unit) sampled every `step` [s]:
-    the Hann-windowed Fourier sum of the signal less its mean, evaluated at exactly that
-    frequency (not at the nearest bin, so no scalloping and no interpolation), times
-    2 / sum(window).  A neighbouring component at df leaks into it by the Hann window's
-    sidelobes, below 1 % from 3 / T (T the record's length) on, where a sine at a bin
-    frequency and one half a bin off read the same."""
-    x = np.asarray(signal, dtype=float)
-    x = x - x.mean()
-    window = np.hanning(x.size)
-    phase = np.exp(-2j * np.pi * frequency * step * np.arange(x.size))
-    return float(2.0 * abs(np.sum(window * x * phase)) / window.sum())
 
 
 @dataclass(frozen=True)
@@ -301,8 +258,6 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     finest = default_step(design, speed_rpm)
     if step is None:
         mean_load = float(np.mean(load.values)) if isinstance(load, Sampled) else load
-        from .modes import modes
-
         step = default_step(design, speed_rpm, modes(design, errors, mean_load).frequencies_hz)
     else:
         step = positive("step", step)
@@ -399,23 +354,3 @@ def _record(model, design, speed_rpm, motion, q, v, power, ramp, step, failed,
                       model.input_torque(q.T, v.T), motion.tau_load, q, tuple(model.names),
                       int(np.searchsorted(motion.time, motion.time[0] + ramp)), step, failed,
                       motion.omega_in, power[:, 0], power[:, 1], drive)
-
-
-def static_start(model, tau_load: float, theta_in: float = 0.0, force=None) -> np.ndarray:
-    """(n,) the elastic equilibrium of a prepared model at its step 0 under tau_load [N*m]
-    (force: the whole generalised load instead, e.g. with the nominal motion's), found
-    from the quasi-static solution at theta_in refined with the input shaft's twist."""
-    force = tau_load * model.load_vector() if force is None else force
-    start = _quasi_static_start(model, model.design, model.errors, tau_load, model.flank, theta_in)
-    return static_equilibrium(model, force, 0, start)
-
-
-def _quasi_static_start(model, design, errors, tau_load, flank, theta_in: float = 0.0) -> np.ndarray:
-    """The quasi-static equilibrium at theta_in in the dynamic model's unknowns."""
-    qs_model = EquivalentModel(design, [theta_in], flank)
-    eq = solve_pairs(qs_model, errors, [0], [0], [tau_load],
-                     no_load_probe=NO_LOAD_PROBE * design.rated_torque)
-    q0 = np.zeros(model.n)
-    for name, k in qs_model.index.items():
-        q0[model.index[name]] = eq.q[0, k]
-    return q0

@@ -21,7 +21,7 @@ import numpy as np
 
 from rvfmu import api
 from rvfmu.core.errors import error_file_values, toml_text
-from rvfmu.core.simulation import Excitations
+from rvfmu.core.excitations import Excitations
 from tolerance import montecarlo
 from tolerance.sampling import errors_from_unit
 from tolerance.study import load_study
