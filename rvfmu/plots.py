@@ -183,7 +183,7 @@ def plot_catalogue(rows, path: str | Path) -> Path:
     """One panel per preset: output windup [arcmin] against output torque [N*m] (input
     locked, mean over the positions) before and after calibration, and the catalogue's
     torsional rigidity as a line through the calibrated curve at half the rated torque.
-    rows: `rvfmu.catalogue.PresetAgainstCatalogue` records with their windups."""
+    rows: `rvfmu.bench.catalogue.PresetAgainstCatalogue` records with their windups."""
     plt = _pyplot()
     columns = 2
     lines = (len(rows) + columns - 1) // columns
@@ -214,7 +214,7 @@ def plot_catalogue(rows, path: str | Path) -> Path:
 
 
 def plot_budget(report, path: str | Path) -> Path:
-    """The compliance budget (`rvfmu.budget.StiffnessReport`): each element's share of the
+    """The compliance budget (`rvfmu.jobs.stiffness.StiffnessReport`): each element's share of the
     windup as bars (left) and the windup curve, input locked, at each position and their
     mean, with the torsional rigidity's slope between 50 % and 100 % rated (right)."""
     plt = _pyplot()
@@ -318,7 +318,7 @@ def plot_campbell(design, frequencies_hz, speeds_rpm, lines: dict, speed_rpm: fl
 
 
 def plot_measured(measured, path: str | Path, title: str | None = None) -> Path:
-    """A bench record's TE (`rvfmu.measured.MeasuredTE`): the measured TE, the removed
+    """A bench record's TE (`rvfmu.bench.measured.MeasuredTE`): the measured TE, the removed
     runout and the TE without it against the output angle turned (top), both spectra by
     order with the removed orders marked (middle) and, with a time column, in Hz (bottom)."""
     plt = _pyplot()
@@ -367,7 +367,7 @@ def plot_measured(measured, path: str | Path, title: str | None = None) -> Path:
 
 
 def plot_comparison(comparison, path: str | Path, title: str | None = None) -> Path:
-    """A bench record beside the model (`rvfmu.compare.Comparison`): both TE curves against
+    """A bench record beside the model (`rvfmu.bench.compare.Comparison`): both TE curves against
     the output angle turned (top), their difference (middle) and both spectra by order with
     the difference's (bottom)."""
     plt = _pyplot()
@@ -407,7 +407,7 @@ def plot_comparison(comparison, path: str | Path, title: str | None = None) -> P
 
 
 def plot_efficiency(report, path: str | Path) -> Path:
-    """The catalogue's efficiency chart (`rvfmu.efficiency.EfficiencyReport`): efficiency
+    """The catalogue's efficiency chart (`rvfmu.jobs.efficiency.EfficiencyReport`): efficiency
     against output speed, one curve per resisting torque, forward (solid) and backdriving
     (dashed) (left); the no-load running torque at the input against output speed (right)."""
     plt = _pyplot()
@@ -434,7 +434,7 @@ def plot_efficiency(report, path: str | Path) -> Path:
 
 
 def plot_hysteresis(report, path: str | Path) -> Path:
-    """The hysteresis loop (`rvfmu.hysteresis.HysteresisReport`): output angle against output
+    """The hysteresis loop (`rvfmu.jobs.hysteresis.HysteresisReport`): output angle against output
     torque with the input locked, the loop with friction and its frictionless middle (left),
     the middle around zero torque with the lost motion's span marked (right)."""
     plt = _pyplot()

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from rvfmu import api
-from rvfmu.calibration import design_sources, parameters
+from rvfmu.bench.calibration import design_sources, parameters
 from rvfmu.cli import main
-from rvfmu.compare import model_grid
+from rvfmu.bench.compare import model_grid
 from rvfmu.core.design import load_design
 from rvfmu.core.quasistatic import windup
 from rvfmu.core import compliance

@@ -1,4 +1,4 @@
-"""Calibrating the friction fields to efficiencies and running torques (rvfmu/calibration.py,
+"""Calibrating the friction fields to efficiencies and running torques (rvfmu/bench/calibration.py,
 docs/model.md section 9): known coefficients come back from the figures they made."""
 
 import json

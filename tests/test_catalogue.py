@@ -12,8 +12,9 @@ import json
 import numpy as np
 import pytest
 
-from rvfmu import api, catalogue
-from rvfmu.calibration import parameters
+from rvfmu import api
+from rvfmu.bench import catalogue
+from rvfmu.bench.calibration import parameters
 from rvfmu.cli import main
 from rvfmu.core.checks import InputError
 from rvfmu.core.design import (DESIGN_FIELDS, ESTIMATE_NAMES, PRESET_NAMES, design_from_file_values,

@@ -14,7 +14,7 @@ import pytest
 from conftest import ROOT, linear_bearings
 from rvfmu import api
 from rvfmu.cli import main
-from rvfmu.compare import as_bench_sees, model_grid
+from rvfmu.bench.compare import as_bench_sees, model_grid
 from rvfmu.core.design import preset
 from rvfmu.core.errors import load_errors
 from rvfmu.core.quasistatic import equilibria, input_angles
@@ -26,7 +26,7 @@ POINTS = 256          # per output revolution: cheap, and the record's rows lie 
 
 @pytest.fixture(scope="module")
 def rv20():
-    # the identifications fit the bearings as linear springs (rvfmu/calibration.py)
+    # the identifications fit the bearings as linear springs (rvfmu/bench/calibration.py)
     return linear_bearings(preset("RV-20E"))
 
 

@@ -29,7 +29,7 @@ def no_work(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("work started before the output paths were checked")
 
-    for target in ("rvfmu.api.te_curve", "rvfmu.api.windup", "rvfmu.fmu.build.build_te_map",
+    for target in ("rvfmu.jobs.te.te_curve", "rvfmu.jobs.te.windup", "rvfmu.fmu.build.build_te_map",
                    "rvfmu.core.profile.disc_profile", "tolerance.run.compute"):
         monkeypatch.setattr(target, refuse)
 

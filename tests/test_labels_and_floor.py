@@ -90,7 +90,7 @@ def fake_curve(te_arcsec, design="RV-40E-121"):
 
 
 def spectrum_texts(fig):
-    ax_sp = fig.axes[1]
+    ax_sp = fig.axes[-1]          # the spectrum: the last panel (a zoom may sit above it)
     return ax_sp, [t.get_text() for t in ax_sp.texts]
 
 

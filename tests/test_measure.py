@@ -17,7 +17,7 @@ import pytest
 from rvfmu import api
 from rvfmu.cli import main
 from rvfmu.core.checks import InputError
-from rvfmu.measured import measure_te
+from rvfmu.bench.measured import measure_te
 from rvfmu.core.units import ARCSEC
 
 RATIO = 81.0

@@ -22,6 +22,7 @@ FMU without that parameter runs only as `quasistatic`.
 
 import argparse
 import csv
+import os
 import sys
 
 from libcosimpy.CosimExecution import CosimExecution
@@ -82,4 +83,12 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    # Everything is written.  A pythonfmu FMU embeds an interpreter inside this Python
+    # process, and libcosim's release of it at interpreter exit can corrupt the heap
+    # ("corrupted double-linked list", depending only on the size of the unpacked FMU:
+    # one more 12-byte source file in it was enough), so the process ends here without
+    # the interpreter's finalisation.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)

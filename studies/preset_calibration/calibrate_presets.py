@@ -4,7 +4,7 @@
 
 For each preset: fit the series output stiffness and the modification pair's
 size of its estimate (`<name>-estimate`) to its frame's torsional rigidity and
-lost motion (rvfmu/catalogue.py), print the figures before and after beside
+lost motion (rvfmu/bench/catalogue.py), print the figures before and after beside
 the catalogue's, and write the fit as the `[calibration]` table of the preset
 file in rvfmu/core/presets/ (the source tree: run it from an editable install).
 --check writes nothing and fails when a recorded calibration differs from a
@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import rvfmu.core.presets
-from rvfmu import catalogue
+from rvfmu.bench import catalogue
 from rvfmu.core.design import PRESET_NAMES, preset_file
 
 COMMAND = "python studies/preset_calibration/calibrate_presets.py"

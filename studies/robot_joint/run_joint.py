@@ -77,7 +77,7 @@ import servo_drive as servo_module  # noqa: E402
 
 from rvfmu.core.units import ARCSEC  # noqa: E402
 
-# The reducer before its calibration to the catalogue (rvfmu/catalogue.py): every figure of
+# The reducer before its calibration to the catalogue (rvfmu/bench/catalogue.py): every figure of
 # README.md was measured on it.  The calibrated preset is softer in torsion (a series output
 # compliance: 108 against 123 N*m/arcmin; 3.6x softer before the stiffnesses came from
 # geometry, when the explicit coupling of README.md no longer diverged at 1 ms on it).

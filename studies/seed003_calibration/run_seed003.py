@@ -33,8 +33,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 from rvfmu import api
-from rvfmu.calibration import default_points
-from rvfmu.compare import model_grid
+from rvfmu.bench.calibration import default_points
+from rvfmu.bench.compare import model_grid
 from rvfmu.core.design import load_design
 from rvfmu.core.errors import load_errors
 

@@ -11,10 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from .core.friction import (AVERAGE_POINTS, DEFAULT_LOAD_FRACTIONS, LOSS_NAMES, EfficiencyMap,
+from ..core.friction import (AVERAGE_POINTS, DEFAULT_LOAD_FRACTIONS, LOSS_NAMES, EfficiencyMap,
                             efficiency_map)
-from .outputs import figure_file
-from .progress import counter as progress_counter
+from ..outputs import figure_file
+from ..progress import counter as progress_counter
 
 
 @dataclass(frozen=True)
@@ -75,7 +75,7 @@ def efficiency(design, errors=None, speeds=None, loads=None,
     [N*m] (default 25 % to 100 % of rated); plot_path: the catalogue's chart (checked before
     any work); progress(total, done): optional, called as the equilibria are solved.
     """
-    from .api import resolve_design, resolve_errors
+    from .common import resolve_design, resolve_errors
 
     plot_path = None if plot_path is None else figure_file("plot", plot_path)
     design = resolve_design(design)
@@ -85,7 +85,7 @@ def efficiency(design, errors=None, speeds=None, loads=None,
         design, errors, speeds, loads,
         progress=progress_counter((1 + 2 * count) * AVERAGE_POINTS, progress)))
     if plot_path is not None:
-        from .plots import plot_efficiency
+        from ..plots import plot_efficiency
 
         plot_efficiency(report, plot_path)
     return report

@@ -21,7 +21,7 @@ How the gap is closed, and why so:
   value, so the pair is identifiable; nothing else is fitted.
 - The lost motion is aimed at `lost_motion_aim` x the catalogue's bound (the
   catalogue file says why): a typical reducer of the frame, inside the bound.
-- The fit is `rvfmu.calibration` (differential evolution, then least squares)
+- The fit is `rvfmu.bench.calibration` (differential evolution, then least squares)
   on the catalogue target, from the estimate: the preset file's `[calibration]`
   table records the fitted values, the figures before and after and how it was
   made; `preset(name)` applies it, `preset(name + "-estimate")` does not.
@@ -38,9 +38,9 @@ from pathlib import Path
 
 from .calibration import (MODIFICATION_SCALE, OUTPUT_STIFFNESS, Calibration, Catalogue, DataSet,
                           calibrate, problem)
-from .core.checks import InputError
-from .core.design import ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, in_file_units, preset, preset_file
-from .core.quasistatic import Windup, windup
+from ..core.checks import InputError
+from ..core.design import ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, in_file_units, preset, preset_file
+from ..core.quasistatic import Windup, windup
 
 CATALOGUE_FILE = "catalogue.toml"
 # A calibrated preset matches its frame's rigidity when within this share of it.
@@ -176,7 +176,7 @@ def calibration_table(cal: Calibration, frame: Frame, command: str) -> str:
         version = "not installed"
     lines = [
         "",
-        "# Calibration against the catalogue figures of the frame (rvfmu/catalogue.py):",
+        "# Calibration against the catalogue figures of the frame (rvfmu/bench/catalogue.py):",
         f"# written by `{command}`.  `preset(\"{cal.problem.design.name.removesuffix(ESTIMATE_SUFFIX)}\")` "
         "applies [calibration.fields]",
         f"# over the values above; \"{cal.problem.design.name}\" is the preset without them.",

@@ -44,9 +44,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .core import metrics
-from .core.checks import InputError, integer, positive
-from .core.units import ARCSEC, DEG
+from ..core import metrics
+from ..core.checks import InputError, integer, positive
+from ..core.units import ARCSEC, DEG
 
 UNITS = ("deg", "rad", "counts")
 

@@ -12,12 +12,12 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from .core.friction import LOSS_NAMES
-from .core.hysteresis import HysteresisLoop, hysteresis as hysteresis_loop, sweep_torques
-from .core.quasistatic import WINDUP_POSITIONS
-from .core.units import ARCMIN
-from .outputs import figure_file
-from .progress import counter as progress_counter
+from ..core.friction import LOSS_NAMES
+from ..core.hysteresis import HysteresisLoop, hysteresis as hysteresis_loop, sweep_torques
+from ..core.quasistatic import WINDUP_POSITIONS
+from ..core.units import ARCMIN
+from ..outputs import figure_file
+from ..progress import counter as progress_counter
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,7 @@ def hysteresis(design, errors=None, max_load: float | None = None,
     as a figure (checked before any work); progress(total, done): optional, called as the
     equilibria are solved.
     """
-    from .api import resolve_design, resolve_errors
+    from .common import resolve_design, resolve_errors
 
     plot_path = None if plot_path is None else figure_file("plot", plot_path)
     design = resolve_design(design)
@@ -92,7 +92,7 @@ def hysteresis(design, errors=None, max_load: float | None = None,
     report = HysteresisReport(hysteresis_loop(design, errors, max_load,
                                               progress=progress_counter(total, progress)))
     if plot_path is not None:
-        from .plots import plot_hysteresis
+        from ..plots import plot_hysteresis
 
         plot_hysteresis(report, plot_path)
     return report

@@ -1,6 +1,6 @@
 """Measured against modelled TE: does the model of this design reproduce the bench's curve?
 
-The question is asked of one bench record (`rvfmu.measured.MeasuredTE`) and one
+The question is asked of one bench record (`rvfmu.bench.measured.MeasuredTE`) and one
 design with its errors at the record's load.  How the two are put side by side,
 and why so:
 
@@ -34,11 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .core import metrics
-from .core.design import RVDesign
-from .core.errors import ErrorSet
-from .core.quasistatic import default_points, equilibria, input_angles
-from .core.units import ARCSEC
+from ..core import metrics
+from ..core.design import RVDesign
+from ..core.errors import ErrorSet
+from ..core.quasistatic import default_points, equilibria, input_angles
+from ..core.units import ARCSEC
 from .measured import MeasuredTE
 
 REVOLUTION = 2.0 * np.pi

@@ -12,9 +12,9 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from .core.budget import ComplianceBudget, compliance_budget
-from .core.quasistatic import Windup, windup
-from .outputs import figure_file
+from ..core.budget import ComplianceBudget, compliance_budget
+from ..core.quasistatic import Windup, windup
+from ..outputs import figure_file
 
 
 @dataclass(frozen=True)
@@ -69,7 +69,7 @@ def stiffness(design, errors=None, load: float | None = None,
     the catalogue's range); plot_path: a figure of the shares and the windup curve
     (checked before any work).
     """
-    from .api import resolve_design, resolve_errors
+    from .common import resolve_design, resolve_errors
 
     plot_path = None if plot_path is None else figure_file("plot", plot_path)
     design = resolve_design(design)
@@ -79,7 +79,7 @@ def stiffness(design, errors=None, load: float | None = None,
     report = StiffnessReport(budget, wind, float(wind.torsional_rigidity_Nm_per_arcmin()[0]),
                              float(wind.lost_motion_arcmin()[0]))
     if plot_path is not None:
-        from .plots import plot_budget
+        from ..plots import plot_budget
 
         plot_budget(report, plot_path)
     return report

@@ -56,7 +56,7 @@ How it is answered, and why so:
   preset's): the bearings are what seed 003 identifies, the crank is geometry.
   The crank's tilt in its bearings takes the pair at the start of the fit.
 - Cheap evaluations: a data set's model costs its grid, `points` per output
-  revolution, not its rows (`rvfmu.compare`); data sets at the same load are
+  revolution, not its rows (`rvfmu.bench.compare`); data sets at the same load are
   solved as one batch.  The default for peaks and curves, POINTS_PER_CRANK_TURN
   = 32 points per crank revolution (32 z_p: 1280 on the 40-pin presets, 1/10 of
   the 8 z_p z_c = 12 480 that resolve the pin-passing ripple), resolves the
@@ -82,13 +82,13 @@ from pathlib import Path
 import numpy as np
 
 from .compare import as_bench_sees, model_grid, periodic
-from .core.checks import InputError, finite_number, integer, non_negative, positive
-from .core.design import DESIGN_FIELDS, ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, preset_file
-from .core.errors import ErrorSet, load_errors, stack, toml_text, zero_errors
-from .core.quasistatic import windup
-from .core import compliance
-from .core.stiffness import cam_positions, series
-from .core.units import ARCMIN, ARCSEC, MM
+from ..core.checks import InputError, finite_number, integer, non_negative, positive
+from ..core.design import DESIGN_FIELDS, ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, preset_file
+from ..core.errors import ErrorSet, load_errors, stack, toml_text, zero_errors
+from ..core.quasistatic import windup
+from ..core import compliance
+from ..core.stiffness import cam_positions, series
+from ..core.units import ARCMIN, ARCSEC, MM
 from .measured import MeasuredTE
 
 TARGETS = ("peaks", "curve", "catalogue")
@@ -665,7 +665,7 @@ def _friction_figures(design: RVDesign, dataset: DataSet) -> tuple[np.ndarray, b
     speed of the data set's catalogue, every equilibrium converged), from the power
     balance (`friction.efficiency_from_loads`) on the data set's contact loads, solved
     once for each state of the fields that set them (module docstring)."""
-    from .core.friction import contact_loads, crank_turn_angles, efficiency_from_loads
+    from ..core.friction import contact_loads, crank_turn_angles, efficiency_from_loads
 
     c = dataset.catalogue
     speeds = sorted({row[0] for row in c.efficiency + c.running_torque})

@@ -1,0 +1,117 @@
+"""What every job shares: the design and errors it is given, the CSV files it reads and
+writes, the JSON it prints."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from ..core.checks import InputError
+from ..core.design import RVDesign, load_design
+from ..core.errors import ErrorSet, load_errors, zero_errors
+from ..core.quasistatic import TECurve
+
+
+class NothingToWrite(InputError):
+    """A job that writes files was given none to write."""
+
+    def __init__(self, message):
+        ValueError.__init__(self, message)
+        self.field, self.value, self.allowed = "output", None, message
+
+def resolve_design(design: str | Path | RVDesign) -> RVDesign:
+    return design if isinstance(design, RVDesign) else load_design(design)
+
+
+def resolve_errors(design: RVDesign, errors: str | Path | ErrorSet | None) -> ErrorSet:
+    if errors is None:
+        return zero_errors(design)
+    if isinstance(errors, ErrorSet):
+        return errors.check(design)
+    return load_errors(errors, design)
+
+def write_columns(path: str | Path, columns: dict) -> Path:
+    """A CSV of equal-length columns: {name: (values, format spec)}, a header of the names."""
+    path = Path(path)
+    with path.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(list(columns))
+        formats = [spec for _, spec in columns.values()]
+        for row in zip(*(values for values, _ in columns.values())):
+            writer.writerow([format(value, spec) for value, spec in zip(row, formats)])
+    return path
+
+
+def read_columns(field: str, path: str | Path, names: tuple[str, ...]) -> list[np.ndarray]:
+    """The columns `names` of a CSV file with a header row, as float arrays; an InputError
+    naming the field, the file and the row for a missing file, column or non-number."""
+    rows = _csv_rows(field, path)
+    header = [name.strip() for name in rows[0]] if rows else []
+    missing = [name for name in names if name not in header]
+    if missing:
+        raise InputError(field, str(path), f"needs a header row with the columns "
+                         f"{', '.join(names)} (missing: {', '.join(missing)})")
+    out = []
+    for name in names:
+        k = header.index(name)
+        values = []
+        for line, row in enumerate(rows[1:], start=2):
+            try:
+                values.append(float(row[k]))
+            except (IndexError, ValueError):
+                text = row[k] if k < len(row) else "nothing"
+                raise InputError(field, f"{text!r} in column {name} on line {line} of {path}",
+                                 "every entry must be a number") from None
+        out.append(np.array(values))
+    return out
+
+
+def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:
+    """Columns theta_in_rad, theta_out_rad, te_arcsec (names of docs/model.md section 5)."""
+    return write_columns(path, {"theta_in_rad": (curve.theta_in, ".12g"),
+                                "theta_out_rad": (curve.theta_out[sample], ".12g"),
+                                "te_arcsec": (curve.te_arcsec[sample], ".6f")})
+
+def _csv_header(field: str, path: str | Path) -> list[str]:
+    rows = _csv_rows(field, path, header_only=True)
+    return [name.strip() for name in rows[0]] if rows else []
+
+
+def _csv_rows(field: str, path: str | Path, header_only: bool = False) -> list[list[str]]:
+    """The non-empty rows of a CSV file (only the first with header_only), or an InputError
+    naming the field and the file when it is missing or not text (UTF-8)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(field, str(path), "must be an existing CSV file")
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            rows = csv.reader(line for line in handle if line.strip())
+            return [next(rows, [])] if header_only else list(rows)
+    except UnicodeDecodeError as exc:
+        raise InputError(field, str(path), f"is not a text (UTF-8) CSV file: byte {exc.start} "
+                         f"is {exc.object[exc.start:exc.start + 1]!r}") from None
+
+def _json_safe(value):
+    """`value` with every float that is not finite as text ("inf", "nan"): JSON has neither."""
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else str(float(value))
+    return value
+
+
+def _design_ratio(design: RVDesign, ratio) -> float:
+    """The design's ratio, or a stated one that must agree with it."""
+    if ratio is None:
+        return design.ratio
+    from ..core.checks import positive
+
+    ratio = positive("ratio", ratio)
+    if abs(ratio / design.ratio - 1.0) > 1e-9:
+        raise InputError("ratio", ratio, f"the design {design.name} has ratio {design.ratio:g}: "
+                         "leave --ratio out (it is taken from the design) or give that")
+    return design.ratio

@@ -1,0 +1,108 @@
+"""`rvte presets`, `rvte presets --catalogue` and `rvte errors-template`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+
+from ..core.design import PRESET_NAMES, RVDesign, preset
+from ..outputs import figure_file, output_file
+from .common import resolve_design, _json_safe
+
+
+def errors_template(design, output: str | Path | None = None) -> str:
+    """A complete, commented error file for `design` (every name of docs/model.md
+    section 4, zero values of the right shapes); written to `output` if given."""
+    from ..core.errors import error_template_text
+
+    output = None if output is None else output_file("output", output, ("toml",))
+    text = error_template_text(resolve_design(design))
+    if output is not None:
+        output.write_text(text)
+    return text
+
+
+@dataclass(frozen=True)
+class PresetInfo:
+    name: str
+    ratio: float
+    source: str
+    design: RVDesign
+
+
+def presets() -> list[PresetInfo]:
+    """The shipped presets with their ratios and sources."""
+    infos = []
+    for name in PRESET_NAMES:
+        text = resources.files("rvfmu.core.presets").joinpath(f"{name}.toml").read_text()
+        first = text.splitlines()[0]
+        source = first.split("Source:", 1)[1].strip().rstrip(".") if "Source:" in first else ""
+        design = preset(name)
+        infos.append(PresetInfo(name, design.ratio, source, design))
+    return infos
+
+
+@dataclass(frozen=True)
+class CatalogueReport:
+    """The presets against their frames' catalogue figures (`rvfmu.bench.catalogue`)."""
+
+    rows: list
+
+    def summary(self) -> str:
+        from ..bench import catalogue
+
+        head = (f"{'preset':<11} {'frame':<8} {'rated N*m':>9}  {'torsional rigidity N*m/arcmin':>31}"
+                f"  {'lost motion arcmin':>28}")
+        sub = (f"{'':<11} {'':<8} {'':>9}  {'estimate':>9} {'preset':>9} {'catalogue':>11}  "
+               f"{'estimate':>9} {'preset':>8} {'catalogue':>9}")
+        lines = [head, sub]
+        for r in self.rows:
+            f = r.frame
+            lines.append(
+                f"{r.name:<11} {f.name:<8} {r.rated_torque_Nm:>9.0f}  "
+                f"{r.estimate.torsional_rigidity_Nm_per_arcmin:>9.1f} "
+                f"{r.calibrated.torsional_rigidity_Nm_per_arcmin:>9.1f} "
+                f"{f.torsional_rigidity_Nm_per_arcmin:>7.0f} {'ok' if r.rigidity_within else 'NO':>3}  "
+                f"{r.estimate.lost_motion_arcmin:>9.3f} {r.calibrated.lost_motion_arcmin:>8.3f} "
+                f"{'<= ' + format(f.lost_motion_max_arcmin, 'g'):>6} {'ok' if r.lost_motion_within else 'NO':>2}")
+        lines += [
+            "estimate: the preset before calibration (<name>-estimate); preset: as shipped, "
+            "calibrated to the catalogue",
+            f"ok: rigidity within {100 * catalogue.RIGIDITY_TOLERANCE:g} % of the catalogue's, "
+            "lost motion within its bound (docs/model.md section 5 test, no errors)",
+            f"catalogue: {catalogue.source()}",
+        ]
+        for r in self.rows:
+            c = r.calibration
+            if c:
+                lines.append(f"{r.name}: output_stiffness {c['output_stiffness']:.4g} N*m/arcmin, "
+                             f"modification_scale {c['modification_scale']:.4g} "
+                             f"({c['fit'].split(': ')[-1]})")
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        return _json_safe({"source": self.rows[0].frame.source if self.rows else "", "presets": [
+            {"name": r.name, "frame": r.frame.name, "rated_torque_Nm": r.rated_torque_Nm,
+             "catalogue": {"rated_torque_Nm": r.frame.rated_torque_Nm,
+                           "torsional_rigidity_Nm_per_arcmin": r.frame.torsional_rigidity_Nm_per_arcmin,
+                           "lost_motion_max_arcmin": r.frame.lost_motion_max_arcmin,
+                           "backlash_max_arcmin": r.frame.backlash_max_arcmin},
+             "estimate": vars(r.estimate), "preset": vars(r.calibrated),
+             "rigidity_within": r.rigidity_within, "lost_motion_within": r.lost_motion_within,
+             "calibration": r.calibration} for r in self.rows]})
+
+
+def presets_catalogue(plot_path: str | Path | None = None) -> CatalogueReport:
+    """Every preset's torsional rigidity and lost motion, before and after its calibration,
+    beside its frame's catalogue figures; plot_path: a figure of the windup curves."""
+    from ..bench import catalogue
+
+    plot_path = None if plot_path is None else figure_file("plot", plot_path)
+    report = CatalogueReport(catalogue.against_catalogue())
+    if plot_path is not None:
+        from ..plots import plot_catalogue
+
+        plot_catalogue(report.rows, plot_path)
+    return report
