@@ -28,6 +28,7 @@ MAX_ITERATIONS = 400
 STEP_TOLERANCE = 1e-14   # m: converged when a Newton step moves less (1e-8 um)
 GAP_TOLERANCE = 1e-12    # m: an interference smaller than this is contact, not preload
 SHRINK_FRACTION = 0.25   # drop converged pairs from the work arrays once a quarter are done
+MIN_PAIRS_PER_THREAD = 64  # a thread of the compiled iteration gets at least this many pairs
 
 
 def newton(work, first_active, q0=None):
@@ -42,8 +43,31 @@ def newton(work, first_active, q0=None):
     return newton_batched(work, first_active, q0)
 
 
+def kernel_threads() -> int:
+    """Threads the compiled iteration splits a batch of pairs over: RVTE_THREADS if set, else
+    every core in a main process and one in a worker process (a process pool's or a Dask
+    worker, which run one per core already).  Each pair is solved alone, so the results do
+    not depend on the count."""
+    import multiprocessing
+    import os
+
+    text = os.environ.get("RVTE_THREADS", "").strip()
+    if text:
+        if not text.isdigit() or int(text) < 1:
+            from .checks import InputError
+
+            raise InputError("RVTE_THREADS", text, "must be a whole number >= 1 (the environment "
+                             "variable: threads of the compiled solver)")
+        return int(text)
+    if multiprocessing.parent_process() is not None:
+        return 1
+    return os.cpu_count() or 1
+
+
 def newton_compiled(work, first_active, q0=None):
-    """`newton` by the compiled kernel (`newton_kernel.newton_pairs`)."""
+    """`newton` by the compiled kernel (`newton_kernel.newton_pairs`), the pairs split over
+    `kernel_threads` threads (the kernel releases the GIL) in batches of at least
+    MIN_PAIRS_PER_THREAD."""
     from .newton_kernel import newton_pairs
 
     sys = work.system
@@ -60,15 +84,30 @@ def newton_compiled(work, first_active, q0=None):
     q = np.zeros((B, nN)) if q0 is None else np.array(q0, dtype=float)
     converged = np.zeros(B, dtype=bool)
     iterations = np.zeros(B, dtype=np.int64)
-    newton_pairs(
-        c(work.K, dtype=float), c(sys.mode_stiffness[work.angle], dtype=float), c(work.f, dtype=float),
-        c(work.rows, dtype=float), c(work.pin_b, dtype=float), c(sys.pin_local, dtype=np.int64),
-        c(sys.model.pin_law, dtype=float), c(brg_rows, dtype=float), c(brg_off, dtype=float),
-        c(c_half, dtype=float), c(np.stack([sys.brg_k, sys.brg_law_a, sys.brg_law_compliance],
-                                          axis=-1), dtype=float),
-        c(np.stack([TABLE_E, TABLE_DE])), c(toward, dtype=float),
-        work.toward is not None, c(guess, dtype=np.bool_), q, q0 is not None, MAX_ITERATIONS,
-        STEP_TOLERANCE, GAP_TOLERANCE, converged, iterations)
+    # per pair (axis 0: the pair), then shared by every pair
+    pairs = [c(work.K, dtype=float), c(sys.mode_stiffness[work.angle], dtype=float),
+             c(work.f, dtype=float), c(work.rows, dtype=float), c(work.pin_b, dtype=float)]
+    shared = [c(sys.pin_local, dtype=np.int64), c(sys.model.pin_law, dtype=float)]
+    bearings = [c(brg_rows, dtype=float), c(brg_off, dtype=float), c(c_half, dtype=float)]
+    law = [c(np.stack([sys.brg_k, sys.brg_law_a, sys.brg_law_compliance], axis=-1), dtype=float),
+           c(np.stack([TABLE_E, TABLE_DE]))]
+    toward, guess = c(toward, dtype=float), c(guess, dtype=np.bool_)
+
+    def solve(lo, hi):
+        newton_pairs(*(a[lo:hi] for a in pairs), *shared, *(a[lo:hi] for a in bearings), *law,
+                     toward[lo:hi], work.toward is not None, guess[lo:hi], q[lo:hi], q0 is not None,
+                     MAX_ITERATIONS, STEP_TOLERANCE, GAP_TOLERANCE, converged[lo:hi],
+                     iterations[lo:hi])
+
+    threads = min(kernel_threads(), B // MIN_PAIRS_PER_THREAD)
+    if threads <= 1:
+        solve(0, B)
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        bounds = np.linspace(0, B, threads + 1).astype(int)
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(solve, bounds[:-1], bounds[1:]))
     return q, converged, int(iterations.max(initial=0))
 
 

@@ -40,7 +40,7 @@ surrogate search's (the baseline).
 
 import os
 
-for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "RVTE_THREADS"):
     os.environ[_name] = "1"
 
 import argparse  # noqa: E402

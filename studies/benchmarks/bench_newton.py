@@ -23,7 +23,7 @@ warmed up (compiled or loaded from numba's cache) before it is timed.
 import os
 import sys
 
-for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "RVTE_THREADS"):
     os.environ[_name] = "1"
 
 import argparse  # noqa: E402

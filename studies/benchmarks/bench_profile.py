@@ -10,7 +10,10 @@ What it measures, on one core (BLAS on one thread), each route under cProfile:
 - the dynamic step: Newmark over `--seconds` of the RV-40E-121 with the seed 002 errors at
   1600 rpm and half its rated load, with its friction (`rvfmu.core.simulation.simulate`).
 Each route is run once untimed first (numba compiles or loads its kernels), then timed
-without and with the profiler: the wall time and throughput are those without it.  The
+without and with the profiler: the wall time and throughput are those without it.  Then
+the two quasi-static routes again with the compiled iteration on every core of this
+machine (RVTE_THREADS, `rvfmu.core.newton.kernel_threads`) against one, in the same
+process: the ratio is what one process gains from its threads.  The
 profile's own time is grouped by where it is spent:
 - "compiled Newton": the active-set Newton iteration (core/newton_kernel.py, compiled);
 - "continuation, release": the no-load continuation, release rounds and contact routes
@@ -26,7 +29,7 @@ profile's own time is grouped by where it is spent:
 
 import os
 
-for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "RVTE_THREADS"):
     os.environ[_name] = "1"
 
 import argparse  # noqa: E402
@@ -130,6 +133,22 @@ def main() -> None:
         print(f"\n{label}: largest own times")
         for share, name in top[:args.top]:
             print(f"  {100 * share:5.1f} %  {name}")
+
+    cores = os.cpu_count() or 1
+    print(f"\nthreads of the compiled iteration (one process): 1 against {cores}")
+    print(f"{'route':<36} {'1 thread [s]':>13} {f'{cores} threads [s]':>14} {'ratio':>7}")
+    for label, file in (("no load, clearances", "rv40e_121_full.toml"),
+                        ("rated", "rv40e_121_full_rated.toml")):
+        study, work = study_route(ROOT / "studies" / file, args.reducers)
+        walls = []
+        for threads in (1, cores):
+            os.environ["RVTE_THREADS"] = str(threads)
+            start = time.perf_counter()
+            work()
+            walls.append(time.perf_counter() - start)
+        os.environ["RVTE_THREADS"] = "1"
+        print(f"{label + f' ({study.points} points)':<36} {walls[0]:>13.2f} {walls[1]:>14.2f} "
+              f"{walls[0] / walls[1]:>7.2f}")
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ import sys
 
 # One BLAS thread: throughput per core.  Only effective if numpy is not imported yet.
 BLAS_PRESET = "numpy" not in sys.modules
-for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "RVTE_THREADS"):
     os.environ[_name] = "1"
 
 import argparse  # noqa: E402

@@ -34,7 +34,7 @@ runs on one thread everywhere, so per core is per core.
 import os
 import sys
 
-for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "RVTE_THREADS"):
     os.environ[_name] = "1"
 
 import argparse  # noqa: E402
