@@ -206,7 +206,8 @@ class DynamicModel:
             turning["cols"], turning["rows"], turning["source"],
             turning["friction"] if friction else np.zeros(turning["friction"].size),
             SLIP_SCALE, friction and self._resists(turning), np.zeros((self.n, self.n)))
-        self.modal_frequencies = np.empty(0)
+        self.modal_frequencies, self.modal_shapes = np.empty(0), np.empty((self.n, 0))
+        self.floating = 0
         self._drag_radius, self._drag_kind = turning["radius"], turning["kind"]
         counts = {"crank": design.n_c, "disc": 2}
         self._nominal_index = tuple({body: [self.index[f"{body}{k}_{axis}"] for k in range(count)]
@@ -219,18 +220,21 @@ class DynamicModel:
         ratio: K the tangent stiffness there (symmetrised), K phi = w^2 M phi, and
         C = M Phi diag(2 zeta w) Phi^T M on the unknowns' velocities, kept for the run (the
         Newmark step and the FMU apply the same matrix).  A part floating in a clearance
-        (w = 0) is left undamped; `modal_frequencies` [rad/s] are those damped."""
+        (below FLOATING_HZ) is left undamped; `modal_frequencies` [rad/s] and `modal_shapes`
+        (n, N) (mass-normalised, ascending) are the modes damped, `floating` how many
+        were not (what `modes.modes` reports)."""
         from scipy.linalg import eigh
 
         self.elements = self.elements._replace(modal_c=np.zeros((self.n, self.n)))
         _, K, _ = self.forces(step, np.asarray(q, dtype=float), np.zeros(self.n))
         w2, shapes = eigh(0.5 * (K + K.T), np.diag(self.mass))
         w = np.sqrt(np.maximum(w2, 0.0))
-        keep = w > 2.0 * math.pi * FLOATING_HZ
+        keep = w / (2.0 * math.pi) >= FLOATING_HZ
         weighted = self.mass[:, None] * shapes[:, keep]                       # M Phi
         modal = (weighted * (2.0 * self.design.damping_ratio * w[keep])) @ weighted.T
         self.elements = self.elements._replace(modal_c=np.ascontiguousarray(0.5 * (modal + modal.T)))
-        self.modal_frequencies = w[keep]
+        self.modal_frequencies, self.modal_shapes = w[keep], shapes[:, keep]
+        self.floating = int(np.count_nonzero(~keep))
 
     def _resists(self, turning: dict) -> bool:
         """Whether any contact has friction or drag (with none, the run is the frictionless
@@ -374,34 +378,12 @@ class DynamicModel:
         g, a = self.geometry(step)
         return g.external[a]
 
-    def nominal_velocities(self, theta_in, omega_in) -> np.ndarray:
-        """(A, n) velocities of the nominal motion [m/s, rotations as arc length at R_p]:
-        every body's rigid-kinematics velocity (docs/model.md section 2) at each instant."""
-        d, i = self.design, self.design.ratio
-        th_in, w_in = (np.atleast_1d(np.asarray(x, dtype=float)) for x in (theta_in, omega_in))
-        th_out, w_out = th_in / i, w_in / i
-        k_beta = -d.z_s / d.z_pl
-        w_psi = w_out + k_beta * (w_in - w_out)
-        psi = th_out + k_beta * (th_in - th_out)
-        out = np.zeros((th_in.size, self.n))
-        idx, s = self.index, self.scale
-        out[:, idx["sun_rot"]] = w_in * s
-        out[:, idx["carrier_rot"]] = w_out * s
-        x, y, rot = self._nominal_index
-        for body, radius, angle, w in (
-                ("crank", d.crank_circle_radius,
-                 th_out[:, None] + 2 * math.pi * np.arange(d.n_c) / d.n_c, w_out),
-                ("disc", d.e, psi[:, None] + math.pi * np.arange(2), w_psi)):
-            speed = (radius * w)[:, None]
-            out[:, x[body]] = -speed * np.sin(angle)
-            out[:, y[body]] = speed * np.cos(angle)
-        out[:, rot["crank"]] = (w_psi * s)[:, None]
-        out[:, rot["disc"]] = (w_out * s)[:, None]
-        return out
-
-    def nominal_forces(self, theta_in, omega_in, alpha_in) -> np.ndarray:
-        """(A, n) d'Alembert forces of the nominal motion [N]: minus mass times the nominal
-        acceleration of every body (docs/model.md section 2 kinematics) at each instant."""
+    def _nominal_motion(self, theta_in, omega_in, alpha_in):
+        """The nominal motion (docs/model.md section 2) at each instant: ({"in", "out",
+        "crank"}: (speed [rad/s], acceleration [rad/s^2]) of the input, of the output (the
+        carrier and the discs' turn) and of the cranks' turn; ((body, radius [m], angle (A,
+        count) [rad], speed, acceleration) of the circles the crank and disc centres ride:
+        crank c at theta_out + 2 pi c / n_c, disc j at psi + j pi))."""
         d, i = self.design, self.design.ratio
         th_in, w_in, a_in = (np.asarray(x, dtype=float) for x in (theta_in, omega_in, alpha_in))
         th_out, w_out, a_out = th_in / i, w_in / i, a_in / i
@@ -409,23 +391,51 @@ class DynamicModel:
         w_psi = w_out + k_beta * (w_in - w_out)
         a_psi = a_out + k_beta * (a_in - a_out)
         psi = th_out + k_beta * (th_in - th_out)
-        f = np.zeros((th_in.size, self.n))
+        turns = {"in": (w_in, a_in), "out": (w_out, a_out), "crank": (w_psi, a_psi)}
+        circles = (("crank", d.crank_circle_radius,
+                    th_out[:, None] + 2 * math.pi * np.arange(d.n_c) / d.n_c, w_out, a_out),
+                   ("disc", d.e, psi[:, None] + math.pi * np.arange(2), w_psi, a_psi))
+        return turns, circles
+
+    def nominal_velocities(self, theta_in, omega_in) -> np.ndarray:
+        """(A, n) velocities of the nominal motion [m/s, rotations as arc length at R_p]:
+        every body's rigid-kinematics velocity (docs/model.md section 2) at each instant."""
+        theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
+        omega_in = np.broadcast_to(np.asarray(omega_in, dtype=float), theta_in.shape)
+        turns, circles = self._nominal_motion(theta_in, omega_in, np.zeros(theta_in.shape))
+        out = np.zeros((theta_in.size, self.n))
         idx, s = self.index, self.scale
-        f[:, idx["sun_rot"]] = -d.sun_inertia * a_in / s
-        f[:, idx["carrier_rot"]] = -d.carrier_inertia * a_out / s
-        # crank c's centre at a (cos, sin)(theta_out + 2 pi c / n_c), disc j's at e (cos, sin)(psi
-        # + j pi): acceleration radius (acc t - w^2 r), r and t the radial and tangential units
+        out[:, idx["sun_rot"]] = turns["in"][0] * s
+        out[:, idx["carrier_rot"]] = turns["out"][0] * s
         x, y, rot = self._nominal_index
-        for body, mass, radius, angle, w, acc in (
-                ("crank", d.crank_mass, d.crank_circle_radius,
-                 th_out[:, None] + 2 * math.pi * np.arange(d.n_c) / d.n_c, w_out, a_out),
-                ("disc", d.disc_mass, d.e, psi[:, None] + math.pi * np.arange(2), w_psi, a_psi)):
+        for body, radius, angle, w, _ in circles:
+            speed = (radius * w)[:, None]
+            out[:, x[body]] = -speed * np.sin(angle)
+            out[:, y[body]] = speed * np.cos(angle)
+        out[:, rot["crank"]] = (turns["crank"][0] * s)[:, None]
+        out[:, rot["disc"]] = (turns["out"][0] * s)[:, None]
+        return out
+
+    def nominal_forces(self, theta_in, omega_in, alpha_in) -> np.ndarray:
+        """(A, n) d'Alembert forces of the nominal motion [N]: minus mass times the nominal
+        acceleration of every body (docs/model.md section 2 kinematics) at each instant."""
+        d = self.design
+        turns, circles = self._nominal_motion(theta_in, omega_in, alpha_in)
+        f = np.zeros((turns["in"][0].size, self.n))
+        idx, s = self.index, self.scale
+        f[:, idx["sun_rot"]] = -d.sun_inertia * turns["in"][1] / s
+        f[:, idx["carrier_rot"]] = -d.carrier_inertia * turns["out"][1] / s
+        # each centre's acceleration on its circle: radius (acc t - w^2 r), r and t the radial
+        # and tangential units
+        x, y, rot = self._nominal_index
+        for body, radius, angle, w, acc in circles:
+            mass = d.crank_mass if body == "crank" else d.disc_mass
             c, sn = np.cos(angle), np.sin(angle)
             w2, acc = (mass * radius * w ** 2)[:, None], (mass * radius * acc)[:, None]
             f[:, x[body]] = acc * sn + w2 * c
             f[:, y[body]] = w2 * sn - acc * c
-        f[:, rot["crank"]] = (-d.crank_inertia * a_psi / s)[:, None]
-        f[:, rot["disc"]] = (-d.disc_inertia * a_out / s)[:, None]
+        f[:, rot["crank"]] = (-d.crank_inertia * turns["crank"][1] / s)[:, None]
+        f[:, rot["disc"]] = (-d.disc_inertia * turns["out"][1] / s)[:, None]
         return f
 
     def forces(self, step: int, q: np.ndarray, v: np.ndarray):

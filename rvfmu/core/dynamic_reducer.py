@@ -52,6 +52,7 @@ class DynamicReducer:
             if before is not None:      # the modes damped at the start stay damped alike
                 self.model.elements = self.model.elements._replace(modal_c=before.elements.modal_c)
                 self.model.modal_frequencies = before.modal_frequencies
+                self.model.modal_shapes, self.model.floating = before.modal_shapes, before.floating
         return self.model
 
     def _outputs(self, omega_in: float, tau_in: float, tau_load: float,

@@ -35,11 +35,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import eigh
 
 from .checks import InputError, finite_number
 from .design import RVDesign
-from .dynamic import FLOATING_HZ, DynamicModel, at_rest
+from .dynamic import DynamicModel, at_rest
 from .errors import ErrorSet, zero_errors
 from .limits import check_load
 from .excitations import Excitations
@@ -59,7 +58,7 @@ class Modes:
     model's unknowns (rotations as arc length at R_p); names: (n,) the unknowns;
     mass: (n,) the diagonal mass matrix [kg; rotations inertia / R_p^2];
     tau_load [N*m] and theta_in [rad]: where the model was linearised;
-    dropped: how many rigid-body modes (below FLOATING_HZ) were dropped;
+    dropped: how many rigid-body modes (below `dynamic.FLOATING_HZ`) were dropped;
     damping_ratios: (N,) each mode's ratio under the dynamic model's damping C at that
     equilibrium, phi^T C phi / (2 w) (`DynamicModel.set_modal_damping`).
     """
@@ -137,7 +136,7 @@ def modes(design: RVDesign, errors: ErrorSet | None = None, load: float = 0.0,
     dynamic model's damping there (modal: the design's ratio).  The input shaft's torsional spring
     grounds the chain, so with the pins in contact there is no rigid-body mode;
     a part inside a bearing clearance, though, is held by no spring in the
-    linearisation and would float: such zero-frequency modes (below FLOATING_HZ)
+    linearisation and would float: such zero-frequency modes (below `dynamic.FLOATING_HZ`)
     are dropped and counted in `Modes.dropped`.
     """
     errors = _one_reducer(design, errors)
@@ -150,18 +149,12 @@ def modes(design: RVDesign, errors: ErrorSet | None = None, load: float = 0.0,
                          friction=False)
     model.prepare(at_rest(theta_in))
     q = static_start(model, tau_load, theta_in)
-    _, K, _ = model.forces(0, q, np.zeros(model.n))
-    K = 0.5 * (K + K.T)
-    mass = model.mass.copy()
-    w2, shapes = eigh(K, np.diag(mass))
-    frequencies = np.sqrt(np.maximum(w2, 0.0)) / (2.0 * math.pi)
-    keep = frequencies >= FLOATING_HZ
-    model.set_modal_damping(q)
+    model.set_modal_damping(q)                   # the eigenproblem, and the damping it sets
     _, _, C = model.forces(0, q, np.zeros(model.n))
-    kept = shapes[:, keep]
-    ratios = np.einsum("ik,ij,jk->k", kept, C, kept) / (4.0 * math.pi * frequencies[keep])
-    return Modes(frequencies[keep], kept, tuple(model.names), mass, float(tau_load),
-                 theta_in, int(np.count_nonzero(~keep)), ratios)
+    shapes, frequencies = model.modal_shapes, model.modal_frequencies / (2.0 * math.pi)
+    ratios = np.einsum("ik,ij,jk->k", shapes, C, shapes) / (4.0 * math.pi * frequencies)
+    return Modes(frequencies, shapes, tuple(model.names), model.mass.copy(), float(tau_load),
+                 theta_in, model.floating, ratios)
 
 
 def campbell(design: RVDesign, errors: ErrorSet | None, load: float, speeds_rpm):
