@@ -268,7 +268,9 @@ def test_friction_opens_the_loop_in_proportion_to_the_coefficients(rv40_loop):
     crosses there); the Coulomb work is linear in the coefficients."""
     d = rv40_loop.design
     free = hysteresis(d.with_fields(**NO_FRICTION), positions=4)
-    assert free.area_J == 0.0 and np.all(free.friction_torque == 0.0)
+    assert np.all(free.friction_torque == 0.0)
+    # the two branches are the same path: the shoelace sum cancels to round-off
+    assert free.area_J <= 1e-9 * rv40_loop.area_J
     assert rv40_loop.hysteresis_loss_arcmin > free.hysteresis_loss_arcmin > 0.0
     coulomb = d.with_fields(bearing_drag_factor=0.0)
     doubled = coulomb.with_fields(**{k: 2.0 * getattr(coulomb, k) for k in FRICTION_FIELDS

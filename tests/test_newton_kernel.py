@@ -3,9 +3,10 @@
 Both iterate the same active-set Newton method on the same reduced energy
 (rvfmu/core/newton_kernel.py, rvfmu/core/newton.py); the numpy one iterates a
 whole chunk at once and is the reference.  Their equilibria must agree to
-round-off on every route the solver takes: loaded and no-load, with and
-without bearing clearances (the continuation), resisting and driving, and the
-pairs re-solved on all pins.
+1e-9 arcsec on every route the solver takes: loaded and no-load, with and
+without bearing clearances (the continuation), resisting and driving, the
+pairs re-solved on all pins, and the compiled iteration's warm starts from the
+neighbouring angle (which the numpy one does not take).
 """
 
 import os
@@ -26,6 +27,19 @@ from tolerance.sampling import errors_from_unit
 from tolerance.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+AGREE_ARCSEC = 1e-9
+
+
+def assert_agree(compiled, plain, switch_share=0.0):
+    """TE curves equal to AGREE_ARCSEC, but for a share `switch_share` of the pairs that may
+    differ by up to 1e-6 arcsec: at no load with bearing clearances, where a bearing ends
+    within round-off of its clearance circle at the probe solution (|d| - c ~ 1e-17 m), the
+    step back to zero load takes the tangent from one side of its switch or the other."""
+    diff = np.abs(compiled - plain)
+    assert np.mean(diff > AGREE_ARCSEC) <= switch_share, np.sort(diff.ravel())[-5:]
+    assert diff.max() <= (1e-6 if switch_share else AGREE_ARCSEC), diff.max()
 
 
 def both(run):
@@ -51,7 +65,7 @@ def test_with_bearing_clearances_the_compiled_and_numpy_equilibria_agree(full_st
     design, errors = full_study_reducers
     compiled, plain = both(lambda: te_curve(design, errors, tau_load=tau, points=400))
     assert compiled.converged.all() and plain.converged.all()
-    np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-6)
+    assert_agree(compiled.te_arcsec, plain.te_arcsec, switch_share=0.002 if tau == 0.0 else 0.0)
     # at no load the pin forces are those of the probe torque's continuation, micronewtons
     np.testing.assert_allclose(compiled.pin_force_max, plain.pin_force_max, rtol=1e-6, atol=1e-5)
     # the curves are not trivial: clearances and errors make tens of arcsec
@@ -62,7 +76,7 @@ def test_with_bearing_clearances_the_compiled_and_numpy_equilibria_agree(full_st
 def test_without_clearances_the_compiled_and_numpy_equilibria_agree(rv40, seed002, tau):
     errors = stack([seed002] * 2)
     compiled, plain = both(lambda: te_curve(rv40, errors, tau_load=tau, points=720))
-    np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-9)
+    assert_agree(compiled.te_arcsec, plain.te_arcsec)
     np.testing.assert_array_equal(compiled.converged, plain.converged)
 
 
@@ -72,6 +86,36 @@ def test_the_windup_test_agrees(full_study_reducers):
     np.testing.assert_allclose(compiled.lost_motion_arcmin(), plain.lost_motion_arcmin(), rtol=1e-9)
     np.testing.assert_allclose(compiled.torsional_rigidity_Nm_per_arcmin(),
                                plain.torsional_rigidity_Nm_per_arcmin(), rtol=1e-9)
+
+
+@pytest.mark.parametrize("tau", [0.0, -412.0], ids=["no load", "rated"])
+def test_warm_starts_from_the_neighbouring_angle_reach_the_same_equilibria(full_study_reducers, tau):
+    """The compiled iteration starts each angle from its neighbour's solution (solver.chain_links,
+    newton.CHAIN_LENGTH): the energy and its minimiser are the same, so is the curve."""
+    from rvfmu.core import solver
+
+    design, errors = full_study_reducers
+    chained = te_curve(design, errors, tau_load=tau, points=400)
+    with mock.patch.object(solver, "chain_links", lambda s, a, t: np.zeros(len(s), dtype=bool)):
+        cold = te_curve(design, errors, tau_load=tau, points=400)
+    assert chained.converged.all() and cold.converged.all()
+    assert_agree(chained.te_arcsec, cold.te_arcsec, switch_share=0.002 if tau == 0.0 else 0.0)
+
+
+def test_chains_link_neighbouring_angles_of_one_reducer_and_load_only():
+    from rvfmu.core.newton import CHAIN_LENGTH, chain_links
+
+    sample = np.repeat([0, 1], 2 * CHAIN_LENGTH)
+    angle = np.tile(np.arange(2 * CHAIN_LENGTH), 2)
+    load = np.zeros(sample.size)
+    load[CHAIN_LENGTH // 2] = 1.0                       # another load breaks the chain, twice
+    angle[CHAIN_LENGTH + 3] = 99                        # an angle that is not the next one, twice
+    link = chain_links(sample, angle, load)
+    expected = np.ones(sample.size, dtype=bool)
+    expected[::CHAIN_LENGTH] = False                    # cut every CHAIN_LENGTH pairs
+    expected[[CHAIN_LENGTH // 2, CHAIN_LENGTH // 2 + 1, CHAIN_LENGTH + 3, CHAIN_LENGTH + 4]] = False
+    expected[2 * CHAIN_LENGTH] = False                  # a new reducer
+    assert np.array_equal(link, expected)
 
 
 def test_the_cholesky_solve_matches_lapack_and_refuses_an_indefinite_matrix():
@@ -99,7 +143,7 @@ def test_on_every_pin_the_compiled_and_numpy_equilibria_agree(full_study_reducer
     design, errors = full_study_reducers
     with mock.patch.object(solver, "CANDIDATE_MARGIN", design.z_p):
         compiled, plain = both(lambda: te_curve(design, errors, tau_load=0.0, points=200))
-    np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-6)
+    assert_agree(compiled.te_arcsec, plain.te_arcsec, switch_share=0.002)
     # and the candidates change nothing: the same equilibria as the preselected iteration
     candidates = te_curve(design, errors, tau_load=0.0, points=200)
     np.testing.assert_allclose(compiled.te_arcsec, candidates.te_arcsec, rtol=0, atol=1e-6)
@@ -120,7 +164,8 @@ def test_with_the_roller_law_the_compiled_and_numpy_equilibria_agree(rv40_roller
     for tau in (-412.0, -12.0, 150.0, 0.0):
         compiled, plain = both(lambda: te_curve(design, errors, tau_load=tau, points=240))
         assert compiled.converged.all() and plain.converged.all()
-        np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-6)
+        assert_agree(compiled.te_arcsec, plain.te_arcsec,
+                     switch_share=0.002 if clearances and tau == 0.0 else 0.0)
 
 
 def test_a_changed_callee_in_another_file_is_recompiled_not_loaded_stale(tmp_path):

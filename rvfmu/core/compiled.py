@@ -67,6 +67,6 @@ def kernel(function):
     if _NUMBA is None:
         return function
     try:
-        return _NUMBA.njit(cache=True, nogil=True)(function)
+        return _NUMBA.njit(cache=True, nogil=True, error_model="numpy")(function)
     except RuntimeError:    # no writable cache location (e.g. a read-only install)
         return _NUMBA.njit(nogil=True)(function)

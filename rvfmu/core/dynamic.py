@@ -522,7 +522,8 @@ def compile_kernels() -> list:
         NewmarkStepper.starting_at(model, np.zeros(model.n)).advance(1)
     folder = Path(kernels.__file__).parent / "__pycache__"
     files = []
-    for function in (kernels.element_forces, kernels.newmark_steps):
+    for function in (kernels.element_forces, kernels.newmark_steps, kernels.solve_in_place,
+                     kernels._newmark_residual):
         line = function.py_func.__code__.co_firstlineno        # numba names its files by it
         files += folder.glob(f"kernels.{function.__name__}-{line}.*.nb[ic]")
     # the stamp is missing where the cache folder cannot be written, and then so are the kernels

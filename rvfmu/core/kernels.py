@@ -297,6 +297,51 @@ def element_forces(el, g, a, q, v, f, K, C):
 
 
 @kernel
+def _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma, mass, f, K, C, residual):
+    """The Newmark rule's acceleration and velocity at displacement q into a, v, the element
+    forces into f, K, C (`element_forces`) and the step's residual M a + f - F into residual;
+    returns the (friction, damper) powers."""
+    for i in range(q.size):
+        a[i] = (q[i] - q_old[i] - h * v_old[i]) / (beta * h * h) - (0.5 / beta - 1.0) * a_old[i]
+        v[i] = v_old[i] + h * ((1.0 - gamma) * a_old[i] + gamma * a[i])
+    powers = element_forces(el, g, k, q, v, f, K, C)
+    for i in range(q.size):
+        residual[i] = mass[i] * a[i] + f[i] - g.external[k, i]
+    return powers
+
+
+@kernel
+def solve_in_place(A, x):
+    """x <- A^-1 x by Gaussian elimination with partial pivoting; A is overwritten.  False
+    where a pivot is zero (A singular).  For the 18-21 unknowns of a step this costs about
+    half of a LAPACK call through numba, which copies both arrays first."""
+    n = x.size
+    for c in range(n):
+        pivot, big = c, abs(A[c, c])
+        for r in range(c + 1, n):
+            if abs(A[r, c]) > big:
+                pivot, big = r, abs(A[r, c])
+        if big == 0.0:
+            return False
+        if pivot != c:
+            for j in range(c, n):
+                A[c, j], A[pivot, j] = A[pivot, j], A[c, j]
+            x[c], x[pivot] = x[pivot], x[c]
+        for r in range(c + 1, n):
+            m = A[r, c] / A[c, c]
+            if m != 0.0:
+                for j in range(c + 1, n):
+                    A[r, j] -= m * A[c, j]
+                x[r] -= m * x[c]
+    for r in range(n - 1, -1, -1):
+        value = x[r]
+        for j in range(r + 1, n):
+            value -= A[r, j] * x[j]
+        x[r] = value / A[r, r]
+    return True
+
+
+@kernel
 def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cycle_tolerance,
                   max_iterations, out_q, out_v, out_power):
     """Advance the state (q, v, a), given at the step before `first`, through steps first..stop-1
@@ -315,17 +360,17 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
     Newton update from outside it overshoots to the other side and back.  Returns
     (most Newton iterations in one step, steps that did not converge)."""
     n = q.size
-    f = np.empty(n)
-    K = np.empty((n, n))
-    C = np.empty((n, n))
-    M = np.diag(mass)
+    f, residual, dq, start = np.empty(n), np.zeros(n), np.empty(n), np.empty(n)
+    q_old, v_old, a_old = np.empty(n), np.empty(n), np.empty(n)
+    K, C, J = np.empty((n, n)), np.empty((n, n)), np.empty((n, n))
     most, failed = 0, 0
     powers = (0.0, 0.0)
-    residual = np.zeros(n)
     for k in range(first, stop):
         h = g.h[k]
-        q_old, v_old, a_old = q.copy(), v.copy(), a.copy()
-        q[:] = q_old + h * v_old + 0.5 * h * h * a_old     # average-acceleration predictor
+        ka, kc = 1.0 / (beta * h * h), gamma / (beta * h)
+        for i in range(n):
+            q_old[i], v_old[i], a_old[i] = q[i], v[i], a[i]
+            q[i] = q_old[i] + h * v_old[i] + 0.5 * h * h * a_old[i]   # average-acceleration predictor
         converged = False
         it = 0
         last, before = np.inf, np.inf
@@ -333,38 +378,44 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
         while it < max_iterations:
             it += 1
             if not evaluated:
-                a[:] = (q - q_old - h * v_old) / (beta * h * h) - (0.5 / beta - 1.0) * a_old
-                v[:] = v_old + h * ((1.0 - gamma) * a_old + gamma * a)
-                powers = element_forces(el, g, k, q, v, f, K, C)
-                residual = mass * a + f - g.external[k]
-            J = M / (beta * h * h) + C * (gamma / (beta * h)) + K
-            dq = np.linalg.solve(J, -residual)
-            size = np.max(np.abs(dq))
+                powers = _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma,
+                                           mass, f, K, C, residual)
+            for i in range(n):
+                for j in range(n):
+                    J[i, j] = C[i, j] * kc + K[i, j]
+                J[i, i] += mass[i] * ka
+                dq[i] = -residual[i]
+            if not solve_in_place(J, dq):
+                break                               # a singular tangent: the step fails
+            size = 0.0
+            for i in range(n):
+                size = max(size, abs(dq[i]))
             if el.line_search:
                 norm = np.sqrt(np.sum(residual * residual))
-                start = q.copy()
+                start[:] = q
                 fraction = 1.0
                 for _ in range(LINE_SEARCH_HALVINGS + 1):
-                    q[:] = start + fraction * dq
-                    a[:] = (q - q_old - h * v_old) / (beta * h * h) - (0.5 / beta - 1.0) * a_old
-                    v[:] = v_old + h * ((1.0 - gamma) * a_old + gamma * a)
-                    powers = element_forces(el, g, k, q, v, f, K, C)
-                    residual = mass * a + f - g.external[k]
+                    for i in range(n):
+                        q[i] = start[i] + fraction * dq[i]
+                    powers = _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma,
+                                               mass, f, K, C, residual)
                     if np.sqrt(np.sum(residual * residual)) < norm:
                         break
                     fraction *= 0.5
                 size *= fraction
                 evaluated = True
             else:
-                q += dq
+                for i in range(n):
+                    q[i] += dq[i]
             if size < tolerance or (size < cycle_tolerance and abs(size - before) <= 1e-3 * size):
                 converged = True
                 break
             last, before = size, last
         most = max(most, it)
         failed += 0 if converged else 1
-        a[:] = (q - q_old - h * v_old) / (beta * h * h) - (0.5 / beta - 1.0) * a_old
-        v[:] = v_old + h * ((1.0 - gamma) * a_old + gamma * a)
+        for i in range(n):
+            a[i] = (q[i] - q_old[i] - h * v_old[i]) * ka - (0.5 / beta - 1.0) * a_old[i]
+            v[i] = v_old[i] + h * ((1.0 - gamma) * a_old[i] + gamma * a[i])
         out_q[k] = q
         out_v[k] = v
         out_power[k, 0], out_power[k, 1] = powers

@@ -31,16 +31,34 @@ SHRINK_FRACTION = 0.25   # drop converged pairs from the work arrays once a quar
 MIN_PAIRS_PER_THREAD = 64  # a thread of the compiled iteration gets at least this many pairs
 
 
-def newton(work, first_active, q0=None):
+def newton(work, first_active, q0=None, chain=None):
     """Active-set Newton on the reduced energy; returns (q (B, nN), converged (B,), iterations).
 
     Compiled one pair at a time (`newton_kernel`) when numba is there, otherwise
     the numpy iteration of the whole chunk at once (`newton_batched`): the same
-    algorithm, the same results to round-off.
+    algorithm, the same results to round-off.  chain (B,) bool, optional: the compiled
+    iteration starts each pair marked from the solution of the pair before it (its
+    neighbouring angle: `chain_links`) instead of its own start; the energy is the same,
+    so is its minimiser, and the numpy iteration, which solves the pairs together,
+    ignores it.
     """
     if kernels.COMPILED:
-        return newton_compiled(work, first_active, q0)
+        return newton_compiled(work, first_active, q0, chain)
     return newton_batched(work, first_active, q0)
+
+
+CHAIN_LENGTH = 32  # pairs per chain of warm starts; thread batches are whole chains
+
+
+def chain_links(sample, angle, load):
+    """(B,) bool: which pairs start from the solution of the pair before them, the same
+    reducer and load at the previous angle (`newton`).  Chains are cut every CHAIN_LENGTH
+    pairs of the batch, so that the threads of `newton_compiled`, which split batches
+    between chains, give the results of one thread to the bit."""
+    link = np.zeros(len(sample), dtype=bool)
+    link[1:] = (sample[1:] == sample[:-1]) & (load[1:] == load[:-1]) & (angle[1:] == angle[:-1] + 1)
+    link[::CHAIN_LENGTH] = False
+    return link
 
 
 def kernel_threads() -> int:
@@ -64,10 +82,10 @@ def kernel_threads() -> int:
     return os.cpu_count() or 1
 
 
-def newton_compiled(work, first_active, q0=None):
+def newton_compiled(work, first_active, q0=None, chain=None):
     """`newton` by the compiled kernel (`newton_kernel.newton_pairs`), the pairs split over
     `kernel_threads` threads (the kernel releases the GIL) in batches of at least
-    MIN_PAIRS_PER_THREAD."""
+    MIN_PAIRS_PER_THREAD, each a whole number of warm-start chains (`chain_links`)."""
     from .newton_kernel import newton_pairs
 
     sys = work.system
@@ -92,11 +110,13 @@ def newton_compiled(work, first_active, q0=None):
     law = [c(np.stack([sys.brg_k, sys.brg_law_a, sys.brg_law_compliance], axis=-1), dtype=float),
            c(np.stack([TABLE_E, TABLE_DE]))]
     toward, guess = c(toward, dtype=float), c(guess, dtype=np.bool_)
+    warm = np.full(B, q0 is not None)
+    chain = np.zeros(B, dtype=bool) if chain is None else c(chain, dtype=np.bool_)
 
     def solve(lo, hi):
         newton_pairs(*(a[lo:hi] for a in pairs), *shared, *(a[lo:hi] for a in bearings), *law,
-                     toward[lo:hi], work.toward is not None, guess[lo:hi], q[lo:hi], q0 is not None,
-                     MAX_ITERATIONS, STEP_TOLERANCE, GAP_TOLERANCE, converged[lo:hi],
+                     toward[lo:hi], work.toward is not None, guess[lo:hi], q[lo:hi], warm[lo:hi],
+                     chain[lo:hi], MAX_ITERATIONS, STEP_TOLERANCE, GAP_TOLERANCE, converged[lo:hi],
                      iterations[lo:hi])
 
     threads = min(kernel_threads(), B // MIN_PAIRS_PER_THREAD)
@@ -106,6 +126,7 @@ def newton_compiled(work, first_active, q0=None):
         from concurrent.futures import ThreadPoolExecutor
 
         bounds = np.linspace(0, B, threads + 1).astype(int)
+        bounds[1:-1] -= bounds[1:-1] % CHAIN_LENGTH
         with ThreadPoolExecutor(threads) as pool:
             list(pool.map(solve, bounds[:-1], bounds[1:]))
     return q, converged, int(iterations.max(initial=0))

@@ -269,10 +269,15 @@ def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_hal
 
 @kernel
 def newton_pairs(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table,
-                 toward, has_toward, guess, q, warm, max_iterations, step_tolerance,
+                 toward, has_toward, guess, q, warm, chain, max_iterations, step_tolerance,
                  gap_tolerance, converged, iterations):
     """Solve every pair; q (B, nN) holds the starts and receives the solutions, converged (B,)
-    bool whether each pair converged, iterations (B,) how many Newton steps it took."""
+    bool whether each pair converged, iterations (B,) how many Newton steps it took.
+
+    warm (B,) bool: the pair starts from its q (otherwise from q with the guessed pins
+    bonded: the primal-dual first step); chain (B,) bool: the pair starts instead from the
+    solution just found for the pair before it (its neighbouring angle, `newton.chain_links`),
+    except where the energy is piecewise quadratic (`smooth`)."""
     B, n = q.shape
     p = brg_rows.shape[1]
     Kp = rows.shape[2]
@@ -288,6 +293,11 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c
     factor = np.empty((n, n))
     for s in range(B):
         qs = q[s]
+        # piecewise quadratic, the primal-dual first step lands at once, and where a pin ends
+        # within the gap tolerance of its switch a warm start may settle on its other side
+        linked = chain[s] and s > 0 and not smooth
+        if linked:
+            qs[:] = q[s - 1]
         Ks, fs, rs, bs = K[s], f[s], rows[s], pin_b[s]
         Bs, os_, cs = brg_rows[s], brg_off[s], c_half[s]
         energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, qs, delta, d)
@@ -295,7 +305,7 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c
         it = 0
         while it < max_iterations:
             it += 1
-            first = it == 1 and not warm
+            first = it == 1 and not (warm[s] or linked)
             _gradient_hessian(Ks, Kh[s], fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table,
                               toward[s], has_toward, gap_tolerance, qs, guess[s], first, first,
                               grad, hess, true_grad, used, delta, d)

@@ -32,13 +32,13 @@ import numpy as np
 
 from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
-from .newton import GAP_TOLERANCE, Work, newton, pin_delta
+from .newton import GAP_TOLERANCE, Work, chain_links, newton, pin_delta
 from .pin_law import contacts
 
 CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
 REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
 MODE_DIRECTION_STIFFNESS = 1e-9  # relative to the pin stiffness, Hessian only: see ReducedSystem
-CONTINUATION = (1e3, 1e2, 1e1, 1.0)  # no load with bearing clearance: probe multiples, large to small
+CONTINUATION = (1e1, 1.0)  # no load with bearing clearance: probe multiples, large to small
 LAW_PROBE = 1e-3         # no load, no clearance, the roller law: one solve at this x probe, from the
                          # limit with the stated stiffnesses; the law's windup left there (it goes
                          # as load^0.9) is below 1e-3 arcsec on the RV-40E-121
@@ -223,6 +223,7 @@ class ReducedSystem:
                 continue
             loads = tau[group]
             q_start = None
+            chain = chain_links(sample[group], angle[group], loads)
             if at_zero:
                 # Probe torques, from large to small when parts float in bearing clearances
                 # (each solve starts from the last), the last one the probe itself.
@@ -232,10 +233,12 @@ class ReducedSystem:
                 path = []
                 for k, scale in enumerate(steps):
                     loads = np.full(group.size, probe * scale)
+                    cold = q_start is None
                     q_start, conv, its = self._solve_group(
                         group, angle, f0, pin_b, brg_off, c_half, loads,
-                        first_count if q_start is None else None,
-                        bearing_direction if q_start is None else None, q_start)
+                        first_count if cold else None, bearing_direction if cold else None,
+                        q_start, chain=chain if cold else None,
+                        every_pin=bool(self.nl_bearings.size))
                     iterations += its
                     if self.nl_bearings.size and k >= len(steps) - 2:
                         q_start, conv, its = self._release(
@@ -255,7 +258,7 @@ class ReducedSystem:
             else:
                 qn[group], conv, its = self._solve_group(
                     group, angle, f0, pin_b, brg_off, c_half, loads, first_count, bearing_direction,
-                    None)
+                    None, chain=chain)
                 iterations += its
                 # Small loads feel the weak springs too: released the same way.
                 light = np.abs(loads) <= RELEASE_BELOW * abs(probe)
@@ -280,7 +283,7 @@ class ReducedSystem:
         return CONTINUATION if self.nl_bearings.size else (1.0,)
 
     def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
-                     bearing_direction, q0, centre=None):
+                     bearing_direction, q0, centre=None, chain=None, every_pin=False):
         a = angle[group]
         f = f0[group] - loads[:, None] * self.g_red[a]
         if centre is not None:
@@ -289,7 +292,8 @@ class ReducedSystem:
         count = None if first_count is None else first_count[group]
         toward = None if bearing_direction is None else bearing_direction[group]
         return self._elastic(a, f, pin_b[group], brg_off[group], c_half[group], direction, count, q0,
-                             f_errors=f0[group], bearing_direction=toward)
+                             f_errors=f0[group], bearing_direction=toward, chain=chain,
+                             every_pin=every_pin)
 
     def _release(self, group, angle, f0, pin_b, brg_off, c_half, loads, q, rounds=RELEASE_ROUNDS):
         """The weak springs let go of the floating parts: `rounds` solves of the pairs
@@ -367,7 +371,7 @@ class ReducedSystem:
         return q + np.where(agree[:, None], tangent, chord), agree
 
     def _elastic(self, angle, f, pin_b, brg_off, c_half, direction, count, q0=None, f_errors=None,
-                 bearing_direction=None):
+                 bearing_direction=None, chain=None, every_pin=False):
         """Newton solve of the pairs on their candidate pins, then on all pins where needed.
 
         The first guess of the touching pins: the `count` pins of each disc that the
@@ -377,6 +381,14 @@ class ReducedSystem:
         loads them (`bearing_direction`, when known).
         """
         model = self.model
+        if q0 is not None or every_pin:
+            # From a nearby equilibrium every pin: left out, the other side's pins would let
+            # the discs swing away from where they touch, and the solve would take them back.
+            rows = model.pin_rows[angle]
+            guess = None if q0 is not None else self._guess(angle, rows, pin_b, self.pin_rate[angle],
+                                                            direction, count, f_errors)
+            work = Work(self, angle, f, rows, pin_b, brg_off, c_half, bearing_direction)
+            return newton(work, guess, q0, chain)
         forward = direction > 0
         cand = self.candidates[-1.0][angle]                                         # (B, 2, Kc)
         rows = self.candidate_rows[-1.0][angle]                                     # (B, 2, Kc, 3)
@@ -384,22 +396,10 @@ class ReducedSystem:
             cand[forward] = self.candidates[1.0][angle[forward]]
             rows[forward] = self.candidate_rows[1.0][angle[forward]]
         pb = np.take_along_axis(pin_b, cand, axis=2)
-        closing = np.take_along_axis(self.pin_rate[angle], cand, axis=2) * direction[:, None, None]
-        if count is None:
-            guess = closing > 0
-        else:
-            gaps = pb
-            if f_errors is not None and hasattr(self, "free_shape"):
-                shape = -np.einsum("bij,bj->bi", self.free_shape[angle], f_errors)
-                gaps = pin_delta(rows, shape[:, self.pin_local], pb)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                travel = np.where(closing > 0, -gaps / closing, np.inf)
-            # the `count` pins of each disc that the turning carrier reaches first
-            ordered = np.sort(travel, axis=-1)
-            take = np.clip(count, 1, travel.shape[-1])[..., None] - 1
-            guess = travel <= np.take_along_axis(ordered, take, axis=-1)
+        guess = self._guess(angle, rows, pb, np.take_along_axis(self.pin_rate[angle], cand, axis=2),
+                            direction, count, f_errors)
         work = Work(self, angle, f, rows, pb, brg_off, c_half, bearing_direction)
-        q, converged, iterations = newton(work, guess, q0)
+        q, converged, iterations = newton(work, guess, q0, chain)
         # Any pin left out that touches at the solution: solve those pairs on all pins.
         outside = np.ones(pin_b.shape, dtype=bool)
         np.put_along_axis(outside, cand, False, axis=2)
@@ -414,6 +414,24 @@ class ReducedSystem:
             q[redo], converged[redo], more = newton(full, first, None if q0 is None else q0[redo])
             iterations = max(iterations, more)
         return q, converged, iterations
+
+    def _guess(self, angle, rows, pb, rate, direction, count, f_errors):
+        """(B, 2, K) the pins of `rows` (offsets pb, closing rates `rate` as the carrier
+        turns) guessed to touch: those the load closes, or with `count` the `count` of each
+        disc that the turning carrier reaches first, their gaps measured once the linear
+        parts have taken the shape the errors force on them (when that shape is known)."""
+        closing = rate * direction[:, None, None]
+        if count is None:
+            return closing > 0
+        gaps = pb
+        if f_errors is not None and hasattr(self, "free_shape"):
+            shape = -np.einsum("bij,bj->bi", self.free_shape[angle], f_errors)
+            gaps = pin_delta(rows, shape[:, self.pin_local], pb)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            travel = np.where(closing > 0, -gaps / closing, np.inf)
+        ordered = np.sort(travel, axis=-1)
+        take = np.clip(count, 1, travel.shape[-1])[..., None] - 1
+        return travel <= np.take_along_axis(ordered, take, axis=-1)
 
     def _first_contact(self, angle, f, pin_b, direction):
         """No-load limit by kinematics: (q_N (B, nN), rigid (B,) bool).
