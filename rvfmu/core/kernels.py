@@ -25,7 +25,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from .compiled import COMPILED, kernel  # noqa: F401 (COMPILED: what tests and benchmarks ask)
+from .compiled import COMPILED, kernel
 from .pin_law import contact
 from .roller_law import roller_law
 
@@ -341,6 +341,19 @@ def solve_in_place(A, x):
     return True
 
 
+def _solve_numpy(A, x):
+    """`solve_in_place` by LAPACK, for the plain numpy run (a Python loop of n^3 would cost
+    a millisecond a step there)."""
+    try:
+        x[:] = np.linalg.solve(A, x)
+    except np.linalg.LinAlgError:
+        return False
+    return True
+
+
+solve_step = solve_in_place if COMPILED else _solve_numpy
+
+
 @kernel
 def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cycle_tolerance,
                   max_iterations, out_q, out_v, out_power):
@@ -380,17 +393,20 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
             if not evaluated:
                 powers = _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma,
                                            mass, f, K, C, residual)
+            J[:, :] = C             # in place: no temporaries compiled, whole arrays in numpy
+            J *= kc
+            J += K
             for i in range(n):
-                for j in range(n):
-                    J[i, j] = C[i, j] * kc + K[i, j]
                 J[i, i] += mass[i] * ka
                 dq[i] = -residual[i]
-            if not solve_in_place(J, dq):
+            if not solve_step(J, dq):
                 break                               # a singular tangent: the step fails
             size = 0.0
             for i in range(n):
                 size = max(size, abs(dq[i]))
-            if el.line_search:
+            if el.line_search and size >= tolerance:
+                # (an update below the tolerance has converged: no line search, whose residual
+                # could no longer fall below round-off and would halve it eight times for nothing)
                 norm = np.sqrt(np.sum(residual * residual))
                 start[:] = q
                 fraction = 1.0
@@ -407,6 +423,7 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
             else:
                 for i in range(n):
                     q[i] += dq[i]
+                evaluated = False
             if size < tolerance or (size < cycle_tolerance and abs(size - before) <= 1e-3 * size):
                 converged = True
                 break
