@@ -65,7 +65,7 @@ def test_with_bearing_clearances_the_compiled_and_numpy_equilibria_agree(full_st
     design, errors = full_study_reducers
     compiled, plain = both(lambda: te_curve(design, errors, tau_load=tau, points=400))
     assert compiled.converged.all() and plain.converged.all()
-    assert_agree(compiled.te_arcsec, plain.te_arcsec, switch_share=0.002 if tau == 0.0 else 0.0)
+    assert_agree(compiled.te_arcsec, plain.te_arcsec, switch_share=0.005 if tau == 0.0 else 0.0)
     # at no load the pin forces are those of the probe torque's continuation, micronewtons
     np.testing.assert_allclose(compiled.pin_force_max, plain.pin_force_max, rtol=1e-6, atol=1e-5)
     # the curves are not trivial: clearances and errors make tens of arcsec
@@ -99,7 +99,7 @@ def test_warm_starts_from_the_neighbouring_angle_reach_the_same_equilibria(full_
     with mock.patch.object(solver, "chain_links", lambda s, a, t: np.zeros(len(s), dtype=bool)):
         cold = te_curve(design, errors, tau_load=tau, points=400)
     assert chained.converged.all() and cold.converged.all()
-    assert_agree(chained.te_arcsec, cold.te_arcsec, switch_share=0.002 if tau == 0.0 else 0.0)
+    assert_agree(chained.te_arcsec, cold.te_arcsec, switch_share=0.005 if tau == 0.0 else 0.0)
 
 
 def test_chains_link_neighbouring_angles_of_one_reducer_and_load_only():
@@ -143,7 +143,7 @@ def test_on_every_pin_the_compiled_and_numpy_equilibria_agree(full_study_reducer
     design, errors = full_study_reducers
     with mock.patch.object(solver, "CANDIDATE_MARGIN", design.z_p):
         compiled, plain = both(lambda: te_curve(design, errors, tau_load=0.0, points=200))
-    assert_agree(compiled.te_arcsec, plain.te_arcsec, switch_share=0.002)
+    assert_agree(compiled.te_arcsec, plain.te_arcsec, switch_share=0.005)
     # and the candidates change nothing: the same equilibria as the preselected iteration
     candidates = te_curve(design, errors, tau_load=0.0, points=200)
     np.testing.assert_allclose(compiled.te_arcsec, candidates.te_arcsec, rtol=0, atol=1e-6)
@@ -165,7 +165,7 @@ def test_with_the_roller_law_the_compiled_and_numpy_equilibria_agree(rv40_roller
         compiled, plain = both(lambda: te_curve(design, errors, tau_load=tau, points=240))
         assert compiled.converged.all() and plain.converged.all()
         assert_agree(compiled.te_arcsec, plain.te_arcsec,
-                     switch_share=0.002 if clearances and tau == 0.0 else 0.0)
+                     switch_share=0.005 if clearances and tau == 0.0 else 0.0)
 
 
 def test_a_changed_callee_in_another_file_is_recompiled_not_loaded_stale(tmp_path):

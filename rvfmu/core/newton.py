@@ -88,33 +88,21 @@ def newton_compiled(work, first_active, q0=None, chain=None):
     MIN_PAIRS_PER_THREAD, each a whole number of warm-start chains (`chain_links`)."""
     from .newton_kernel import newton_pairs
 
-    sys = work.system
     B, nN = work.f.shape
     c = np.ascontiguousarray
-    if work.brg_rows is None:
-        p = 0
-        brg_rows, brg_off, c_half = np.zeros((B, 0, 2, nN)), np.zeros((B, 0, 2)), np.zeros((B, 0))
-    else:
-        p = work.brg_rows.shape[1]
-        brg_rows, brg_off, c_half = work.brg_rows, work.brg_off, work.c_half
+    angle, stiffness, pairs, shared, bearings, law = _kernel_arguments(work)
+    p = bearings[0].shape[1]
     toward = np.zeros((B, p, 2)) if work.toward is None else work.toward
     guess = np.zeros(work.pin_b.shape, dtype=bool) if first_active is None else first_active
     q = np.zeros((B, nN)) if q0 is None else np.array(q0, dtype=float)
     converged = np.zeros(B, dtype=bool)
     iterations = np.zeros(B, dtype=np.int64)
-    # per pair (axis 0: the pair), then shared by every pair
-    pairs = [c(work.K, dtype=float), c(sys.mode_stiffness[work.angle], dtype=float),
-             c(work.f, dtype=float), c(work.rows, dtype=float), c(work.pin_b, dtype=float)]
-    shared = [c(sys.pin_local, dtype=np.int64), c(sys.model.pin_law, dtype=float)]
-    bearings = [c(brg_rows, dtype=float), c(brg_off, dtype=float), c(c_half, dtype=float)]
-    law = [c(np.stack([sys.brg_k, sys.brg_law_a, sys.brg_law_compliance], axis=-1), dtype=float),
-           c(np.stack([TABLE_E, TABLE_DE]))]
     toward, guess = c(toward, dtype=float), c(guess, dtype=np.bool_)
     warm = np.full(B, q0 is not None)
     chain = np.zeros(B, dtype=bool) if chain is None else c(chain, dtype=np.bool_)
 
     def solve(lo, hi):
-        newton_pairs(*(a[lo:hi] for a in pairs), *shared, *(a[lo:hi] for a in bearings), *law,
+        newton_pairs(angle[lo:hi], *stiffness, *(a[lo:hi] for a in pairs), *shared, *(a[lo:hi] for a in bearings), *law,
                      toward[lo:hi], work.toward is not None, guess[lo:hi], q[lo:hi], warm[lo:hi],
                      chain[lo:hi], MAX_ITERATIONS, STEP_TOLERANCE, GAP_TOLERANCE, converged[lo:hi],
                      iterations[lo:hi])
@@ -130,6 +118,38 @@ def newton_compiled(work, first_active, q0=None, chain=None):
         with ThreadPoolExecutor(threads) as pool:
             list(pool.map(solve, bounds[:-1], bounds[1:]))
     return q, converged, int(iterations.max(initial=0))
+
+
+def _kernel_arguments(work):
+    """The arrays of `work` as the compiled kernels take them: (angle (B,), [K_red, mode
+    stiffness] per angle, [f, rows, pin_b] per pair, [pin_local, pin_law] shared, [bearing rows,
+    offsets, half clearances] per pair (p = 0 without bearings with clearance), [each bearing's
+    (k, roller-law a, series compliance), the roller law's table])."""
+    sys = work.system
+    B, nN = work.f.shape
+    c = np.ascontiguousarray
+    if work.brg_rows is None:
+        brg_rows, brg_off, c_half = np.zeros((B, 0, 2, nN)), np.zeros((B, 0, 2)), np.zeros((B, 0))
+    else:
+        brg_rows, brg_off, c_half = work.brg_rows, work.brg_off, work.c_half
+    return (c(work.angle, dtype=np.int64),
+            [c(sys.K_red, dtype=float), c(sys.mode_stiffness, dtype=float)],
+            [c(work.f, dtype=float), c(work.rows, dtype=float), c(work.pin_b, dtype=float)],
+            [c(sys.pin_local, dtype=np.int64), c(sys.model.pin_law, dtype=float)],
+            [c(brg_rows, dtype=float), c(brg_off, dtype=float), c(c_half, dtype=float)],
+            [c(np.stack([sys.brg_k, sys.brg_law_a, sys.brg_law_compliance], axis=-1), dtype=float),
+             c(np.stack([TABLE_E, TABLE_DE]))])
+
+
+def compiled_hessians(work, q):
+    """`Work.hessian(q, None)` by the compiled kernel (`newton_kernel.hessians`)."""
+    from .newton_kernel import hessians
+
+    angle, stiffness, pairs, shared, bearings, law = _kernel_arguments(work)
+    out = np.empty(q.shape + q.shape[-1:])
+    hessians(angle, *stiffness, *pairs, *shared, *bearings, *law, np.ascontiguousarray(q, dtype=float),
+             GAP_TOLERANCE, out)
+    return out
 
 
 def newton_batched(work, first_active, q0=None):
@@ -200,7 +220,6 @@ class Work:
         self.system = system
         self.angle = angle
         self.rows = rows
-        self.K = system.K_red[angle]                          # (B, nN, nN)
         self.f, self.pin_b, self.brg_off, self.c_half = f, pin_b, brg_off, c_half
         self.brg_rows = system.brg_rows[angle] if system.brg_k.size else None
         self.toward = bearing_direction if self.brg_rows is not None else None
@@ -208,13 +227,20 @@ class Work:
     def subset(self, keep):
         new = object.__new__(Work)
         new.system, new.angle = self.system, self.angle[keep]
-        for name in ("rows", "K", "f", "pin_b", "brg_off", "c_half"):
+        for name in ("rows", "f", "pin_b", "brg_off", "c_half"):
             setattr(new, name, getattr(self, name)[keep])
-        if "products" in self.__dict__:
-            new.products = self.products[keep]
+        for name in ("products", "K"):
+            if name in self.__dict__:
+                setattr(new, name, getattr(self, name)[keep])
         new.brg_rows = None if self.brg_rows is None else self.brg_rows[keep]
         new.toward = None if self.toward is None else self.toward[keep]
         return new
+
+    @cached_property
+    def K(self):
+        """(B, nN, nN) each pair's reduced stiffness: gathered on first use (the compiled
+        iteration reads the system's, per angle)."""
+        return self.system.K_red[self.angle]
 
     @cached_property
     def products(self):
@@ -322,6 +348,10 @@ class Work:
         return grad, hess, true_grad, active
 
     def hessian(self, q, active):
+        """(B, nN, nN) the Hessian at q with the pins `active` (None: those touching),
+        compiled where numba is (`newton_kernel.hessians`) and `active` is None."""
+        if active is None and kernels.COMPILED:
+            return compiled_hessians(self, q)
         return self.gradient_hessian(q, active)[1]
 
     def line_search(self, q, step):

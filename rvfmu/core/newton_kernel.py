@@ -15,8 +15,8 @@ where numba is absent or switched off (RVTE_NUMBA=0, `kernels.COMPILED`).
 
 Array arguments, B pairs, nN reduced unknowns, K pins per disc, p bearings
 with clearance (p may be 0):
-K, Kh: (B, nN, nN) reduced stiffness, and what the Hessian adds (the mode
-stiffness); f: (B, nN); rows: (B, 2, K, 3); pin_b: (B, 2, K); pin_local: (2, 3);
+angle: (B,) each pair's angle, indexing K, Kh: (A, nN, nN) reduced stiffness per angle, and
+what the Hessian adds (the mode stiffness); f: (B, nN); rows: (B, 2, K, 3); pin_b: (B, 2, K); pin_local: (2, 3);
 brg_rows: (B, p, 2, nN); brg_off: (B, p, 2); c_half: (B, p); brg_law: (p, 3), each bearing's
 stiffness k, roller-law constant a (0: linear) and series compliance; pin_law: (3,) the pins'
 law (`pin_law.contact`: stated stiffness k, b, F*); table: (2, T) the
@@ -268,7 +268,7 @@ def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_hal
 
 
 @kernel
-def newton_pairs(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table,
+def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table,
                  toward, has_toward, guess, q, warm, chain, max_iterations, step_tolerance,
                  gap_tolerance, converged, iterations):
     """Solve every pair; q (B, nN) holds the starts and receives the solutions, converged (B,)
@@ -298,7 +298,7 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c
         linked = chain[s] and s > 0 and not smooth
         if linked:
             qs[:] = q[s - 1]
-        Ks, fs, rs, bs = K[s], f[s], rows[s], pin_b[s]
+        Ks, fs, rs, bs = K[angle[s]], f[s], rows[s], pin_b[s]
         Bs, os_, cs = brg_rows[s], brg_off[s], c_half[s]
         energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, qs, delta, d)
         done = False
@@ -306,7 +306,7 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c
         while it < max_iterations:
             it += 1
             first = it == 1 and not (warm[s] or linked)
-            _gradient_hessian(Ks, Kh[s], fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table,
+            _gradient_hessian(Ks, Kh[angle[s]], fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table,
                               toward[s], has_toward, gap_tolerance, qs, guess[s], first, first,
                               grad, hess, true_grad, used, delta, d)
             if _solve_spd(hess, grad, factor, step):
@@ -348,3 +348,22 @@ def newton_pairs(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c
                 break
         converged[s] = done
         iterations[s] = it
+
+
+@kernel
+def hessians(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law,
+             table, q, gap_tolerance, out):
+    """The Newton iteration's Hessian (the true contacts, none guessed) of every pair at q
+    (B, nN) into out (B, nN, nN): `newton.Work.hessian` with `active` None."""
+    B, n = q.shape
+    p = brg_rows.shape[1]
+    Kp = rows.shape[2]
+    grad, true_grad = np.empty(n), np.empty(n)
+    used = np.empty((2, Kp), dtype=np.bool_)
+    delta, d = np.empty((2, Kp)), np.empty((p, 2))
+    toward, guess, engaged = np.zeros((p, 2)), np.zeros((2, Kp), dtype=np.bool_), False
+    for s in range(B):
+        _gradient_hessian(K[angle[s]], Kh[angle[s]], f[s], rows[s], pin_b[s], pin_local, pin_law,
+                          brg_rows[s], brg_off[s], c_half[s], brg_law, table, toward, False,
+                          gap_tolerance, q[s], guess, False, engaged, grad, out[s], true_grad, used,
+                          delta, d)
