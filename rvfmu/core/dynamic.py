@@ -364,12 +364,14 @@ class DynamicModel:
         drag = np.zeros(turn_slip.shape)
         if not self.friction:
             return drag
-        for e, (kind, radius) in enumerate(zip(self._drag_kind, self._drag_radius)):
+        radius = np.asarray(self._drag_radius, dtype=float)
+        for kind in set(self._drag_kind) - {None}:
+            cols = [e for e, k in enumerate(self._drag_kind) if k == kind and radius[e] > 0.0]
             if kind == "output seal":
-                drag[:, e] = self.design.seal_torque / self.scale
-            elif kind is not None and radius > 0.0:
-                speed_rpm = np.abs(turn_slip[:, e]) / radius / RPM
-                drag[:, e] = drag_moments(self.design, speed_rpm)[kind] / radius
+                drag[:, cols] = self.design.seal_torque / self.scale
+            elif cols:      # one Palmgren moment per kind, over all its contacts and steps
+                speed_rpm = np.abs(turn_slip[:, cols]) / radius[cols] / RPM
+                drag[:, cols] = drag_moments(self.design, speed_rpm)[kind] / radius[cols]
         return drag
 
     def external(self, step: int) -> np.ndarray:
