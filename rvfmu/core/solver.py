@@ -21,7 +21,11 @@ Speed comes from structure, not from approximations:
 - the Newton iteration is compiled and runs pair by pair, each stopping when it
   has converged (`newton_kernel`; without numba, all pairs are iterated together
   in numpy and those that have converged leave the batch), and the pairs come
-  in chunks so that memory stays bounded.
+  in chunks so that memory stays bounded;
+- the compiled iteration starts each pair from the solution of the same reducer at
+  the previous angle (`newton.chain_links`), and a pair started from a nearby
+  equilibrium takes every pin in at once: the minimiser does not depend on the
+  start, the number of steps to it does (docs/model.md section 5).
 """
 
 from __future__ import annotations
@@ -372,7 +376,9 @@ class ReducedSystem:
 
     def _elastic(self, angle, f, pin_b, brg_off, c_half, direction, count, q0=None, f_errors=None,
                  bearing_direction=None, chain=None, every_pin=False):
-        """Newton solve of the pairs on their candidate pins, then on all pins where needed.
+        """Newton solve of the pairs on their candidate pins, then on all pins where needed (on
+        all pins at once with `every_pin` or a start q0); chain (B,) bool: the pairs the
+        compiled iteration starts from the pair before's solution (`newton.newton`).
 
         The first guess of the touching pins: the `count` pins of each disc that the
         turning carrier reaches first, their gaps measured once the linear parts have
