@@ -34,6 +34,7 @@ and the DataFrame cannot drift apart.
 
 from __future__ import annotations
 
+import json
 import re
 from functools import cache
 from pathlib import Path
@@ -211,8 +212,6 @@ def _study_folder(output_folder) -> Path:
 
 def _stored_study(folder: Path, manifest: dict) -> Study:
     """The study of the folder (`study_from_store`) from its inputs.json and study.toml."""
-    import json
-
     try:
         inputs = json.loads((folder / "inputs.json").read_text())
     except (OSError, ValueError) as exc:
