@@ -253,7 +253,7 @@ class JobStore:
                 temporary.unlink(missing_ok=True)
 
 
-PACKAGES = ("rvte", "numpy", "scipy", "SALib", "matplotlib", "pyarrow", "numba", "dask",
+PACKAGES = ("rvte", "numpy", "scipy", "SALib", "matplotlib", "pyarrow", "pandas", "numba", "dask",
             "openturns")
 
 
