@@ -438,3 +438,20 @@ def test_the_notebook_example_runs_on_a_small_study(tmp_path):
     ranked = json.loads((out / "sobol_indices.json").read_text())["metrics"]["te_pp_arcsec"]
     top = ranked["groups"][0]["name"]
     assert f"decile of {top}_" in proc.stdout
+
+
+def test_the_command_line_and_the_physics_do_not_import_pandas():
+    """pandas is for results: `rvte --help` and the core model stay without it."""
+    code = ("import sys, contextlib, io\n"
+            "from rvfmu.cli import main\n"
+            "import rvfmu.core.quasistatic, rvfmu.core.simulation, tolerance.evaluate\n"
+            "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
+            "    main(['--help'])\n"
+            "print('pandas' in sys.modules)\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip() == "False"
+    assert not [p for p in (ROOT / "rvfmu" / "core").rglob("*.py") if "pandas" in p.read_text()]
+    assert not [p for p in (ROOT / "rvfmu" / "fmu").rglob("*.py") if "pandas" in p.read_text()]
