@@ -11,11 +11,14 @@ SALib's scheme over the quasi-static model:
   (store, backends, cost estimate, aliasing check, report), behind `rvte mc` and `rvte sobol`.
 - `allocate(study_path, yield_target=0.9973, ...) -> AllocationResult`: the least-cost
   tolerances for a yield target, verified by Monte Carlo, behind `rvte allocate`.
+- `MCResult.to_df()`, `SobolResult.to_df()`, `load_results(output_folder, job=None)`: the
+  results as pandas DataFrames (tolerance/frames.py): one row per reducer, or per (metric,
+  factor) of the Sobol indices.
 - `report(output_dir, html_path=None, markdown_path=None)`: one self-contained HTML report and
   a Markdown summary of an output folder (tolerance/html_report.py), behind `rvte report`.
 
 Names other than `evaluate` are imported on first use, so that `rvte te` does
-not pay for SALib, pyarrow and Dask.
+not pay for SALib, pyarrow, pandas and Dask.
 """
 
 from importlib import import_module
@@ -30,6 +33,7 @@ _WHERE = {
     "errors_from_unit": ("sampling", "errors_from_unit"),
     "run_mc": ("run", "run_mc"), "run_sobol": ("run", "run_sobol"),
     "MCResult": ("run", "MCResult"), "SobolResult": ("run", "SobolResult"),
+    "load_results": ("frames", "load_results"),
     "report": ("html_report", "report"),
     "allocate": ("allocation", "allocate"), "AllocationResult": ("allocation", "AllocationResult"),
 }

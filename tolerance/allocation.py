@@ -110,6 +110,36 @@ class AllocationResult:
             "model_evaluations": self.model_evaluations,
         }
 
+    def to_df(self):
+        """The allocation as a pandas DataFrame indexed by factor ('error.key', e.g.
+        crank_cam_eccentricity.position_um), one row per allocated factor and a last row
+        'total' for the reducer as a whole.
+
+        Columns: unit ("um"), current, allocated, lower, upper (the tolerances now and
+        allocated and the process bounds, in `unit`), binding ("lower", "upper", "none"),
+        cost_current, cost_allocated (per factor; the totals on the 'total' row), and on
+        the 'total' row only (NaN elsewhere) the yields against all spec lines at once:
+        yield_current, yield_allocated with the low and high ends of their Wilson
+        intervals (yield_current_low, ...).  The total row has no tolerances (NaN), unit
+        and binding "".
+        """
+        import pandas as pd
+
+        nan = float("nan")
+        rows = [{"factor": f.name, "unit": f.unit, "current": f.current, "allocated": f.allocated,
+                 "lower": f.lower, "upper": f.upper, "binding": f.binding,
+                 "cost_current": f.cost_current, "cost_allocated": f.cost_allocated}
+                for f in self.factors]
+        total = {"factor": "total", "unit": "", "current": nan, "allocated": nan, "lower": nan,
+                 "upper": nan, "binding": "", "cost_current": self.total_cost_current,
+                 "cost_allocated": self.total_cost_allocated}
+        for label, y in (("current", self.yield_current), ("allocated", self.yield_allocated)):
+            total.update({f"yield_{label}": y.estimate, f"yield_{label}_low": y.low,
+                          f"yield_{label}_high": y.high})
+        frame = pd.DataFrame(rows + [total]).set_index("factor")
+        return frame.astype({column: float for column in frame.columns
+                             if column not in ("unit", "binding")})
+
     def table(self) -> str:
         """The printed answer: per factor current vs allocated tolerance and cost; the yields."""
         width = max(len(f.name) for f in self.factors)

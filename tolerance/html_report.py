@@ -30,7 +30,6 @@ import hashlib
 import html
 import io
 import json
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -39,8 +38,7 @@ import numpy as np
 from rvfmu.api import read_columns
 from rvfmu.core import metrics
 from rvfmu.core.checks import InputError
-from rvfmu.core.design import design_from_file_values
-from rvfmu.core.errors import error_file_values, errors_from_file_values, load_errors, toml_text
+from rvfmu.core.errors import error_file_values, load_errors, toml_text
 from rvfmu.core.quasistatic import default_points, te_curve
 from rvfmu.outputs import output_file
 from rvfmu.plots import figure_te
@@ -50,10 +48,10 @@ from .evaluate import FRICTION_METRICS, WINDUP_METRICS, evaluate
 from .montecarlo import PERCENTILES, MCAnalysis, Yield
 from .summaries import (NOTES_LEGEND, column_label, figure_convergence, figure_mc, figure_sobol,
                      operating_text)
-from .sampling import KEYS, KIND_OF
+from .sampling import KEYS
 from .sobol import Convergence, Indices, SobolAnalysis
 from .store import FILE_DIGEST, software_versions
-from .study import Factor, Study, _spec, load_study, model_fingerprint
+from .study import Study, load_study, model_fingerprint, study_from_store
 
 # The keys of the JSON outputs the report reads (tolerance/summaries.py writes them).
 MC_KEYS = ("n", "evaluated", "failed", "not_converged", "metrics", "yields", "worst",
@@ -279,47 +277,9 @@ def _read(folder: Path) -> Found:
 
 
 def stored_study(folder: Path, found: Found) -> Study:
-    """The study that computed the store.
-
-    Its identity (design, fixed errors, operating point, metrics, tolerances,
-    seed, batch size) comes from inputs.json, its name from the manifest, the
-    rest (spec, sample counts, confidence levels) from the folder's copy of
-    the study file (study.toml, as last run).  Relative file names in that
-    copy point beside the study file, which the folder does not record:
-    reading the values from inputs.json needs no file but the folder's.
-    """
-    inputs = found.inputs
-    try:
-        values = tomllib.loads(found.study_text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError("study.toml", str(folder / "study.toml"), f"is not valid TOML ({exc})") \
-            from None
-    head, sections = values.get("study", {}), {k: values.get(k, {}) for k in ("montecarlo", "sobol")}
-    try:
-        design = design_from_file_values(inputs["design"], where="inputs.json")
-        errors = errors_from_file_values(design, inputs["errors"], "inputs.json") \
-            if inputs["errors"] else None
-        factors = tuple(Factor(name=name, kind=KIND_OF.get(name), **inputs["tolerances"][name])
-                        for name in inputs["factor_order"])
-        metrics = tuple(inputs["metrics"])
-        operating = inputs["operating"]
-        return Study(
-            name=found.manifest["study"], design=design, factors=factors,
-            design_source=str(head.get("design", design.name)), base_errors=errors,
-            errors_source=str(head.get("errors", "")), seed=inputs["seed"], metrics=metrics,
-            batch_size=inputs["batch_size"], output=folder, load_Nm=operating["load_Nm"],
-            points=operating["points"], windup_positions=operating["windup_positions"],
-            spec=_spec(values.get("spec", {}), metrics, "study.toml"),
-            mc_n=sections["montecarlo"].get("n", 1000),
-            mc_confidence=sections["montecarlo"].get("confidence", 0.95),
-            sobol_n=sections["sobol"].get("n", 1024),
-            second_order=sections["sobol"].get("second_order", False),
-            resamples=sections["sobol"].get("resamples", 200),
-            sobol_confidence=sections["sobol"].get("confidence", 0.95),
-            path=folder / "study.toml", text=found.study_text)
-    except (KeyError, TypeError) as exc:
-        raise InputError("inputs.json", str(folder / "inputs.json"), f"lacks {exc} or holds a "
-                         "value of the wrong type: it is not the inputs.json rvte writes") from None
+    """The study that computed the store (`tolerance.study.study_from_store`): its identity
+    from inputs.json, its name from the manifest, the rest from the folder's study.toml."""
+    return study_from_store(folder, found.manifest["study"], found.inputs, found.study_text)
 
 
 def check_allocation(values: dict, where: str) -> None:

@@ -28,7 +28,7 @@ from rvfmu.core.errors import error_file_values, toml_text
 from rvfmu.core.quasistatic import TECurve, te_curve
 from rvfmu.outputs import output_folder
 
-from . import aliasing, montecarlo, sobol, summaries
+from . import aliasing, frames, montecarlo, sobol, summaries
 from .backends import make_backend
 from .sampling import errors_from_unit
 from .store import BatchResult, JobStore, open_output
@@ -256,6 +256,14 @@ class MCResult:
     def table(self) -> str:
         return summaries.mc_table(self.study, self.analysis, self.computed, self.aliasing)
 
+    def to_df(self, errors: bool = False):
+        """One row per reducer as a pandas DataFrame, indexed by its row in the sample ("row"):
+        each factor's drawn value [um] (e.g. crank_cam_eccentricity_position_um), with
+        `errors` every drawn error (NAME[i,j].E_um, NAME[i,j].beta_deg, NAME[k]_um), the
+        metric columns, converged, and with a spec passed_<column> per line and passed
+        (nullable booleans, NA for a failed reducer).  See tolerance/frames.py."""
+        return frames.mc_frame(self.study, self.Y, self.converged, errors)
+
     def to_json(self) -> dict:
         return summaries.mc_json(self.study, self.analysis, {
             "computed_rows": int(self.computed.Y.shape[0]), "batch_size": self.study.batch_size,
@@ -301,7 +309,7 @@ def run_mc(study_path, n: int | None = None, *, output=None, processes: int | No
     folder = Path(study.output)
     files = {"summary": folder / "mc_summary.json", "samples": folder / "mc_samples.csv",
              "worst_errors": folder / "mc_worst_errors.toml"}
-    _write_samples(files["samples"], study, Y, converged)
+    frames.write_samples(files["samples"], frames.mc_frame(study, Y, converged), study)
     worst_errors = errors_from_unit(study, montecarlo.rows(study, analysis.worst, analysis.worst + 1))
     files["worst_errors"].write_text(toml_text(
         error_file_values(worst_errors),
@@ -334,15 +342,6 @@ def _worst_curve(study: Study, row: int) -> TECurve | None:
         return None
 
 
-def _write_samples(path: Path, study: Study, Y, converged) -> None:
-    header = ",".join(("row",) + study.metric_columns + ("converged",))
-    with open(path, "w") as handle:
-        handle.write(header + "\n")
-        for r in range(Y.shape[0]):
-            values = ",".join(f"{v:.6g}" for v in Y[r])
-            handle.write(f"{r},{values},{int(converged[r])}\n")
-
-
 # -- Sobol ------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -363,6 +362,19 @@ class SobolResult:
         text = summaries.sobol_table(self.study, self.analyses, self.n, self.Y.shape[0],
                                   self.second_order)
         return "\n".join([text, *self.aliasing.lines()]) if self.aliasing else text
+
+    def to_df(self, second_order: bool = False):
+        """The indices as a long pandas DataFrame, one row per (metric, factor), each metric's
+        factors by rank: metric, factor, rank, S1, S1_conf, ST, ST_conf, S1_reported,
+        ST_reported, not_converged, ci_wide, S1_above_ST, notes, ranking_converged
+        (`frames.sobol_frame`).  second_order: the S2 of every pair instead (metric,
+        factor_a, factor_b, S2, S2_conf), for a run that computed them."""
+        if not second_order:
+            return frames.sobol_frame(self.analyses)
+        if not self.second_order:
+            raise InputError("second_order", True, "this Sobol run computed no second-order "
+                             "indices: run it with second_order=True (rvte sobol --second-order)")
+        return frames.s2_frame(self.analyses)
 
     def to_json(self) -> dict:
         return summaries.sobol_json(self.study, self.analyses, self.n, self.Y.shape[0],

@@ -102,23 +102,47 @@ class Indices:
             for label, value, conf in (("S1", self.S1[g], self.S1_conf[g]),
                                        ("ST", self.ST[g], self.ST_conf[g])):
                 if value < 0:
-                    notes.append(f"{label} {value:.3f} < 0 within its CI: reported as 0"
-                                 if value + conf >= 0 else
-                                 f"{label} {value:.3f} < 0 beyond its CI: not converged, raise n")
+                    notes.append(f"{label} {value:.3f} < 0 beyond its CI: not converged, raise n"
+                                 if _beyond_unit_interval(value, conf) else
+                                 f"{label} {value:.3f} < 0 within its CI: reported as 0")
                 elif value > 1:
                     notes.append(f"{label} {value:.3f} > 1: reported as 1"
-                                 + ("" if value - conf <= 1 else ", not converged, raise n"))
+                                 + (", not converged, raise n"
+                                    if _beyond_unit_interval(value, conf) else ""))
                 if conf > WIDE_CI:
                     notes.append(f"{label} CI wide (+-{conf:.2f})")
-            if self.S1[g] - self.S1_conf[g] > self.ST[g] + self.ST_conf[g]:
+            if self.S1_above_ST[g]:
                 notes.append(f"S1 {self.S1[g]:.3f} > ST {self.ST[g]:.3f} beyond their CIs: "
                              "sampling noise, raise n")
             out.append(notes)
         return out
 
+    @property
+    def not_converged(self) -> np.ndarray:
+        """(G,) bool: S1 or ST lies outside [0, 1] beyond its interval (the note "not
+        converged, raise n")."""
+        return _beyond_unit_interval(self.S1, self.S1_conf) | \
+            _beyond_unit_interval(self.ST, self.ST_conf)
+
+    @property
+    def ci_wide(self) -> np.ndarray:
+        """(G,) bool: the interval of S1 or of ST is wider than +-WIDE_CI (the note "CI wide")."""
+        return (self.S1_conf > WIDE_CI) | (self.ST_conf > WIDE_CI)
+
+    @property
+    def S1_above_ST(self) -> np.ndarray:
+        """(G,) bool: S1 above ST beyond both intervals, S1 - S1_conf > ST + ST_conf (sampling
+        noise: the true S1 never exceeds ST)."""
+        return self.S1 - self.S1_conf > self.ST + self.ST_conf
+
     def ranking(self) -> np.ndarray:
         """Group indices from the most to the least important: by reported ST, then S1."""
         return np.lexsort((-self.S1_reported, -self.ST_reported))
+
+
+def _beyond_unit_interval(value, conf):
+    """An estimate outside [0, 1] by more than its interval's half-width: not converged."""
+    return (np.asarray(value) + conf < 0) | (np.asarray(value) - conf > 1)
 
 
 def indices(problem: dict, y: np.ndarray, second_order: bool = False, resamples: int = 200,

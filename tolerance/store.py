@@ -67,38 +67,57 @@ def open_output(study: Study, folder: Path | None = None) -> Path:
     """
     folder = Path(folder or study.output)
     manifest_path = folder / MANIFEST
-    model = model_fingerprint()
     if manifest_path.exists():
-        try:
-            manifest = json.loads(manifest_path.read_text())
-            theirs, their_model = manifest["inputs_hash"], manifest["model_hash"]
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise InputError("output", str(folder), f"has an unreadable {MANIFEST} ({exc}); "
-                             "it is not a study folder this run can trust: choose another output "
-                             "folder or delete this one") from None
-        if theirs != study.inputs_hash:
-            raise InputError("output", str(folder), f"belongs to another study "
-                             f"({manifest.get('study', '?')!r}, inputs hash {theirs[:12]}; this "
-                             f"study's is {study.inputs_hash[:12]}{_differences(folder, study)}): "
-                             "give this study another output folder, or delete that one to start "
-                             "afresh")
-        if their_model != model:
-            raise InputError("output", str(folder), "was computed by another version of the model "
-                             f"or of the sampling (model hash {their_model[:12]}, now "
-                             f"{model[:12]}): its batches cannot be mixed with new ones; use "
-                             "another output folder or delete this one")
+        check_manifest(folder, read_manifest(folder), study)
     else:
         if folder.exists() and any(folder.iterdir()):
             raise InputError("output", str(folder), f"is not empty and has no {MANIFEST}: it is not "
                              "a study output folder; choose an empty or new folder")
         folder.mkdir(parents=True, exist_ok=True)
         manifest = {"format": FORMAT, "study": study.name, "inputs_hash": study.inputs_hash,
-                    "model_hash": model, "created": _now(), "versions": software_versions()}
+                    "model_hash": model_fingerprint(), "created": _now(),
+                    "versions": software_versions()}
         _write_atomic(folder / "inputs.json", json.dumps(study.inputs(), indent=1, sort_keys=True))
         _write_atomic(manifest_path, json.dumps(manifest, indent=1))
     if study.text:
         _write_atomic(folder / "study.toml", study.text)
     return folder
+
+
+def read_manifest(folder: Path) -> dict:
+    """The manifest of an output folder that has one; InputError if it cannot be read."""
+    try:
+        manifest = json.loads((Path(folder) / MANIFEST).read_text())
+        if not isinstance(manifest, dict):
+            raise TypeError("not a JSON object")
+        missing = [key for key in ("inputs_hash", "model_hash") if key not in manifest]
+        if missing:
+            raise KeyError(missing[0])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError("output", str(folder), f"has an unreadable {MANIFEST} ({exc}); "
+                         "it is not a study folder this run can trust: choose another output "
+                         "folder or delete this one") from None
+    return manifest
+
+
+def check_manifest(folder: Path, manifest: dict, study: Study) -> None:
+    """Refuse (InputError) an output folder of another study or of another model version.
+
+    Nothing is written: `open_output` and `tolerance.load_results` both use it.
+    """
+    theirs, their_model = manifest["inputs_hash"], manifest["model_hash"]
+    model = model_fingerprint()
+    if theirs != study.inputs_hash:
+        raise InputError("output", str(folder), f"belongs to another study "
+                         f"({manifest.get('study', '?')!r}, inputs hash {theirs[:12]}; this "
+                         f"study's is {study.inputs_hash[:12]}{_differences(folder, study)}): "
+                         "give this study another output folder, or delete that one to start "
+                         "afresh")
+    if their_model != model:
+        raise InputError("output", str(folder), "was computed by another version of the model "
+                         f"or of the sampling (model hash {their_model[:12]}, now "
+                         f"{model[:12]}): its batches cannot be mixed with new ones; use "
+                         "another output folder or delete this one")
 
 
 @dataclass(frozen=True)
@@ -133,9 +152,25 @@ class JobStore:
         listing, not one look-up per batch.
         """
         size = self.study.batch_size
+        return self._read_batches(rows, lambda start, stop: start < n_rows and not start % size
+                                  and stop == min(start + size, n_rows))
+
+    def load_all(self, rows) -> dict:
+        """Verified results of every batch file of the job, whatever rows it has reached.
+
+        As `load`, for the batches at the study's boundaries (start a multiple
+        of batch_size, at most batch_size rows): what `tolerance.load_results`
+        reads.  Returns {(start, stop): BatchResult}, maybe with gaps (batches
+        not computed yet).
+        """
+        size = self.study.batch_size
+        return self._read_batches(rows, lambda start, stop: not start % size
+                                  and start < stop <= start + size)
+
+    def _read_batches(self, rows, wanted) -> dict:
         found = {}
         for (start, stop), paths in self.files().items():
-            if start >= n_rows or start % size or stop != min(start + size, n_rows):
+            if not wanted(start, stop):
                 continue
             if len(paths) > 1:
                 raise InputError("batch", str(paths[1]), f"is a second file for rows {start}-{stop} "
@@ -218,7 +253,7 @@ class JobStore:
                 temporary.unlink(missing_ok=True)
 
 
-PACKAGES = ("rvte", "numpy", "scipy", "SALib", "matplotlib", "pyarrow", "numba", "dask",
+PACKAGES = ("rvte", "numpy", "scipy", "SALib", "matplotlib", "pyarrow", "pandas", "numba", "dask",
             "openturns")
 
 

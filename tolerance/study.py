@@ -58,9 +58,11 @@ from importlib import metadata
 from pathlib import Path
 
 from rvfmu.core.checks import InputError, finite_number, integer
-from rvfmu.core.design import ESTIMATE_NAMES, PRESET_NAMES, RVDesign, load_design
+from rvfmu.core.design import (ESTIMATE_NAMES, PRESET_NAMES, RVDesign, design_from_file_values,
+                               load_design)
 from rvfmu.core.equivalent import check_angles
-from rvfmu.core.errors import ERROR_NAMES, ErrorSet, error_file_values, load_errors
+from rvfmu.core.errors import (ERROR_NAMES, ErrorSet, error_file_values, errors_from_file_values,
+                              load_errors)
 from rvfmu.core.limits import check_load
 from rvfmu.core.quasistatic import default_points
 
@@ -406,6 +408,54 @@ def study_from_values(values: dict, path: Path, text: str = "", output=None) -> 
     )
 
 
+def study_from_store(folder: Path, name: str, inputs: dict, study_text: str = "") -> Study:
+    """The study that computed an output folder's store.
+
+    Its identity (design, fixed errors, operating point, metrics, tolerances,
+    seed, batch size) comes from `inputs` (the folder's inputs.json, which
+    hashes to the manifest's inputs hash), its name from the manifest, the
+    rest (spec, sample counts, confidence levels) from `study_text`, the
+    folder's copy of the study file (study.toml, as last run; "" if there is
+    none: no spec).  Relative file names in that copy point beside the study
+    file, which the folder does not record: reading the values from
+    inputs.json needs no file but the folder's.  InputError if inputs.json or
+    study.toml is not what rvte writes.
+    """
+    folder = Path(folder)
+    try:
+        values = tomllib.loads(study_text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError("study.toml", str(folder / "study.toml"), f"is not valid TOML ({exc})") \
+            from None
+    head, sections = values.get("study", {}), {k: values.get(k, {}) for k in ("montecarlo", "sobol")}
+    try:
+        design = design_from_file_values(inputs["design"], where="inputs.json")
+        errors = errors_from_file_values(design, inputs["errors"], "inputs.json") \
+            if inputs["errors"] else None
+        factors = tuple(Factor(name=factor, kind=sampling.KIND_OF.get(factor),
+                               **inputs["tolerances"][factor]) for factor in inputs["factor_order"])
+        metrics = tuple(inputs["metrics"])
+        operating = inputs["operating"]
+        return Study(
+            name=name, design=design, factors=factors,
+            design_source=str(head.get("design", design.name)), base_errors=errors,
+            errors_source=str(head.get("errors", "")), seed=inputs["seed"], metrics=metrics,
+            batch_size=inputs["batch_size"], output=folder, load_Nm=operating["load_Nm"],
+            points=operating["points"], windup_positions=operating["windup_positions"],
+            output_speed_rpm=operating.get("output_speed_rpm", OUTPUT_SPEED_RPM),
+            spec=_spec(values.get("spec", {}), metrics, "study.toml"),
+            mc_n=sections["montecarlo"].get("n", 1000),
+            mc_confidence=sections["montecarlo"].get("confidence", 0.95),
+            sobol_n=sections["sobol"].get("n", 1024),
+            second_order=sections["sobol"].get("second_order", False),
+            resamples=sections["sobol"].get("resamples", 200),
+            sobol_confidence=sections["sobol"].get("confidence", 0.95),
+            path=folder / "study.toml", text=study_text)
+    except (KeyError, TypeError) as exc:
+        raise InputError("inputs.json", str(folder / "inputs.json"), f"lacks {exc} or holds a "
+                         "value of the wrong type: it is not the inputs.json rvte writes") from None
+
+
 def _factors(table: dict, where: str) -> tuple[Factor, ...]:
     """The [tolerances.NAME] tables: keys and presence here, values checked by `Factor`."""
     factors = []
@@ -472,5 +522,5 @@ def _beside(study_path: Path, name: str) -> Path:
     return given if given.is_absolute() else study_path.resolve().parent / given
 
 
-__all__ = ["Factor", "SpecLimit", "Study", "load_study", "study_from_values", "model_fingerprint",
-           "sobol_base_samples"]
+__all__ = ["Factor", "SpecLimit", "Study", "load_study", "study_from_values", "study_from_store",
+           "model_fingerprint", "sobol_base_samples"]

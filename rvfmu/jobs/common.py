@@ -32,16 +32,34 @@ def resolve_errors(design: RVDesign, errors: str | Path | ErrorSet | None) -> Er
         return errors.check(design)
     return load_errors(errors, design)
 
+def write_frame(path: str | Path, frame, formats: dict) -> Path:
+    """Write a DataFrame as CSV: a header of its column names, then one line per row, each
+    column in its format spec ({name: spec}, e.g. ".12g"), comma-separated, CRLF line ends.
+
+    The one CSV writer of the jobs: a report's file is its `to_df()` written here, so
+    the file and the DataFrame a script gets cannot drift apart.
+    """
+    import pandas as pd
+
+    path = Path(path)
+    text = pd.DataFrame({name: [format(value, formats[name]) for value in frame[name].to_numpy()]
+                         for name in frame.columns}, columns=frame.columns)
+    text.to_csv(path, index=False, lineterminator="\r\n")
+    return path
+
+
+def columns_frame(columns: dict):
+    """A pandas DataFrame of equal-length columns {name: values}, in that order (pandas is
+    imported here, on first use, so that `rvte --help` does not pay for it)."""
+    import pandas as pd
+
+    return pd.DataFrame({name: np.asarray(values) for name, values in columns.items()})
+
+
 def write_columns(path: str | Path, columns: dict) -> Path:
     """A CSV of equal-length columns: {name: (values, format spec)}, a header of the names."""
-    path = Path(path)
-    with path.open("w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(list(columns))
-        formats = [spec for _, spec in columns.values()]
-        for row in zip(*(values for values, _ in columns.values())):
-            writer.writerow([format(value, spec) for value, spec in zip(row, formats)])
-    return path
+    return write_frame(path, columns_frame({name: values for name, (values, _) in columns.items()}),
+                       {name: spec for name, (_, spec) in columns.items()})
 
 
 def read_columns(field: str, path: str | Path, names: tuple[str, ...]) -> list[np.ndarray]:
@@ -68,11 +86,19 @@ def read_columns(field: str, path: str | Path, names: tuple[str, ...]) -> list[n
     return out
 
 
+TE_FORMATS = {"theta_in_rad": ".12g", "theta_out_rad": ".12g", "te_arcsec": ".6f"}
+
+
+def te_frame(curve: TECurve, sample: int = 0):
+    """One reducer's TE curve as a DataFrame (points rows): theta_in_rad, theta_out_rad,
+    te_arcsec (names of docs/model.md section 5), the columns of its CSV."""
+    return columns_frame({"theta_in_rad": curve.theta_in, "theta_out_rad": curve.theta_out[sample],
+                  "te_arcsec": curve.te_arcsec[sample]})
+
+
 def write_te_csv(curve: TECurve, path: str | Path, sample: int = 0) -> Path:
     """Columns theta_in_rad, theta_out_rad, te_arcsec (names of docs/model.md section 5)."""
-    return write_columns(path, {"theta_in_rad": (curve.theta_in, ".12g"),
-                                "theta_out_rad": (curve.theta_out[sample], ".12g"),
-                                "te_arcsec": (curve.te_arcsec[sample], ".6f")})
+    return write_frame(path, te_frame(curve, sample), TE_FORMATS)
 
 def _csv_header(field: str, path: str | Path) -> list[str]:
     rows = _csv_rows(field, path, header_only=True)

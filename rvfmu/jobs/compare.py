@@ -10,10 +10,14 @@ import numpy as np
 from ..core.limits import check_load
 from ..outputs import figure_file, output_file
 from .measure import measure
-from .common import resolve_design, resolve_errors, write_columns, _json_safe, _design_ratio
+from .common import (_design_ratio, _json_safe, columns_frame, resolve_design, resolve_errors,
+                     write_frame)
 
 
 BY_ORDER_SHOWN = 8
+# The columns of the comparison's CSV and `CompareReport.to_df`, with their number formats.
+FORMATS = {"theta_in_rad": ".12g", "te_measured_arcsec": ".6f", "te_model_arcsec": ".6f",
+           "difference_arcsec": ".6f"}
 
 @dataclass(frozen=True)
 class CompareReport:
@@ -78,6 +82,17 @@ class CompareReport:
                               "difference_arcsec": x} for o, a, b, x in c.by_order(BY_ORDER_SHOWN)],
                 "converged": c.converged, "warnings": list(c.measured.warnings)})
 
+    def to_df(self):
+        """The record beside the model as a pandas DataFrame (one row per record row used), the
+        columns of its CSV: theta_in_rad (the record's input angle), te_measured_arcsec (its TE
+        without the runout), te_model_arcsec (the model as the bench sees it),
+        difference_arcsec (measured - model)."""
+        c = self.comparison
+        return columns_frame({"theta_in_rad": c.measured.theta_in,
+                              "te_measured_arcsec": c.measured_arcsec,
+                              "te_model_arcsec": c.model_arcsec,
+                              "difference_arcsec": c.difference_arcsec})
+
 def compare(design, data, errors=None, load: float = 0.0, ratio: float | None = None,
             columns=None, units: str | None = None, counts_per_rev=None, remove_orders=(1,),
             remove_input_orders=(), keep_orders=(), points: int | None = None,
@@ -109,10 +124,7 @@ def compare(design, data, errors=None, load: float = 0.0, ratio: float | None = 
     result = compare_te(record, design, error_set, load, points)
     report = CompareReport(result, str(data), None if errors is None else str(errors))
     if csv_path is not None:
-        write_columns(csv_path, {"theta_in_rad": (record.theta_in, ".12g"),
-                                 "te_measured_arcsec": (result.measured_arcsec, ".6f"),
-                                 "te_model_arcsec": (result.model_arcsec, ".6f"),
-                                 "difference_arcsec": (result.difference_arcsec, ".6f")})
+        write_frame(csv_path, report.to_df(), FORMATS)
     if plot_path is not None:
         from ..plots import plot_comparison
 

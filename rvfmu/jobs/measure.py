@@ -9,11 +9,15 @@ import numpy as np
 
 from ..core.checks import InputError
 from ..outputs import figure_file, output_file
-from .common import write_columns, read_columns, _csv_header
+from .common import _csv_header, columns_frame, read_columns, write_frame
 
 
 ANGLE_UNITS = ("deg", "rad", "counts")
 ANGLE_ROLES = ("theta_in", "theta_out")
+# The columns of the measured TE's CSV and `MeasureReport.to_df`, with their number formats
+# (time_s only if the record has a time column).
+FORMATS = {"time_s": ".9g", "theta_in_rad": ".12g", "theta_out_rad": ".12g", "te_arcsec": ".6f",
+           "runout_arcsec": ".6f", "te_reducer_arcsec": ".6f"}
 
 @dataclass(frozen=True)
 class MeasureReport:
@@ -92,6 +96,17 @@ class MeasureReport:
             "warnings": list(m.warnings),
         }
 
+    def to_df(self):
+        """The measured TE as a pandas DataFrame (one row per record row used), the columns of
+        its CSV: time_s (if the record has a time column), theta_in_rad, theta_out_rad
+        (unwrapped), te_arcsec (the offset removed), runout_arcsec (the bench's, fitted),
+        te_reducer_arcsec (te_arcsec without the runout)."""
+        m = self.measured
+        time = {} if m.time is None else {"time_s": m.time}
+        return columns_frame({**time, "theta_in_rad": m.theta_in, "theta_out_rad": m.theta_out,
+                              "te_arcsec": m.te_arcsec, "runout_arcsec": m.runout_arcsec,
+                              "te_reducer_arcsec": m.te_reducer_arcsec})
+
 
 def _lines(lines, spec, unit=""):
     return ", ".join(f"{format(at, spec)}{unit}: {amp:.3f}\u2033" for at, amp in lines)
@@ -138,12 +153,7 @@ def measure(data: str | Path, ratio: float, columns=None, units: str | None = No
                         names=names, first_row=first_row, rollovers=tuple(rollovers))
     report = MeasureReport(result, str(data), tuple(names), tuple(units_of))
     if csv_path is not None:
-        time = {} if result.time is None else {"time_s": (result.time, ".9g")}
-        write_columns(csv_path, {**time, "theta_in_rad": (result.theta_in, ".12g"),
-                                 "theta_out_rad": (result.theta_out, ".12g"),
-                                 "te_arcsec": (result.te_arcsec, ".6f"),
-                                 "runout_arcsec": (result.runout_arcsec, ".6f"),
-                                 "te_reducer_arcsec": (result.te_reducer_arcsec, ".6f")})
+        write_frame(csv_path, report.to_df(), FORMATS)
     if plot_path is not None:
         from ..plots import plot_measured
 

@@ -10,7 +10,11 @@ import numpy as np
 from ..core import metrics
 from ..core.checks import InputError
 from ..outputs import figure_file, output_file
-from .common import resolve_design, resolve_errors, write_columns, read_columns
+from .common import columns_frame, read_columns, resolve_design, resolve_errors, write_frame
+
+# The columns of the simulation's CSV and `SimulationReport.to_df`, with their number formats.
+FORMATS = {"time_s": ".9g", "theta_in_rad": ".12g", "theta_out_rad": ".12g",
+           "te_arcsec": ".6f", "tau_in_Nm": ".6g"}
 
 
 @dataclass(frozen=True)
@@ -73,6 +77,14 @@ class SimulationReport:
                 "power_W": {k[:-2]: v for k, v in sim.mean_powers().items() if k.endswith("_W")},
                 "efficiency": sim.mean_powers()["efficiency"]}
 
+    def to_df(self):
+        """The run in time as a pandas DataFrame (one row per step), the columns of its CSV:
+        time_s, theta_in_rad, theta_out_rad, te_arcsec, tau_in_Nm (the start ramp included)."""
+        sim = self.simulation
+        return columns_frame({"time_s": sim.time, "theta_in_rad": sim.theta_in,
+                              "theta_out_rad": sim.theta_out, "te_arcsec": sim.te_arcsec,
+                              "tau_in_Nm": sim.tau_in})
+
 
 def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
              duration: float | None = None, revolutions: float | None = None,
@@ -116,9 +128,7 @@ def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
               progress=progress, input_angle=input_angle, friction=friction)
     report = SimulationReport(sim, tuple(sim.peaks_hz()))
     if csv_path is not None:
-        write_columns(csv_path, {"time_s": (sim.time, ".9g"), "theta_in_rad": (sim.theta_in, ".12g"),
-                                 "theta_out_rad": (sim.theta_out, ".12g"),
-                                 "te_arcsec": (sim.te_arcsec, ".6f"), "tau_in_Nm": (sim.tau_in, ".6g")})
+        write_frame(csv_path, report.to_df(), FORMATS)
     if plot_path is not None:
         from ..plots import plot_simulation
 

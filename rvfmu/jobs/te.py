@@ -12,7 +12,7 @@ from ..core.limits import check_load
 from ..core.quasistatic import TECurve, Windup, default_points, te_curve, windup
 from ..outputs import figure_file, output_file
 from ..progress import counter as progress_counter
-from .common import resolve_design, resolve_errors, write_te_csv
+from .common import resolve_design, resolve_errors, te_frame, write_te_csv
 
 
 HARMONICS_SHOWN = 5
@@ -61,6 +61,11 @@ class TEReport:
             lines.append("warning           the equilibrium did not converge at some angles")
         lines += [f"warning           {text}" for text in self.warnings]
         return "\n".join(lines)
+
+    def to_df(self):
+        """The TE curve as a pandas DataFrame (points rows), the columns of its CSV:
+        theta_in_rad, theta_out_rad, te_arcsec."""
+        return te_frame(self.curve)
 
 def te(design, errors=None, load: float = 0.0, points: int | None = None,
        csv_path: str | Path | None = None, plot_path: str | Path | None = None,
