@@ -48,7 +48,7 @@ from rvfmu.core.units import UM
 
 from . import montecarlo
 from .sampling import _index, factor_values
-from .store import MANIFEST, JobStore, check_manifest, read_manifest
+from .store import JobStore, check_manifest, read_manifest, study_output_folder
 from .study import Study, sobol_base_samples, study_from_store
 
 MC_JOB = "mc"
@@ -177,7 +177,7 @@ def load_results(output_folder, job: str | None = None, *, errors: bool = False)
     without a manifest or without batches of the job, or one written by another model
     version.
     """
-    folder = _study_folder(output_folder)
+    folder = study_output_folder(output_folder)
     manifest = read_manifest(folder)
     study = _stored_study(folder, manifest)
     check_manifest(folder, manifest, study)
@@ -195,19 +195,6 @@ def load_results(output_folder, job: str | None = None, *, errors: bool = False)
                          np.concatenate([rows(*b) for b in batches]),
                          np.concatenate([found[b].Y for b in batches]),
                          np.concatenate([found[b].converged for b in batches]), errors)
-
-
-def _study_folder(output_folder) -> Path:
-    if output_folder is None or str(output_folder) == "":
-        raise InputError("output_folder", output_folder, "must be a study output folder")
-    folder = Path(output_folder)
-    if not folder.is_dir():
-        raise InputError("output_folder", str(folder), "must be an existing study output folder "
-                         "(written by rvte mc or rvte sobol)")
-    if not (folder / MANIFEST).is_file():
-        raise InputError("output_folder", str(folder), f"is not a study output folder: it has no "
-                         f"{MANIFEST} (rvte mc and rvte sobol write one)")
-    return folder
 
 
 def _stored_study(folder: Path, manifest: dict) -> Study:

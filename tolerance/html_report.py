@@ -50,7 +50,7 @@ from .summaries import (NOTES_LEGEND, column_label, figure_convergence, figure_m
                      operating_text)
 from .sampling import KEYS
 from .sobol import Convergence, Indices, SobolAnalysis
-from .store import FILE_DIGEST, software_versions
+from .store import FILE_DIGEST, software_versions, study_output_folder
 from .study import Study, load_study, model_fingerprint, study_from_store
 
 # The keys of the JSON outputs the report reads (tolerance/summaries.py writes them).
@@ -162,7 +162,7 @@ def report(output_dir, html_path=None, markdown_path=None, *, study_file=None) -
     default).  Every input and output path is checked before any work
     (InputError).  Returns the paths and the summary (`StudyReport.to_json`).
     """
-    folder = _folder(output_dir)
+    folder = study_output_folder(output_dir, "output_dir")
     html_path = output_file("html", folder / DEFAULT_HTML if html_path is None else html_path,
                             ("html", "htm"))
     markdown_path = output_file("markdown", html_path.with_suffix(".md") if markdown_path is None
@@ -206,22 +206,6 @@ class Found:
     allocation: dict | None
     worst_errors: str | None
     digests: dict                   # {file name: sha256} of every file read
-
-
-def _folder(output_dir) -> Path:
-    if output_dir is None or str(output_dir) == "":
-        raise InputError("output_dir", output_dir, "must be a study output folder")
-    folder = Path(output_dir)
-    if not folder.is_dir():
-        raise InputError("output_dir", str(folder), "must be an existing study output folder "
-                         "(written by rvte mc or rvte sobol)")
-    if not (folder / "manifest.json").is_file():
-        raise InputError("output_dir", str(folder), "is not a study output folder: it has no "
-                         "manifest.json (rvte mc and rvte sobol write one)")
-    if not any((folder / name).is_file() for name in ("mc_summary.json", "sobol_indices.json")):
-        raise InputError("output_dir", str(folder), "holds no results yet (mc_summary.json or "
-                         "sobol_indices.json): run rvte mc or rvte sobol to the end first")
-    return folder
 
 
 def _read(folder: Path) -> Found:

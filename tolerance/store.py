@@ -84,6 +84,21 @@ def open_output(study: Study, folder: Path | None = None) -> Path:
     return folder
 
 
+def study_output_folder(path, field: str = "output_folder") -> Path:
+    """`path` as an existing study output folder (one with a manifest), for reading it;
+    InputError naming `field` otherwise."""
+    if path is None or str(path) == "":
+        raise InputError(field, path, "must be a study output folder")
+    folder = Path(path)
+    if not folder.is_dir():
+        raise InputError(field, str(folder), "must be an existing study output folder "
+                         "(written by rvte mc or rvte sobol)")
+    if not (folder / MANIFEST).is_file():
+        raise InputError(field, str(folder), f"is not a study output folder: it has no "
+                         f"{MANIFEST} (rvte mc and rvte sobol write one)")
+    return folder
+
+
 def read_manifest(folder: Path) -> dict:
     """The manifest of an output folder that has one; InputError if it cannot be read."""
     try:
