@@ -38,6 +38,30 @@ def test_threads_give_the_one_thread_results_to_the_bit(clearances, monkeypatch,
             assert np.array_equal(a, b)
 
 
+@pytest.mark.parametrize("load", [0.0, 412.0], ids=["no load", "rated"])
+def test_chunks_on_threads_give_the_one_thread_results_to_the_bit(clearances, monkeypatch, load):
+    """Several chunks of pairs: each runs on a thread of its own (solver.map_chunks), its
+    compiled iteration on that thread alone."""
+    from rvfmu.core import newton, solver
+
+    design, errors = clearances
+    monkeypatch.setattr(solver, "CHUNK", 448)           # 4 x 640 pairs: six chunks
+    seen = []
+    original = newton.kernel_threads
+    monkeypatch.setattr(newton, "kernel_threads", lambda: seen.append(original()) or seen[-1])
+    runs = []
+    for threads in ("1", "2", "3"):
+        monkeypatch.setenv("RVTE_THREADS", threads)
+        seen.clear()
+        curve = te_curve(design, errors, -load, 640)
+        runs.append((curve.te, curve.converged))
+        if threads != "1":       # the chunks asked for the threads, each chunk's kernel for one
+            assert int(threads) in seen and 1 in seen
+    for other in runs[1:]:
+        for a, b in zip(runs[0], other):
+            assert np.array_equal(a, b)
+
+
 def test_the_thread_count(monkeypatch):
     monkeypatch.setenv("RVTE_THREADS", "3")
     assert kernel_threads() == 3

@@ -16,6 +16,7 @@ tested against, and what runs without numba.
 
 from __future__ import annotations
 
+import threading
 from functools import cached_property
 
 import numpy as np
@@ -61,6 +62,34 @@ def chain_links(sample, angle, load):
     return link
 
 
+_THREAD = threading.local()     # .single: this thread solves a chunk of its own (`map_chunks`)
+
+
+def map_chunks(function, starts):
+    """function(start) for each chunk start, results in order.  Where there are several chunks
+    and `kernel_threads` allows, the chunks run on that many threads, each chunk's compiled
+    iteration on its own thread (`kernel_threads` gives 1 there): the Python between the
+    compiled calls of one chunk then runs while another's kernel does.  A chunk's result
+    does not depend on the thread it ran on, so the results are those of one thread."""
+    starts = list(starts)
+    threads = min(kernel_threads(), len(starts))
+    if threads <= 1:
+        yield from map(function, starts)
+        return
+
+    def alone(start):
+        _THREAD.single = True
+        try:
+            return function(start)
+        finally:
+            _THREAD.single = False
+
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(threads) as pool:
+        yield from pool.map(alone, starts)
+
+
 def kernel_threads() -> int:
     """Threads the compiled iteration splits a batch of pairs over: RVTE_THREADS if set, else
     every core in a main process and one in a worker process (a process pool's or a Dask
@@ -76,6 +105,9 @@ def kernel_threads() -> int:
 
             raise InputError("RVTE_THREADS", text, "must be a whole number >= 1 (the environment "
                              "variable: threads of the compiled solver)")
+    if getattr(_THREAD, "single", False):
+        return 1
+    if text:
         return int(text)
     if multiprocessing.parent_process() is not None:
         return 1

@@ -36,7 +36,7 @@ import numpy as np
 
 from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
-from .newton import GAP_TOLERANCE, Work, chain_links, newton, pin_delta
+from .newton import GAP_TOLERANCE, Work, chain_links, map_chunks, newton, pin_delta
 from .pin_law import contacts
 
 CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
@@ -490,7 +490,8 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
         law = ReducedSystem(model, model.bearing_law_a > 0.0, True) if then_law else None
         count, toward = _nominal_guess(system, errors, sample[pairs], angle[pairs], tau_load[pairs],
                                        probe)
-        for start in range(0, pairs.size, CHUNK):
+
+        def chunk(start, pairs=pairs, system=system, law=law, count=count, toward=toward):
             part = slice(start, min(start + CHUNK, pairs.size))
             at = pairs[part]
             eq = system.solve(errors, sample[at], angle[at], tau_load[at], half, probe,
@@ -501,6 +502,9 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
                 # of that with the roller law, which starts there
                 eq = law.solve(errors, sample[at], angle[at], tau_load[at], half, probe,
                                start=eq.q)
+            return at, eq
+
+        for at, eq in map_chunks(chunk, range(0, pairs.size, CHUNK)):
             q[at], pin_force[at], converged[at] = eq.q, eq.pin_force, eq.converged
             mesh_force[at] = eq.mesh_force
             iterations = max(iterations, eq.iterations)
