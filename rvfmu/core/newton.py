@@ -134,7 +134,8 @@ def newton_compiled(work, first_active, q0=None, chain=None):
     chain = np.zeros(B, dtype=bool) if chain is None else c(chain, dtype=np.bool_)
 
     def solve(lo, hi):
-        newton_pairs(angle[lo:hi], *stiffness, *(a[lo:hi] for a in pairs), *shared, *(a[lo:hi] for a in bearings), *law,
+        newton_pairs(angle[lo:hi], *stiffness, *(a[lo:hi] for a in pairs), *shared,
+                     *(a[lo:hi] for a in bearings), *law,
                      toward[lo:hi], work.toward is not None, guess[lo:hi], q[lo:hi], warm[lo:hi],
                      chain[lo:hi], MAX_ITERATIONS, STEP_TOLERANCE, GAP_TOLERANCE, converged[lo:hi],
                      iterations[lo:hi])

@@ -16,7 +16,8 @@ where numba is absent or switched off (RVTE_NUMBA=0, `kernels.COMPILED`).
 Array arguments, B pairs, nN reduced unknowns, K pins per disc, p bearings
 with clearance (p may be 0):
 angle: (B,) each pair's angle, indexing K, Kh: (A, nN, nN) reduced stiffness per angle, and
-what the Hessian adds (the mode stiffness); f: (B, nN); rows: (B, 2, K, 3); pin_b: (B, 2, K); pin_local: (2, 3);
+what the Hessian adds (the mode stiffness); f: (B, nN); rows: (B, 2, K, 3); pin_b: (B, 2, K);
+pin_local: (2, 3);
 brg_rows: (B, p, 2, nN); brg_off: (B, p, 2); c_half: (B, p); brg_law: (p, 3), each bearing's
 stiffness k, roller-law constant a (0: linear) and series compliance; pin_law: (3,) the pins'
 law (`pin_law.contact`: stated stiffness k, b, F*); table: (2, T) the
@@ -268,7 +269,8 @@ def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_hal
 
 
 @kernel
-def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table,
+def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half,
+                 brg_law, table,
                  toward, has_toward, guess, q, warm, chain, max_iterations, step_tolerance,
                  gap_tolerance, converged, iterations):
     """Solve every pair; q (B, nN) holds the starts and receives the solutions, converged (B,)
@@ -306,7 +308,8 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
         while it < max_iterations:
             it += 1
             first = it == 1 and not (warm[s] or linked)
-            _gradient_hessian(Ks, Kh[angle[s]], fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table,
+            _gradient_hessian(Ks, Kh[angle[s]], fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law,
+                              table,
                               toward[s], has_toward, gap_tolerance, qs, guess[s], first, first,
                               grad, hess, true_grad, used, delta, d)
             if _solve_spd(hess, grad, factor, step):
