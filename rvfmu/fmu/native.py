@@ -6,7 +6,8 @@ quasi-static model needs none at run time: a step is one interpolation in the
 TE map (`rvfmu.core.te_map`), which is plain data.  So the map is solved here,
 written as a binary table into the FMU's resources, and a small C library
 (rvfmu/fmu/native/: model.c, the physics, knows nothing of FMI;
-fmi2Functions.c, the FMI 2.0 co-simulation plumbing) reads it once per
+fmi2Functions.c, the FMI 2.0 co-simulation plumbing, over instance.c, what it
+shares with the FMI 3.0 plumbing) reads it once per
 instance and interpolates it operation for operation as `TEMap.evaluate_one`,
 so that its outputs are the pythonfmu FMU's quasi-static ones (tested to 1e-12
 rad; equal to the bit where the compiler does not fuse multiply-adds).
@@ -75,7 +76,8 @@ from .build import complete_model_description, prepare, source_line
 from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS
 
 NATIVE_SOURCES = Path(__file__).resolve().parent / "native"
-SOURCE_FILES = ("model.c", "fmi2Functions.c")      # compiled; model.h beside them
+SOURCE_FILES = ("model.c", "instance.c", "fmi2Functions.c")   # compiled; the headers beside them
+HEADER_FILES = ("model.h", "instance.h")
 MODEL_IDENTIFIER = "RVReducer"
 TABLE_NAME = "te_map.bin"
 TABLE_MAGIC = b"RVTEMAP\0"
@@ -114,7 +116,7 @@ def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
                                                 + toml_text(design.file_values()))
         (resources / BUNDLED_ERRORS).write_text(source_line(sources.get("errors"))
                                                 + toml_text(error_file_values(errors)))
-        for name in (*SOURCE_FILES, "model.h"):
+        for name in (*SOURCE_FILES, *HEADER_FILES):
             shutil.copy2(NATIVE_SOURCES / name, source_dir / name)
         (unzipped / "modelDescription.xml").write_bytes(model_description())
         compile_binaries(unzipped, Path(tmp) / "build")
