@@ -22,6 +22,11 @@ different FMU: build another.  The C sources travel in sources/ and are
 declared in modelDescription.xml, so a tool that compiles source FMUs can
 build the binary for its own platform.
 
+`--fmi-version 3` builds the same FMU for FMI 3.0: fmi3Functions.c in place of
+fmi2Functions.c over the same model.c and instance.c, binaries/x86_64-linux and
+x86_64-windows, the description and sources/buildDescription.xml of
+`rvfmu.fmu.fmi3`.
+
 The table, resources/te_map.bin (every number little-endian; model.c reads it
 and carries the same layout in a comment):
 
