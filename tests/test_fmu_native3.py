@@ -469,6 +469,59 @@ def test_the_fmu_manipulation_toolbox_checker_finds_it_fmi3_compliant(native3, u
     assert done.returncode != 0, done.stdout + done.stderr
 
 
+ECOS_HOST = r'''
+"""The ecos co-simulation engine (ecospy) stepping the FMI 3.0 FMU: the inputs of `varying_run`
+set before each 1 ms step, every output read after it.  ecospy's library needs oneTBB's
+libtbb.so.12: pip's `tbb` puts it in sys.prefix/lib, outside the loader's path, so it is
+loaded first (where it is missing, the system's is found as usual)."""
+import ctypes, json, sys
+from pathlib import Path
+
+for tbb in sorted(Path(sys.prefix, "lib").glob("libtbb.so.12*"))[:1]:
+    ctypes.CDLL(str(tbb), mode=ctypes.RTLD_GLOBAL)
+from ecospy import EcosSimulation, EcosSimulationStructure
+
+fmu, inputs, out, *outputs = sys.argv[1:]
+inputs = json.loads(Path(inputs).read_text())
+structure = EcosSimulationStructure()
+structure.add_model("reducer", fmu)
+rows = []
+with EcosSimulation(structure=structure, step_size=1e-3) as simulation:
+    simulation.init()
+    for theta, load in zip(inputs["theta_in"], inputs["tau_load"]):
+        simulation.set_real("reducer::theta_in", theta)
+        simulation.set_real("reducer::tau_load", load)
+        simulation.step()
+        rows.append([simulation.get_real(f"reducer::{name}") for name in outputs])
+    simulation.terminate()
+Path(out).write_text(json.dumps(rows))
+'''
+
+
+def test_the_ecos_engine_steps_it_as_fmpy_does(native3, rv40, tmp_path):
+    from importlib.util import find_spec
+
+    # ecospy's import loads its library, which needs libtbb: only the host script can import it
+    assert find_spec("ecospy"), "ecospy not installed (pyproject's [test] extra, with tbb)"
+
+    theta_in, tau_load = varying_run(rv40.rated_torque, steps=1500)
+    (tmp_path / "inputs.json").write_text(json.dumps({"theta_in": theta_in.tolist(),
+                                                      "tau_load": tau_load.tolist()}))
+    (tmp_path / "ecos_host.py").write_text(ECOS_HOST)
+    done = subprocess.run([sys.executable, str(tmp_path / "ecos_host.py"), str(native3[0]),
+                           str(tmp_path / "inputs.json"), str(tmp_path / "out.json"), *OUTPUTS],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, (done.stdout + done.stderr)[-4000:]
+    by_ecos = np.array(json.loads((tmp_path / "out.json").read_text()))
+    by_fmpy = drive(Instance3(*native3, name="fmpy"), theta_in, tau_load)
+    assert by_ecos.shape == by_fmpy.shape == (1500, len(OUTPUTS))
+    # ecos keeps time as a sum of steps, fmpy's as k h here: omega_out and the friction that goes
+    # with it divide by step sizes that differ by a rounding error
+    np.testing.assert_array_equal(by_ecos[:, [0, 2, 3]], by_fmpy[:, [0, 2, 3]])   # angles, TE
+    np.testing.assert_allclose(by_ecos, by_fmpy, rtol=1e-12, atol=1e-12)
+    assert np.ptp(by_ecos[:, 2]) > 1e-5
+
+
 # -- memory checkers ---------------------------------------------------------------------
 
 def compile_host(target, *flags):
