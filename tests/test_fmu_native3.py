@@ -160,6 +160,22 @@ def test_bad_inputs_are_discarded_with_the_fmi2_fmus_log_lines(native, native3, 
     assert logs[Instance3] == logs[Instance]
 
 
+def test_a_load_above_the_momentary_class_warns_once_as_in_fmi2(native, native3, rv40, capfd):
+    logs = {}
+    rated = rv40.rated_torque
+    for fmu, make in ((native, Instance), (native3, Instance3)):
+        inst = make(*fmu)
+        capfd.readouterr()
+        for k, load in enumerate((-2.0 * rated, -3.0 * rated, 4.0 * rated, -4.9 * rated)):
+            inst.set(theta_in=1.0 + k, tau_load=load)
+            inst.step(k * STEP, STEP)                             # computed: no exception
+        logs[make] = capfd.readouterr().out.splitlines()
+    assert logs[Instance3] == logs[Instance] == [
+        "[WARNING] input tau_load = -1236 N*m is 3 x the rated torque 412 N*m, above the "
+        "momentary maximum class (2.5 x): the small-displacement model is stretched; treat "
+        "the results with care"]
+
+
 def test_step_results_say_a_refused_input_leaves_it_usable_and_bad_initial_inputs_do_not(
         native3, capfd):
     inst = Instance3(*native3)
@@ -462,7 +478,9 @@ def test_the_fmu_manipulation_toolbox_checker_finds_it_fmi3_compliant(native3, u
     broken = tmp_path / "broken"
     shutil.copytree(unzipped3, broken)
     description = broken / "modelDescription.xml"
-    description.write_text(description.read_text().replace('<Output valueReference="6" />', "", 1))
+    text = description.read_text()
+    assert '<Output valueReference="6" />' in text                # tau_in's
+    description.write_text(text.replace('<Output valueReference="6" />', "", 1))
     archive = shutil.move(shutil.make_archive(str(broken), "zip", broken), tmp_path / "broken.fmu")
     done = subprocess.run([*command, "-input", str(archive), "-check"], capture_output=True,
                           text=True, timeout=300)
