@@ -162,24 +162,13 @@ void fmi2FreeInstance(fmi2Component c) {
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
     Instance *instance = c;
-    size_t k;
-    int category;
+    long unknown;
     if (!instance) return fmi2Error;
-    if (nCategories == 0) {
-        for (category = 0; category < CATEGORIES; category++)
-            instance->core.logging[category] = loggingOn;
-        return fmi2OK;
-    }
-    for (k = 0; k < nCategories; k++) {
-        category = core_category(categories[k]);
-        if (category < 0) {
-            LOG_ERROR_(instance, "log category %s: must be logEvents, logStatusWarning or "
-                       "logStatusError", categories[k] ? categories[k] : "(null)");
-            return fmi2Error;
-        }
-        instance->core.logging[category] = loggingOn;
-    }
-    return fmi2OK;
+    unknown = core_set_logging(&instance->core, loggingOn, nCategories, categories);
+    if (unknown < 0) return fmi2OK;
+    LOG_ERROR_(instance, "log category %s: must be logEvents, logStatusWarning or logStatusError",
+               categories[unknown] ? categories[unknown] : "(null)");
+    return fmi2Error;
 }
 
 static fmi2Status in_mode(Instance *instance, Mode mode, const char *function) {
@@ -315,18 +304,17 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Instance *instance = c;
     if (!instance || !FMUstate) return fmi2Error;
-    if (!*FMUstate && !(*FMUstate = malloc(sizeof(State)))) {
+    if (!(*FMUstate = core_copy_state(&instance->core.state, *FMUstate))) {
         LOG_ERROR_(instance, "fmi2GetFMUstate: out of memory");
         return fmi2Error;
     }
-    memcpy(*FMUstate, &instance->core.state, sizeof(State));
     return fmi2OK;
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     Instance *instance = c;
     if (!instance || !FMUstate) return fmi2Error;
-    memcpy(&instance->core.state, FMUstate, sizeof(State));
+    core_copy_state(FMUstate, &instance->core.state);
     return fmi2OK;
 }
 
@@ -367,11 +355,10 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
                    (unsigned long)size);
         return fmi2Error;
     }
-    if (!*FMUstate && !(*FMUstate = malloc(sizeof(State)))) {
+    if (!(*FMUstate = core_copy_state(&state, *FMUstate))) {
         LOG_ERROR_(instance, "fmi2DeSerializeFMUstate: out of memory");
         return fmi2Error;
     }
-    memcpy(*FMUstate, &state, sizeof(State));
     return fmi2OK;
 }
 

@@ -154,24 +154,13 @@ void fmi3FreeInstance(fmi3Instance c) {
 fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, size_t nCategories,
                                const fmi3String categories[]) {
     Instance *instance = c;
-    size_t k;
-    int category;
+    long unknown;
     if (!instance) return fmi3Error;
-    if (nCategories == 0) {
-        for (category = 0; category < CATEGORIES; category++)
-            instance->core.logging[category] = loggingOn;
-        return fmi3OK;
-    }
-    for (k = 0; k < nCategories; k++) {
-        category = core_category(categories[k]);
-        if (category < 0) {
-            LOG_ERROR_(instance, "log category %s: must be logEvents, logStatusWarning or "
-                       "logStatusError", categories[k] ? categories[k] : "(null)");
-            return fmi3Error;
-        }
-        instance->core.logging[category] = loggingOn;
-    }
-    return fmi3OK;
+    unknown = core_set_logging(&instance->core, loggingOn, nCategories, categories);
+    if (unknown < 0) return fmi3OK;
+    LOG_ERROR_(instance, "log category %s: must be logEvents, logStatusWarning or logStatusError",
+               categories[unknown] ? categories[unknown] : "(null)");
+    return fmi3Error;
 }
 
 static fmi3Status in_mode(Instance *instance, Mode mode, const char *function) {
@@ -347,18 +336,17 @@ fmi3Status fmi3SetClock(fmi3Instance c, const fmi3ValueReference valueReferences
 fmi3Status fmi3GetFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
     Instance *instance = c;
     if (!instance || !FMUState) return fmi3Error;
-    if (!*FMUState && !(*FMUState = malloc(sizeof(State)))) {
+    if (!(*FMUState = core_copy_state(&instance->core.state, *FMUState))) {
         LOG_ERROR_(instance, "fmi3GetFMUState: out of memory");
         return fmi3Error;
     }
-    memcpy(*FMUState, &instance->core.state, sizeof(State));
     return fmi3OK;
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance c, fmi3FMUState FMUState) {
     Instance *instance = c;
     if (!instance || !FMUState) return fmi3Error;
-    memcpy(&instance->core.state, FMUState, sizeof(State));
+    core_copy_state(FMUState, &instance->core.state);
     return fmi3OK;
 }
 
@@ -399,11 +387,10 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance c, const fmi3Byte serializedStat
                    (unsigned long)size);
         return fmi3Error;
     }
-    if (!*FMUState && !(*FMUState = malloc(sizeof(State)))) {
+    if (!(*FMUState = core_copy_state(&state, *FMUState))) {
         LOG_ERROR_(instance, "fmi3DeserializeFMUState: out of memory");
         return fmi3Error;
     }
-    memcpy(*FMUState, &state, sizeof(State));
     return fmi3OK;
 }
 

@@ -1,5 +1,6 @@
 /* What the FMI 2.0 and FMI 3.0 layers share (instance.h): the model's side of an instance. */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "instance.h"
@@ -19,11 +20,31 @@ void core_reset(Core *core) {
     core->failed[0] = '\0';
 }
 
-int core_category(const char *name) {
+static int category_index(const char *name) {
     int category;
     for (category = 0; category < CATEGORIES; category++)
         if (name && strcmp(name, CATEGORY_NAMES[category]) == 0) return category;
     return -1;
+}
+
+long core_set_logging(Core *core, int on, size_t n, const char *const categories[]) {
+    size_t k;
+    int category;
+    if (n == 0) {
+        for (category = 0; category < CATEGORIES; category++) core->logging[category] = on;
+        return -1;
+    }
+    for (k = 0; k < n; k++) {
+        if ((category = category_index(categories[k])) < 0) return (long)k;
+        core->logging[category] = on;
+    }
+    return -1;
+}
+
+State *core_copy_state(const State *state, void *into) {
+    State *copy = into ? into : malloc(sizeof *copy);
+    if (copy) memcpy(copy, state, sizeof *copy);
+    return copy;
 }
 
 /* The inputs (and the step size if check_step) checked; a load above the momentary class is

@@ -50,8 +50,13 @@ typedef struct {
 /* Back to the start values, the table kept. */
 void core_reset(Core *core);
 
-/* The index of a log category by name, -1 if there is none of that name. */
-int core_category(const char *name);
+/* Switch the log categories named (all of them if n is 0) on or off: -1, or the index in
+ * `categories` of a name that is no category (those before it are switched). */
+long core_set_logging(Core *core, int on, size_t n, const char *const categories[]);
+
+/* A copy of `state` in `into`, or in a new allocation if `into` is NULL (the FMU states the
+ * host holds); NULL if out of memory. */
+State *core_copy_state(const State *state, void *into);
 
 /* Leave initialisation mode: the outputs from the initial inputs.  INPUT_WARNING: a load above
  * the momentary class, `message` to log as a warning; INPUT_REFUSED: inputs the model cannot
