@@ -28,9 +28,11 @@ from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Discard, fmi3Float64, fmi3OK
 from fmpy.validation import validate_fmu
 
 from rvfmu import cli
-from rvfmu.fmu.api import fmu_build, fmu_info
+from rvfmu.core.checks import InputError
+from rvfmu.fmu.api import check_fmi_version, fmu_build, fmu_info
 from rvfmu.fmu.fmi3 import FMI3_SOURCE_FILES
-from rvfmu.fmu.native import C_FLAGS, TABLE_NAME, VARIABLES, WIN64_COMPILER, native_platforms, read_table
+from rvfmu.fmu.native import (C_FLAGS, TABLE_NAME, VARIABLES, WIN64_COMPILER, native_platforms,
+                              read_table)
 from test_fmu import Instance
 from test_fmu import free_instances  # noqa: F401 - frees every instance after a test
 from test_fmu_native import BAD_STEPS, MAP_POINTS, OUTPUTS, STEP, corrupt, drive, varying_run
@@ -93,7 +95,8 @@ class Instance3(Instance):
 
     def __init__(self, fmu_path, description, name="reducer", reals=None, unzipped=None):
         self.vr = {v.name: v.valueReference for v in description.modelVariables}
-        self.fmu = FMU3Slave(guid=description.guid, unzipDirectory=unzipped or extract(str(fmu_path)),
+        unzipped = unzipped or extract(str(fmu_path))
+        self.fmu = FMU3Slave(guid=description.guid, unzipDirectory=unzipped,
                              modelIdentifier=description.coSimulation.modelIdentifier,
                              instanceName=name)
         self.fmu.instantiate(loggingOn=True)
@@ -270,8 +273,9 @@ def test_model_c_is_the_fmi2_fmus_to_the_byte(unzipped3, native):
 
 
 def test_fmu_info_says_the_fmi_version(native, native3):
-    assert fmu_info(native3[0]).splitlines()[0] == "RVReducer  FMI 3.0 co-simulation  (rvte (native FMU))"
-    assert fmu_info(native[0]).splitlines()[0] == "RVReducer  FMI 2.0 co-simulation  (rvte (native FMU))"
+    for fmu, version in ((native3, "3.0"), (native, "2.0")):
+        assert fmu_info(fmu[0]).splitlines()[0] == \
+            f"RVReducer  FMI {version} co-simulation  (rvte (native FMU))"
 
 
 def test_the_cli_builds_it_and_refuses_other_versions_and_fmi3_without_native(tmp_path, capsys):
@@ -294,13 +298,25 @@ def test_the_cli_builds_it_and_refuses_other_versions_and_fmi3_without_native(tm
     assert cli.main(["fmu", "info", str(path)]) in (0, None)
     assert "FMI 3.0 co-simulation" in capsys.readouterr().out
     for argv, message in (
-            (["--native", "--fmi-version", "4"], "fmi_version = '4': must be 2 or 3 (FMI 2.0 or FMI 3.0)"),
+            (["--native", "--fmi-version", "4"],
+             "fmi_version = '4': must be 2 or 3 (FMI 2.0 or FMI 3.0)"),
             (["--native", "--fmi-version", "3.1"], "fmi_version = '3.1': must be 2 or 3"),
             (["--fmi-version", "3"], "fmi_version = '3': FMI 3.0 needs the native FMU (--native): "
                                      "the pythonfmu FMU is FMI 2.0 only")):
         assert cli.main(["fmu", "build", "RV-40E-121", *argv, "-o", str(tmp_path / "x.fmu")]) == 2
         assert f"rvte fmu: error: {message}" in capsys.readouterr().err
     assert not (tmp_path / "x.fmu").exists()
+
+
+def test_the_fmi_version_is_2_or_3_and_3_is_native_only():
+    for given, native_fmu, version in ((2, False, 2), ("2", True, 2), ("3", True, 3),
+                                       (3.0, True, 3), ("3.0", True, 3)):
+        assert check_fmi_version(given, native_fmu) == version
+    for given in (1, 4, "2.5", "three", True, None, ""):
+        with pytest.raises(InputError, match="fmi_version = .*: must be 2 or 3"):
+            check_fmi_version(given, True)
+    with pytest.raises(InputError, match="FMI 3.0 needs the native FMU"):
+        check_fmi_version(3, False)
 
 
 def test_a_tool_compiles_the_sources_from_build_description_alone(native3, unzipped3, rv40,
@@ -318,7 +334,8 @@ def test_a_tool_compiles_the_sources_from_build_description_alone(native3, unzip
     assert (copy / LIBRARY).is_file()
     theta_in, tau_load = varying_run(rv40.rated_torque, steps=400)
     rebuilt = drive(Instance3(*native3, unzipped=str(copy), name="rebuilt"), theta_in, tau_load)
-    shipped = drive(Instance3(*native3, unzipped=str(unzipped3), name="shipped"), theta_in, tau_load)
+    shipped = drive(Instance3(*native3, unzipped=str(unzipped3), name="shipped"), theta_in,
+                    tau_load)
     np.testing.assert_allclose(rebuilt, shipped, rtol=1e-12, atol=1e-15)
 
 
@@ -407,7 +424,8 @@ import json, os, sys
 
 site, fmu3, fmu2, out, rated = sys.argv[1:]
 sys.path.extend(site.split(os.pathsep))
-report = {"environment": sorted(k for k in os.environ if k.startswith("PYTHON") or k == "LD_PRELOAD")}
+report = {"environment": sorted(k for k in os.environ
+                                if k.startswith("PYTHON") or k == "LD_PRELOAD")}
 for name in ("rvfmu", "tolerance"):
     try:
         __import__(name)

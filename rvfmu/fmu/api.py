@@ -57,8 +57,8 @@ def check_fmi_version(fmi_version, native: bool) -> int:
         raise InputError("fmi_version", fmi_version, "must be 2 or 3 (FMI 2.0 or FMI 3.0)")
     version = int(float(text))
     if version == 3 and not native:
-        raise InputError("fmi_version", fmi_version,
-                         "FMI 3.0 needs the native FMU (--native): the pythonfmu FMU is FMI 2.0 only")
+        raise InputError("fmi_version", fmi_version, "FMI 3.0 needs the native FMU (--native): "
+                         "the pythonfmu FMU is FMI 2.0 only")
     return version
 
 

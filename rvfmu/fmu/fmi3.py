@@ -31,11 +31,11 @@ def model_description_3(declared: list[ET.Element], about: dict[str, str], model
                         log_categories: dict[str, str]) -> bytes:
     """modelDescription.xml of FMI 3.0 from the FMI 2.0 <ScalarVariable>s `declared` (in value
     reference order); about: modelName, description, author, generationTool."""
+    generated = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     root = ET.Element("fmiModelDescription", fmiVersion="3.0", modelName=about["modelName"],
                       instantiationToken=f"{{{uuid.uuid4()}}}", description=about["description"],
                       author=about["author"], generationTool=about["generationTool"],
-                      generationDateAndTime=datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-                      variableNamingConvention="structured")
+                      generationDateAndTime=generated, variableNamingConvention="structured")
     ET.SubElement(root, "CoSimulation", modelIdentifier=model_identifier,
                   canHandleVariableCommunicationStepSize="true", canGetAndSetFMUState="true",
                   canSerializeFMUState="true")
@@ -59,7 +59,8 @@ def model_description_3(declared: list[ET.Element], about: dict[str, str], model
     # outputs computed at initialisation are initial unknowns (FMI 3.0 section 2.4.8)
     for variable in outputs:
         if variable.get("initial") == "calculated":
-            ET.SubElement(structure, "InitialUnknown", valueReference=variable.get("valueReference"))
+            ET.SubElement(structure, "InitialUnknown",
+                          valueReference=variable.get("valueReference"))
     ET.indent(root)
     return ET.tostring(root, encoding="utf-8", xml_declaration=True)
 

@@ -268,9 +268,9 @@ def compile_binaries(unzipped: Path, build_dir: Path, fmi_version: int = 2) -> l
                                    f"{log.read_text()[-3000:]}") from None
     else:
         library = ".dll" if os.name == "nt" else (".dylib" if sys.platform == "darwin" else ".so")
+        folder = binary_folder(fmpy.platform, fmi_version)
         _compile(os.environ.get("CC", "cc"), ["-fPIC"], unzipped, headers,
-                 f"binaries/{binary_folder(fmpy.platform, fmi_version)}/{MODEL_IDENTIFIER}{library}",
-                 fmi_version)
+                 f"binaries/{folder}/{MODEL_IDENTIFIER}{library}", fmi_version)
     if fmpy.platform != "win64" and shutil.which(WIN64_COMPILER):
         # libgcc linked in: the DLL then needs only what every Windows has (kernel32, msvcrt)
         _compile(WIN64_COMPILER, ["-static-libgcc"], unzipped, headers,
@@ -304,7 +304,8 @@ def _compile(compiler, flags, unzipped: Path, headers: Path, target: str,
     target = unzipped / target
     target.parent.mkdir(parents=True, exist_ok=True)
     command = [compiler, "-shared", *C_FLAGS.split(), *flags, f"-I{headers}",
-               f"-I{unzipped / 'sources'}", *(str(unzipped / "sources" / f) for f in source_files(fmi_version)),
+               f"-I{unzipped / 'sources'}",
+               *(str(unzipped / "sources" / f) for f in source_files(fmi_version)),
                "-o", str(target)]
     done = subprocess.run(command, capture_output=True, text=True)
     if done.returncode != 0:
