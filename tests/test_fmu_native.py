@@ -187,7 +187,8 @@ def test_validates_declares_its_sources_and_carries_its_binaries(native, python_
     assert validate_fmu(str(path)) == []
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
     assert md.coSimulation.canHandleVariableCommunicationStepSize
-    assert md.buildConfigurations[0].sourceFileSets[0].sourceFiles == ["model.c", "fmi2Functions.c"]
+    assert md.buildConfigurations[0].sourceFileSets[0].sourceFiles == ["model.c", "instance.c",
+                                                                  "fmi2Functions.c"]
     assert float(md.defaultExperiment.stepSize) == STEP
     # the pythonfmu FMU's inputs and outputs, to the unit and the description; no parameter
     theirs = {v.name: v for v in python_fmu[1].modelVariables}
@@ -200,8 +201,8 @@ def test_validates_declares_its_sources_and_carries_its_binaries(native, python_
     with zipfile.ZipFile(path) as archive:
         names = set(archive.namelist())
     assert {"binaries/linux64/RVReducer.so", "sources/model.c", "sources/model.h",
-            "sources/fmi2Functions.c", f"resources/{TABLE_NAME}", "resources/design.toml",
-            "resources/errors.toml"} <= names
+            "sources/instance.c", "sources/instance.h", "sources/fmi2Functions.c",
+            f"resources/{TABLE_NAME}", "resources/design.toml", "resources/errors.toml"} <= names
     assert not any("python" in n.lower() or n.endswith(".py") for n in names)
     text = fmu_info(path)                                     # reads the XML and resources only
     assert f"design   {rv40.name} (z_s 12, z_pl 36, z_p 40, rated torque 412.0 N*m)" in text

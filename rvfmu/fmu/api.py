@@ -12,7 +12,7 @@ from ..progress import counter as progress_counter
 
 
 def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress=None,
-              native: bool = False) -> Path:
+              native: bool = False, fmi_version=2) -> Path:
     """Build the reducer FMU; returns its path.  progress(total, done): optional.
 
     design: a preset name, a design file or an RVDesign; errors: an error file, an
@@ -20,13 +20,19 @@ def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress
     checked before the TE map is solved; file and preset names are recorded in
     the FMU for `fmu_info`.  native: the FMU of compiled C that needs no Python
     (`rvfmu.fmu.native`: the quasi-static model, no parameters) instead of the
-    pythonfmu one.
+    pythonfmu one.  fmi_version: 2 or 3 (as a number or its text); 3 only with
+    native (pythonfmu makes FMI 2.0 FMUs only).
     """
     from ..core.quasistatic import default_points
     from ..core.te_map import TORQUE_FRACTIONS
 
+    fmi_version = check_fmi_version(fmi_version, native)
     if native:
-        from .native import build_native_fmu as build_fmu
+        from functools import partial
+
+        from .native import build_native_fmu
+
+        build_fmu = partial(build_native_fmu, fmi_version=fmi_version)
     else:
         from .build import build_fmu
 
@@ -39,6 +45,21 @@ def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress
     design = resolve_design(design)
     return build_fmu(design, resolve_errors(design, errors), output, points=points,
                      progress=progress_counter(total, progress), sources=sources)
+
+
+FMI_VERSIONS = (2, 3)
+
+
+def check_fmi_version(fmi_version, native: bool) -> int:
+    """The FMI version as 2 or 3; InputError for anything else, and for 3 without native."""
+    text = str(fmi_version).strip()
+    if text not in {str(v) for v in FMI_VERSIONS} | {f"{v}.0" for v in FMI_VERSIONS}:
+        raise InputError("fmi_version", fmi_version, "must be 2 or 3 (FMI 2.0 or FMI 3.0)")
+    version = int(float(text))
+    if version == 3 and not native:
+        raise InputError("fmi_version", fmi_version, "FMI 3.0 needs the native FMU (--native): "
+                         "the pythonfmu FMU is FMI 2.0 only")
+    return version
 
 
 def fmu_info(path) -> str:

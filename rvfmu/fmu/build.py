@@ -106,13 +106,7 @@ def complete_model_description(fmu: Path) -> None:
     with zipfile.ZipFile(fmu) as archive:
         entries = {info.filename: archive.read(info.filename) for info in archive.infolist()}
     root = ET.fromstring(entries["modelDescription.xml"])
-    units = ET.Element("UnitDefinitions")
-    for name, (base, factor) in UNITS.items():
-        unit = ET.SubElement(units, "Unit", name=name)
-        attributes = dict(base)
-        if factor:
-            attributes["factor"] = factor
-        ET.SubElement(unit, "BaseUnit", **attributes)
+    units = unit_definitions()
     # The schema orders the children: CoSimulation, UnitDefinitions, ..., DefaultExperiment, ...
     children = list(root)
     position = next(i for i, child in enumerate(children) if child.tag == "CoSimulation") + 1
@@ -142,6 +136,18 @@ def complete_model_description(fmu: Path) -> None:
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
         for name, data in entries.items():
             archive.writestr(name, data)
+
+
+def unit_definitions() -> ET.Element:
+    """<UnitDefinitions> of every unit in UNITS (the same element in FMI 2.0 and 3.0)."""
+    units = ET.Element("UnitDefinitions")
+    for name, (base, factor) in UNITS.items():
+        unit = ET.SubElement(units, "Unit", name=name)
+        attributes = dict(base)
+        if factor:
+            attributes["factor"] = factor
+        ET.SubElement(unit, "BaseUnit", **attributes)
+    return units
 
 
 SOURCE_PREFIX = "# source: "

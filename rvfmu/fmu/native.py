@@ -6,7 +6,8 @@ quasi-static model needs none at run time: a step is one interpolation in the
 TE map (`rvfmu.core.te_map`), which is plain data.  So the map is solved here,
 written as a binary table into the FMU's resources, and a small C library
 (rvfmu/fmu/native/: model.c, the physics, knows nothing of FMI;
-fmi2Functions.c, the FMI 2.0 co-simulation plumbing) reads it once per
+fmi2Functions.c, the FMI 2.0 co-simulation plumbing, over instance.c, what it
+shares with the FMI 3.0 plumbing) reads it once per
 instance and interpolates it operation for operation as `TEMap.evaluate_one`,
 so that its outputs are the pythonfmu FMU's quasi-static ones (tested to 1e-12
 rad; equal to the bit where the compiler does not fuse multiply-adds).
@@ -20,6 +21,11 @@ again, which needs the Python model; `model` could only be "quasistatic";
 different FMU: build another.  The C sources travel in sources/ and are
 declared in modelDescription.xml, so a tool that compiles source FMUs can
 build the binary for its own platform.
+
+`--fmi-version 3` builds the same FMU for FMI 3.0: fmi3Functions.c in place of
+fmi2Functions.c over the same model.c and instance.c, binaries/x86_64-linux and
+x86_64-windows, the description and sources/buildDescription.xml of
+`rvfmu.fmu.fmi3`.
 
 The table, resources/te_map.bin (every number little-endian; model.c reads it
 and carries the same layout in a comment):
@@ -72,10 +78,13 @@ from ..core.limits import EMERGENCY_FACTOR, MOMENTARY_FACTOR
 from ..core.reducer_model import FRICTION_SPEED_SCALE
 from ..core.te_map import TEMap
 from .build import complete_model_description, prepare, source_line
+from .fmi3 import FMI3_SOURCE_FILES, PLATFORM_TUPLES, build_description, model_description_3
 from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS
 
 NATIVE_SOURCES = Path(__file__).resolve().parent / "native"
-SOURCE_FILES = ("model.c", "fmi2Functions.c")      # compiled; model.h beside them
+SOURCE_FILES = ("model.c", "instance.c", "fmi2Functions.c")   # compiled; the headers beside them
+HEADER_FILES = ("model.h", "instance.h")
+FMI_VERSIONS = (2, 3)                              # the standards a native FMU is built for
 MODEL_IDENTIFIER = "RVReducer"
 TABLE_NAME = "te_map.bin"
 TABLE_MAGIC = b"RVTEMAP\0"
@@ -94,14 +103,17 @@ WIN64_COMPILER = "x86_64-w64-mingw32-gcc"          # Debian's mingw-w64
 
 def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
                      output: str | Path = "RVReducer.fmu", points: int | None = None,
-                     progress=None, sources: dict | None = None) -> Path:
+                     progress=None, sources: dict | None = None, fmi_version: int = 2) -> Path:
     """Write the native reducer FMU for `design` and one reducer's `errors` to `output`.
 
-    The arguments are `build.build_fmu`'s.  binaries/<this platform> is compiled
-    with fmpy's CMake builder (the C compiler directly where cmake is missing),
-    binaries/win64 with mingw-w64 where it is installed; `native_platforms` says
-    which an FMU carries.
+    The arguments are `build.build_fmu`'s; fmi_version: 2 or 3, the standard of
+    the FMU (the same model, table and behaviour in both).  binaries/<this
+    platform> is compiled with fmpy's CMake builder (the C compiler directly
+    where cmake is missing), binaries/win64 (FMI 3.0: x86_64-windows) with
+    mingw-w64 where it is installed; `native_platforms` says which an FMU carries.
     """
+    if fmi_version not in FMI_VERSIONS:
+        raise ValueError(f"fmi_version = {fmi_version!r}: must be 2 or 3")
     errors, output, te_map = prepare(design, errors, output, points, progress)
     with tempfile.TemporaryDirectory(prefix="rvte_native_") as tmp:
         unzipped = Path(tmp) / "fmu"
@@ -114,17 +126,31 @@ def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
                                                 + toml_text(design.file_values()))
         (resources / BUNDLED_ERRORS).write_text(source_line(sources.get("errors"))
                                                 + toml_text(error_file_values(errors)))
-        for name in (*SOURCE_FILES, "model.h"):
+        for name in (*source_files(fmi_version), *HEADER_FILES):
             shutil.copy2(NATIVE_SOURCES / name, source_dir / name)
-        (unzipped / "modelDescription.xml").write_bytes(model_description())
-        compile_binaries(unzipped, Path(tmp) / "build")
+        (unzipped / "modelDescription.xml").write_bytes(model_description(fmi_version))
+        if fmi_version == 3:
+            (source_dir / "buildDescription.xml").write_bytes(build_description(MODEL_IDENTIFIER))
+        compile_binaries(unzipped, Path(tmp) / "build", fmi_version)
         output.parent.mkdir(parents=True, exist_ok=True)
         with zipfile.ZipFile(output, "w", zipfile.ZIP_DEFLATED) as archive:
             for path in sorted(unzipped.rglob("*")):
                 if path.is_file():
                     archive.write(path, path.relative_to(unzipped).as_posix())
-    complete_model_description(output)     # units, default experiment, initial unknowns
+    if fmi_version == 2:
+        complete_model_description(output)     # units, default experiment, initial unknowns
     return output
+
+
+def source_files(fmi_version: int = 2) -> tuple[str, ...]:
+    """The C files compiled into the FMU of that FMI version (the headers beside them)."""
+    return FMI3_SOURCE_FILES if fmi_version == 3 else SOURCE_FILES
+
+
+def binary_folder(platform: str, fmi_version: int = 2) -> str:
+    """binaries/<folder> of an fmpy platform name (linux64, win64): FMI 3.0 names platforms
+    by tuple (x86_64-linux, x86_64-windows)."""
+    return PLATFORM_TUPLES[platform] if fmi_version == 3 else platform
 
 
 def write_table(te_map: TEMap, rated_torque: float, path: Path) -> None:
@@ -159,9 +185,9 @@ def read_table(path: str | Path) -> tuple[TEMap, float]:
                   friction.reshape(shape), drag_speed, drag), rated)
 
 
-def model_description() -> bytes:
-    """modelDescription.xml without units and default experiment (`complete_model_description`
-    adds them): the pythonfmu slave's inputs and outputs, the sources, no parameter."""
+def declared_variables() -> list[ET.Element]:
+    """The pythonfmu slave's inputs and outputs as FMI 2.0 <ScalarVariable>s, checked to be
+    those of the C code (instance.h) in the order of their value references."""
     from .slave import RVReducer
 
     slave = RVReducer(instance_name="native")
@@ -170,11 +196,28 @@ def model_description() -> bytes:
     names = [(v.get("name"), int(v.get("valueReference"))) for v in declared]
     if names != [(name, vr) for vr, name in enumerate(VARIABLES)]:
         raise RuntimeError(f"the slave's inputs and outputs {names} are not those of "
-                           f"fmi2Functions.c {VARIABLES}: update the C code")
-    root = ET.Element("fmiModelDescription", fmiVersion="2.0", modelName=MODEL_IDENTIFIER,
+                           f"instance.h {VARIABLES}: update the C code")
+    return declared
+
+
+def about_model() -> dict[str, str]:
+    """The attributes that say what the model is, the same in both standards' descriptions."""
+    from .slave import RVReducer
+
+    return {"modelName": MODEL_IDENTIFIER,
+            "description": f"{RVReducer.description}; native code, the TE map only",
+            "author": RVReducer.author, "generationTool": "rvte (native FMU)"}
+
+
+def model_description(fmi_version: int = 2) -> bytes:
+    """modelDescription.xml: the pythonfmu slave's inputs and outputs, no parameter.  FMI 2.0
+    without units and default experiment (`complete_model_description` adds them) and with
+    the sources; FMI 3.0 complete (`rvfmu.fmu.fmi3`)."""
+    declared = declared_variables()
+    if fmi_version == 3:
+        return model_description_3(declared, about_model(), MODEL_IDENTIFIER, LOG_CATEGORIES)
+    root = ET.Element("fmiModelDescription", fmiVersion="2.0", **about_model(),
                       guid=f"{{{uuid.uuid4()}}}",
-                      description=f"{RVReducer.description}; native code, the TE map only",
-                      author=RVReducer.author, generationTool="rvte (native FMU)",
                       generationDateAndTime=datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
                       variableNamingConvention="structured", numberOfEventIndicators="0")
     cosim = ET.SubElement(root, "CoSimulation", modelIdentifier=MODEL_IDENTIFIER,
@@ -198,19 +241,20 @@ def model_description() -> bytes:
     return ET.tostring(root, encoding="utf-8", xml_declaration=True)
 
 
-def compile_binaries(unzipped: Path, build_dir: Path) -> list[str]:
-    """Compile sources/ into binaries/<platform>/; returns the platforms built.
+def compile_binaries(unzipped: Path, build_dir: Path, fmi_version: int = 2) -> list[str]:
+    """Compile sources/ into binaries/<platform>/; returns the platforms built (fmpy's names).
 
     This platform's library is built by fmpy's builder, the CMake project with
     which `fmpy compile` builds a source FMU, given C_FLAGS (only the last bit
-    depends on them: the sources need no flag and no library beyond libc);
+    depends on them: the sources need no flag and no library beyond libc; for
+    FMI 3.0 it reads the sources from buildDescription.xml);
     where cmake is missing, by the C compiler directly.  win64 is
     cross-compiled with mingw-w64 where it is installed.
     """
     import fmpy
     from fmpy.build import build_platform_binary
 
-    headers = Path(fmpy.__file__).parent / "c-code"     # the FMI 2.0 headers fmpy ships
+    headers = Path(fmpy.__file__).parent / "c-code"     # the FMI 2.0 and 3.0 headers fmpy ships
     unzipped, build_dir = Path(unzipped).resolve(), Path(build_dir).resolve()   # cmake wants both
     built = [fmpy.platform]
     if shutil.which("cmake"):
@@ -224,12 +268,14 @@ def compile_binaries(unzipped: Path, build_dir: Path) -> list[str]:
                                    f"{log.read_text()[-3000:]}") from None
     else:
         library = ".dll" if os.name == "nt" else (".dylib" if sys.platform == "darwin" else ".so")
+        folder = binary_folder(fmpy.platform, fmi_version)
         _compile(os.environ.get("CC", "cc"), ["-fPIC"], unzipped, headers,
-                 f"binaries/{fmpy.platform}/{MODEL_IDENTIFIER}{library}")
+                 f"binaries/{folder}/{MODEL_IDENTIFIER}{library}", fmi_version)
     if fmpy.platform != "win64" and shutil.which(WIN64_COMPILER):
         # libgcc linked in: the DLL then needs only what every Windows has (kernel32, msvcrt)
         _compile(WIN64_COMPILER, ["-static-libgcc"], unzipped, headers,
-                 f"binaries/win64/{MODEL_IDENTIFIER}.dll")
+                 f"binaries/{binary_folder('win64', fmi_version)}/{MODEL_IDENTIFIER}.dll",
+                 fmi_version)
         built.append("win64")
     return built
 
@@ -245,18 +291,21 @@ def binaries_note(fmu: str | Path) -> str:
     """One line naming the platforms an FMU carries, and how to add win64 if it is missing."""
     platforms = native_platforms(fmu)
     note = f"binaries: {', '.join(platforms) or 'none'}"
-    if "win64" not in platforms:
+    windows = {"win64", PLATFORM_TUPLES["win64"]}
+    if not windows & set(platforms):
         note += (f"; no win64: {WIN64_COMPILER} was not found (Debian: apt-get install "
                  "mingw-w64), or a tool can compile sources/ for it")
     return note
 
 
-def _compile(compiler, flags, unzipped: Path, headers: Path, target: str) -> None:
+def _compile(compiler, flags, unzipped: Path, headers: Path, target: str,
+             fmi_version: int = 2) -> None:
     """Compile sources/ into the shared library `target` (relative to `unzipped`)."""
     target = unzipped / target
     target.parent.mkdir(parents=True, exist_ok=True)
     command = [compiler, "-shared", *C_FLAGS.split(), *flags, f"-I{headers}",
-               f"-I{unzipped / 'sources'}", *(str(unzipped / "sources" / f) for f in SOURCE_FILES),
+               f"-I{unzipped / 'sources'}",
+               *(str(unzipped / "sources" / f) for f in source_files(fmi_version)),
                "-o", str(target)]
     done = subprocess.run(command, capture_output=True, text=True)
     if done.returncode != 0:

@@ -1,9 +1,8 @@
 /* The FMI 2.0 co-simulation interface of the native RV reducer FMU.
  *
- * Plumbing only: the physics is in model.c.  The variables (value references
- * as in modelDescription.xml, which rvfmu/fmu/native.py writes in this order):
- * inputs theta_in [rad], tau_load [N*m]; outputs theta_out [rad], omega_out
- * [rad/s], te [rad], te_arcsec [arcsec], tau_in [N*m], P_loss [W], efficiency [1].
+ * Plumbing only: the physics is in model.c, what this layer shares with the
+ * FMI 3.0 one (fmi3Functions.c) in instance.c: the variables, the inputs check,
+ * the state and its bytes.
  *
  * Behaviour as the pythonfmu FMU's (rvfmu/fmu/slave.py, docs/model.md section 8):
  * nothing here aborts the host.  A table that cannot be read is fmi2Instantiate
@@ -29,42 +28,14 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
-#include "model.h"
-
-#define TABLE_NAME "te_map.bin"
-
-enum { THETA_IN, TAU_LOAD, THETA_OUT, OMEGA_OUT, TE, TE_ARCSEC, TAU_IN, P_LOSS, EFFICIENCY,
-       VARIABLES };
-
-typedef enum { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED } Mode;
-
-enum { LOG_EVENTS, LOG_WARNING, LOG_ERROR, CATEGORIES };
-static const char *const CATEGORY_NAMES[CATEGORIES] = {
-    "logEvents", "logStatusWarning", "logStatusError"};
-
-/* Everything an FMU state holds (fmi2GetFMUstate copies it whole). */
-typedef struct {
-    Mode mode;
-    double theta_in, tau_load;   /* inputs */
-    Reducer reducer;             /* outputs, and the time and angles of the last step */
-} State;
+#include "instance.h"
 
 typedef struct {
     char *name;
     fmi2CallbackLogger logger;
     fmi2ComponentEnvironment environment;
-    int logging[CATEGORIES];
-    TEMap map;
-    State state;
-    int load_warned;                 /* the momentary-class warning was logged */
-    char failed[RV_MESSAGE_SIZE + 32];   /* why initialisation failed; empty if it did not */
+    Core core;
 } Instance;
-
-static const char STATE_TAG[8] = {'R', 'V', 'T', 'E', 'S', 'T', '2', '\0'};
-typedef struct {
-    char tag[8];
-    State state;
-} SerializedState;   /* this platform's bytes: a state goes back to the FMU that wrote it */
 
 /* -- logging ------------------------------------------------------------------------ */
 
@@ -74,7 +45,7 @@ static void log_message(const Instance *instance, fmi2Status status, int categor
     size_t n = 0;
     const char *p;
     va_list args;
-    if (!instance->logger || !instance->logging[category]) return;
+    if (!instance->logger || !instance->core.logging[category]) return;
     va_start(args, format);
     vsnprintf(text, sizeof text, format, args);
     va_end(args);
@@ -135,13 +106,6 @@ static int table_path(const char *uri, char *path, size_t size) {
 
 /* -- life cycle ----------------------------------------------------------------------- */
 
-static void reset_state(Instance *instance) {
-    memset(&instance->state, 0, sizeof instance->state);
-    instance->state.mode = INSTANTIATED;
-    instance->load_warned = 0;
-    instance->failed[0] = '\0';
-}
-
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 
 const char *fmi2GetVersion(void) { return fmi2Version; }
@@ -165,21 +129,21 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     strcpy(instance->name, instanceName ? instanceName : "");
     instance->logger = functions->logger;
     instance->environment = functions->componentEnvironment;
-    instance->logging[LOG_EVENTS] = loggingOn;
-    instance->logging[LOG_WARNING] = instance->logging[LOG_ERROR] = 1;
-    reset_state(instance);
+    instance->core.logging[LOG_EVENTS] = loggingOn;
+    instance->core.logging[LOG_WARNING] = instance->core.logging[LOG_ERROR] = 1;
+    core_reset(&instance->core);
 
     if (fmuType != fmi2CoSimulation) {
         LOG_ERROR_(instance, "this FMU supports co-simulation only");
     } else if (table_path(fmuResourceLocation, path, sizeof path) != 0) {
         LOG_ERROR_(instance, "fmuResourceLocation = %s: must be a file URI of the FMU's resources "
                    "folder", fmuResourceLocation ? fmuResourceLocation : "(null)");
-    } else if (te_map_read(path, &instance->map, message, sizeof message) != 0) {
+    } else if (te_map_read(path, &instance->core.map, message, sizeof message) != 0) {
         LOG_ERROR_(instance, "%s", message);
     } else {
         log_message(instance, fmi2OK, LOG_EVENTS, "TE map %s: %d angle points x %d torque levels, "
-                    "ratio %g, rated torque %g N*m", path, instance->map.points,
-                    instance->map.levels, instance->map.ratio, instance->map.rated_torque);
+                    "ratio %g, rated torque %g N*m", path, instance->core.map.points,
+                    instance->core.map.levels, instance->core.map.ratio, instance->core.map.rated_torque);
         return instance;
     }
     free(instance->name);
@@ -190,7 +154,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
 void fmi2FreeInstance(fmi2Component c) {
     Instance *instance = c;
     if (!instance) return;
-    te_map_free(&instance->map);
+    te_map_free(&instance->core.map);
     free(instance->name);
     free(instance);
 }
@@ -198,29 +162,18 @@ void fmi2FreeInstance(fmi2Component c) {
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
     Instance *instance = c;
-    size_t k;
-    int category;
+    long unknown;
     if (!instance) return fmi2Error;
-    if (nCategories == 0) {
-        for (category = 0; category < CATEGORIES; category++) instance->logging[category] = loggingOn;
-        return fmi2OK;
-    }
-    for (k = 0; k < nCategories; k++) {
-        for (category = 0; category < CATEGORIES; category++)
-            if (categories[k] && strcmp(categories[k], CATEGORY_NAMES[category]) == 0) break;
-        if (category == CATEGORIES) {
-            LOG_ERROR_(instance, "log category %s: must be logEvents, logStatusWarning or "
-                       "logStatusError", categories[k] ? categories[k] : "(null)");
-            return fmi2Error;
-        }
-        instance->logging[category] = loggingOn;
-    }
-    return fmi2OK;
+    unknown = core_set_logging(&instance->core, loggingOn, nCategories, categories);
+    if (unknown < 0) return fmi2OK;
+    LOG_ERROR_(instance, "log category %s: must be logEvents, logStatusWarning or logStatusError",
+               categories[unknown] ? categories[unknown] : "(null)");
+    return fmi2Error;
 }
 
 static fmi2Status in_mode(Instance *instance, Mode mode, const char *function) {
     if (!instance) return fmi2Error;
-    if (instance->state.mode == mode) return fmi2OK;
+    if (instance->core.state.mode == mode) return fmi2OK;
     LOG_ERROR_(instance, "%s called in the wrong state of the instance", function);
     return fmi2Error;
 }
@@ -230,64 +183,39 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     Instance *instance = c;
     (void)toleranceDefined, (void)tolerance, (void)stopTimeDefined, (void)stopTime;
     if (in_mode(instance, INSTANTIATED, "fmi2SetupExperiment") != fmi2OK) return fmi2Error;
-    instance->state.reducer.time = startTime;
+    instance->core.state.reducer.time = startTime;
     return fmi2OK;
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
     Instance *instance = c;
     if (in_mode(instance, INSTANTIATED, "fmi2EnterInitializationMode") != fmi2OK) return fmi2Error;
-    instance->state.mode = INITIALIZATION;
+    instance->core.state.mode = INITIALIZATION;
     return fmi2OK;
-}
-
-/* Check the inputs (and the step size if check_step): 1 if refused, the reason in `refusal`
- * for the caller to log; a load above the momentary class is logged here, once. */
-static int inputs_refused(Instance *instance, int check_step, double step_size, char *refusal,
-                          size_t size) {
-    char message[RV_MESSAGE_SIZE];
-    State *s = &instance->state;
-    InputCheck check = reducer_check_inputs(&instance->map, s->theta_in, s->tau_load, check_step,
-                                            step_size, message, sizeof message);
-    if (check == INPUT_REFUSED) {
-        snprintf(refusal, size, "%s", message);
-        return 1;
-    }
-    if (check == INPUT_WARNING && !instance->load_warned) {
-        instance->load_warned = 1;
-        log_message(instance, fmi2Warning, LOG_WARNING, "%s", message);
-    }
-    return 0;
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Instance *instance = c;
     char message[RV_MESSAGE_SIZE];
-    State *s;
+    InputCheck check;
     if (in_mode(instance, INITIALIZATION, "fmi2ExitInitializationMode") != fmi2OK) return fmi2Error;
-    s = &instance->state;
-    s->mode = STEPPING;
-    /* as the pythonfmu FMU: logged here, then every step is discarded with the reason */
-    if (inputs_refused(instance, 0, 0.0, message, sizeof message)) {
-        snprintf(instance->failed, sizeof instance->failed, "initialisation failed: %s", message);
-        LOG_ERROR_(instance, "%s", instance->failed);
-    } else {
-        reducer_initialize(&s->reducer, &instance->map, s->reducer.time, s->theta_in, s->tau_load);
-    }
-    return fmi2OK;
+    check = core_exit_initialization(&instance->core, message, sizeof message);
+    if (check == INPUT_WARNING) log_message(instance, fmi2Warning, LOG_WARNING, "%s", message);
+    if (check == INPUT_REFUSED) LOG_ERROR_(instance, "%s", instance->core.failed);
+    return fmi2OK;   /* as the pythonfmu FMU: every later step is discarded with the reason */
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
     Instance *instance = c;
     if (in_mode(instance, STEPPING, "fmi2Terminate") != fmi2OK) return fmi2Error;
-    instance->state.mode = TERMINATED;
+    instance->core.state.mode = TERMINATED;
     return fmi2OK;
 }
 
 fmi2Status fmi2Reset(fmi2Component c) {
     Instance *instance = c;
     if (!instance) return fmi2Error;
-    reset_state(instance);
+    core_reset(&instance->core);
     log_message(instance, fmi2OK, LOG_EVENTS, "reset to the start values");
     return fmi2OK;
 }
@@ -297,30 +225,11 @@ fmi2Status fmi2Reset(fmi2Component c) {
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                        fmi2Real value[]) {
     Instance *instance = c;
-    const Reducer *r;
     size_t k;
     if (!instance) return fmi2Error;
-    r = &instance->state.reducer;
-    if (instance->state.mode == INITIALIZATION) {   /* initial unknowns: from the inputs now */
-        char ignored[RV_MESSAGE_SIZE];
-        State *s = &instance->state;
-        if (reducer_check_inputs(&instance->map, s->theta_in, s->tau_load, 0, 0.0, ignored,
-                                 sizeof ignored) != INPUT_REFUSED)
-            reducer_initialize(&s->reducer, &instance->map, s->reducer.time, s->theta_in,
-                               s->tau_load);
-    }
+    core_update_initial_unknowns(&instance->core);
     for (k = 0; k < nvr; k++) {
-        switch (vr[k]) {
-        case THETA_IN: value[k] = instance->state.theta_in; break;
-        case TAU_LOAD: value[k] = instance->state.tau_load; break;
-        case THETA_OUT: value[k] = r->theta_out; break;
-        case OMEGA_OUT: value[k] = r->omega_out; break;
-        case TE: value[k] = r->te; break;
-        case TE_ARCSEC: value[k] = te_arcsec(r->te); break;
-        case TAU_IN: value[k] = r->tau_in; break;
-        case P_LOSS: value[k] = r->p_loss; break;
-        case EFFICIENCY: value[k] = r->efficiency; break;
-        default:
+        if (core_get(&instance->core, vr[k], &value[k]) != 0) {
             LOG_ERROR_(instance, "fmi2GetReal: no Real variable has value reference %u",
                        (unsigned)vr[k]);
             return fmi2Error;
@@ -333,13 +242,13 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
                        const fmi2Real value[]) {
     Instance *instance = c;
     size_t k;
+    int set;
     if (!instance) return fmi2Error;
     for (k = 0; k < nvr; k++) {
-        if (vr[k] == THETA_IN) instance->state.theta_in = value[k];
-        else if (vr[k] == TAU_LOAD) instance->state.tau_load = value[k];
-        else {
+        set = core_set(&instance->core, vr[k], value[k]);
+        if (set != 0) {
             LOG_ERROR_(instance, "fmi2SetReal: value reference %u %s", (unsigned)vr[k],
-                       vr[k] < VARIABLES ? "is an output: it cannot be set" : "is not a Real variable");
+                       set > 0 ? "is an output: it cannot be set" : "is not a Real variable");
             return fmi2Error;
         }
     }
@@ -395,18 +304,17 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Instance *instance = c;
     if (!instance || !FMUstate) return fmi2Error;
-    if (!*FMUstate && !(*FMUstate = malloc(sizeof(State)))) {
+    if (!(*FMUstate = core_copy_state(&instance->core.state, *FMUstate))) {
         LOG_ERROR_(instance, "fmi2GetFMUstate: out of memory");
         return fmi2Error;
     }
-    memcpy(*FMUstate, &instance->state, sizeof(State));
     return fmi2OK;
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     Instance *instance = c;
     if (!instance || !FMUstate) return fmi2Error;
-    memcpy(&instance->state, FMUstate, sizeof(State));
+    core_copy_state(FMUstate, &instance->core.state);
     return fmi2OK;
 }
 
@@ -420,44 +328,37 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
     (void)FMUstate;
     if (!c || !size) return fmi2Error;
-    *size = sizeof(SerializedState);
+    *size = core_serialized_size();
     return fmi2OK;
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
                                  size_t size) {
     Instance *instance = c;
-    SerializedState serialized;
     if (!instance || !FMUstate) return fmi2Error;
-    if (size < sizeof serialized) {
+    if (size < core_serialized_size()) {
         LOG_ERROR_(instance, "fmi2SerializeFMUstate: %lu bytes given, %lu needed",
-                   (unsigned long)size, (unsigned long)sizeof serialized);
+                   (unsigned long)size, (unsigned long)core_serialized_size());
         return fmi2Error;
     }
-    memset(&serialized, 0, sizeof serialized);
-    memcpy(serialized.tag, STATE_TAG, sizeof STATE_TAG);
-    memcpy(&serialized.state, FMUstate, sizeof(State));
-    memcpy(serializedState, &serialized, sizeof serialized);
+    core_serialize(FMUstate, (unsigned char *)serializedState);
     return fmi2OK;
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate) {
     Instance *instance = c;
-    SerializedState serialized;
+    State state;
     if (!instance || !FMUstate) return fmi2Error;
-    if (size == sizeof serialized) memcpy(&serialized, serializedState, sizeof serialized);
-    if (size != sizeof serialized || memcmp(serialized.tag, STATE_TAG, sizeof STATE_TAG) != 0
-        || (int)serialized.state.mode < INSTANTIATED || (int)serialized.state.mode > TERMINATED) {
+    if (core_deserialize((const unsigned char *)serializedState, size, &state) != 0) {
         LOG_ERROR_(instance, "fmi2DeSerializeFMUstate: %lu bytes that are not a state of this FMU",
                    (unsigned long)size);
         return fmi2Error;
     }
-    if (!*FMUstate && !(*FMUstate = malloc(sizeof(State)))) {
+    if (!(*FMUstate = core_copy_state(&state, *FMUstate))) {
         LOG_ERROR_(instance, "fmi2DeSerializeFMUstate: out of memory");
         return fmi2Error;
     }
-    memcpy(*FMUstate, &serialized.state, sizeof(State));
     return fmi2OK;
 }
 
@@ -467,21 +368,15 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     Instance *instance = c;
     char message[RV_MESSAGE_SIZE];
-    State *s;
+    InputCheck check;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (in_mode(instance, STEPPING, "fmi2DoStep") != fmi2OK) return fmi2Error;
-    s = &instance->state;
-    if (instance->failed[0]) {
-        LOG_ERROR_(instance, "%s", instance->failed);
-        return fmi2Discard;
-    }
-    if (inputs_refused(instance, 1, communicationStepSize, message, sizeof message)) {
-        LOG_ERROR_(instance, "%s", message);
-        return fmi2Discard;
-    }
-    reducer_step(&s->reducer, &instance->map, currentCommunicationPoint, communicationStepSize,
-                 s->theta_in, s->tau_load);
-    return fmi2OK;
+    check = core_step(&instance->core, currentCommunicationPoint, communicationStepSize, message,
+                      sizeof message);
+    if (check == INPUT_WARNING) log_message(instance, fmi2Warning, LOG_WARNING, "%s", message);
+    if (check != INPUT_REFUSED) return fmi2OK;
+    LOG_ERROR_(instance, "%s", message);
+    return fmi2Discard;
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {
@@ -506,7 +401,7 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
     Instance *instance = c;
     if (!instance) return fmi2Error;
     if (s == fmi2LastSuccessfulTime) {
-        *value = instance->state.reducer.time;
+        *value = instance->core.state.reducer.time;
         return fmi2OK;
     }
     LOG_ERROR_(instance, "fmi2GetRealStatus: status kind %d not provided", (int)s);
@@ -526,7 +421,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
     if (!instance) return fmi2Error;
     if (s == fmi2Terminated) {
         /* a refused input leaves the instance usable; a failed initialisation does not */
-        *value = instance->failed[0] ? fmi2True : fmi2False;
+        *value = instance->core.failed[0] ? fmi2True : fmi2False;
         return fmi2OK;
     }
     LOG_ERROR_(instance, "fmi2GetBooleanStatus: status kind %d not provided", (int)s);
