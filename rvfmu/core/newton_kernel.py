@@ -32,7 +32,7 @@ import numpy as np
 
 from .compiled import kernel
 from .pin_law import contact
-from .roller_law import roller_law_from
+from .roller_law import roller_law
 
 
 @kernel
@@ -56,7 +56,7 @@ def _bearing_deflections(brg_rows, brg_off, q, out):
 
 
 @kernel
-def _radial(s, c_half, law, table, memo):
+def _radial(s, c_half, law, table):
     """(energy, force, radial stiffness, force / s) of an isotropic bearing with free play
     c_half at radial deflection s: k (s - c) outside the play for a linear one (law[1] == 0),
     the roller law (`roller_law.roller_law`) for the others; nothing inside the play."""
@@ -66,23 +66,19 @@ def _radial(s, c_half, law, table, memo):
         k = law[0]
         over = s - c_half
         return 0.5 * k * over * over, k * over, k, k * (1.0 - c_half / s)
-    if memo[0] == s:                    # the same deflection again (a step's energy, then its
-        return memo[2], memo[3], memo[4], memo[3] / s   # Hessian): the law as it was
-    energy, force, stiffness, u = roller_law_from(table[0], table[1], s, c_half, law[1], law[2],
-                                                  memo[1])
-    memo[0], memo[1], memo[2], memo[3], memo[4] = s, u, energy, force, stiffness
+    energy, force, stiffness = roller_law(table[0], table[1], s, c_half, law[1], law[2])
     return energy, force, stiffness, force / s
 
 
 @kernel
-def _bearing(dx, dy, c_half, law, table, memo):
+def _bearing(dx, dy, c_half, law, table):
     """(fx, fy, txx, txy, tyy): force and tangent stiffness of an isotropic bearing with free
     play c_half at deflection (dx, dy) (`_radial`): F(|d|) along d, the tangent F' along d
     and F/|d| across it."""
     norm = max(np.sqrt(dx * dx + dy * dy), 1e-300)
     if norm <= c_half:
         return 0.0, 0.0, 0.0, 0.0, 0.0
-    _, force, radial, across = _radial(norm, c_half, law, table, memo)
+    _, force, radial, across = _radial(norm, c_half, law, table)
     nx, ny = dx / norm, dy / norm
     return (force * nx, force * ny, across + (radial - across) * nx * nx,
             (radial - across) * nx * ny, across + (radial - across) * ny * ny)
@@ -90,7 +86,7 @@ def _bearing(dx, dy, c_half, law, table, memo):
 
 @kernel
 def _energy(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table, q, delta,
-            d, memo):
+            d):
     """Reduced energy of one pair at q [J] (up to a constant); pin deflections into delta
     (2, K) and bearing deflections into d (p, 2)."""
     n = q.size
@@ -106,14 +102,14 @@ def _energy(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, br
             e += contact(delta[j, k], pin_law)[0]
     _bearing_deflections(brg_rows, brg_off, q, d)
     for b in range(d.shape[0]):
-        e += _radial(np.sqrt(d[b, 0] ** 2 + d[b, 1] ** 2), c_half[b], brg_law[b], table, memo[b])[0]
+        e += _radial(np.sqrt(d[b, 0] ** 2 + d[b, 1] ** 2), c_half[b], brg_law[b], table)[0]
     return e
 
 
 @kernel
 def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law,
                       table, toward, has_toward, gap_tolerance, q, guess, use_guess, engaged,
-                      grad, hess, true_grad, used, delta, d, memo):
+                      grad, hess, true_grad, used, delta, d):
     """`newton.Work.gradient_hessian` for one pair, into grad, hess, true_grad (nN,) / (nN, nN)
     and used (2, K); delta and d are work space."""
     n = q.size
@@ -154,7 +150,7 @@ def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_o
     for b in range(d.shape[0]):
         dx, dy = d[b, 0], d[b, 1]
         kb, c = brg_law[b, 0], c_half[b]
-        fx, fy, txx, txy, tyy = _bearing(dx, dy, c, brg_law[b], table, memo[b])   # the true force
+        fx, fy, txx, txy, tyy = _bearing(dx, dy, c, brg_law[b], table)      # the true bearing force
         gx, gy = fx, fy
         if engaged:
             txx, txy, tyy = kb, 0.0, kb
@@ -207,7 +203,7 @@ def _solve_spd(A, b, L, x):
 
 
 @kernel
-def _slope(alpha, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table, memo):
+def _slope(alpha, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table):
     """(first, second) derivative of one pair's energy along its line at alpha."""
     d1 = quad * alpha + lin
     d2 = quad
@@ -218,7 +214,7 @@ def _slope(alpha, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, t
             d2 += tangent * ddelta[j, k] * ddelta[j, k]
     for b in range(d0.shape[0]):
         fx, fy, txx, txy, tyy = _bearing(d0[b, 0] + alpha * dd[b, 0], d0[b, 1] + alpha * dd[b, 1],
-                                         c_half[b], brg_law[b], table, memo[b])
+                                         c_half[b], brg_law[b], table)
         d1 += fx * dd[b, 0] + fy * dd[b, 1]
         d2 += dd[b, 0] * (txx * dd[b, 0] + txy * dd[b, 1]) + dd[b, 1] * (txy * dd[b, 0] + tyy * dd[b, 1])
     return d1, d2
@@ -226,7 +222,7 @@ def _slope(alpha, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, t
 
 @kernel
 def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table, q, step,
-                 delta0, ddelta, d0, dd, zero_b, zero_d, memo):
+                 delta0, ddelta, d0, dd, zero_b, zero_d):
     """`newton.Work.line_search` for one pair: the exact minimiser of the energy along step."""
     n = q.size
     quad, lin = 0.0, 0.0
@@ -241,15 +237,15 @@ def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_hal
     _deflections(rows, zero_b, pin_local, step, ddelta)
     _bearing_deflections(brg_rows, brg_off, q, d0)
     _bearing_deflections(brg_rows, zero_d, step, dd)
-    d1_0, _ = _slope(0.0, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table, memo)
+    d1_0, _ = _slope(0.0, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table)
     lo, hi = 0.0, 1.0
-    d1, d2 = _slope(hi, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table, memo)
+    d1, d2 = _slope(hi, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table)
     for _ in range(60):                     # bracket: grow hi until the derivative is >= 0
         if d1 >= 0.0:
             break
         lo = hi
         hi *= 4.0
-        d1, d2 = _slope(hi, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table, memo)
+        d1, d2 = _slope(hi, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table)
     alpha = hi
     if d1_0 >= 0.0:
         return 0.0                          # no descent left: the pair is at its minimum
@@ -266,7 +262,7 @@ def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_hal
             alpha = trial
         else:
             alpha = 0.5 * (lo + hi)
-        d1, d2 = _slope(alpha, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table, memo)
+        d1, d2 = _slope(alpha, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table)
         if abs(d1) <= tolerance or hi - lo <= 1e-15 * hi:
             break
     return alpha
@@ -297,9 +293,6 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
     zero_b, zero_d = np.zeros((2, Kp)), np.zeros((p, 2))
     trial_q, step = np.empty(n), np.empty(n)
     factor = np.empty((n, n))
-    # each bearing's last law evaluation (deflection, rollers' share, energy, force, stiffness):
-    # the next evaluation at the same deflection reuses it, at another starts from its share
-    memo = np.empty((p, 5))
     for s in range(B):
         qs = q[s]
         # piecewise quadratic, the primal-dual first step lands at once, and where a pin ends
@@ -309,10 +302,7 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
             qs[:] = q[s - 1]
         Ks, fs, rs, bs = K[angle[s]], f[s], rows[s], pin_b[s]
         Bs, os_, cs = brg_rows[s], brg_off[s], c_half[s]
-        memo[:, :2] = -1.0                  # no bearing law evaluated yet for this pair: each pair
-                                            # alone, whatever was solved before it (threads)
-        energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, qs, delta, d,
-                         memo)
+        energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, qs, delta, d)
         done = False
         it = 0
         while it < max_iterations:
@@ -321,7 +311,7 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
             _gradient_hessian(Ks, Kh[angle[s]], fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law,
                               table,
                               toward[s], has_toward, gap_tolerance, qs, guess[s], first, first,
-                              grad, hess, true_grad, used, delta, d, memo)
+                              grad, hess, true_grad, used, delta, d)
             if _solve_spd(hess, grad, factor, step):
                 for i in range(n):
                     step[i] = -step[i]
@@ -330,7 +320,7 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
             for i in range(n):
                 trial_q[i] = qs[i] + step[i]
             trial = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, trial_q,
-                            delta_trial, d_trial, memo)
+                            delta_trial, d_trial)
             slope = 0.0
             for i in range(n):
                 slope += true_grad[i] * step[i]
@@ -338,14 +328,14 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
             alpha = 1.0
             if not full:
                 alpha = _line_search(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, qs, step,
-                                     delta, ddelta, d, dd, zero_b, zero_d, memo)
+                                     delta, ddelta, d, dd, zero_b, zero_d)
             largest_move, largest_q = 0.0, 0.0
             for i in range(n):
                 qs[i] += alpha * step[i]
                 largest_move = max(largest_move, abs(alpha * step[i]))
                 largest_q = max(largest_q, abs(qs[i]))
             energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law,
-                                                table, qs, delta, d, memo)
+                                                table, qs, delta, d)
             # Done when a step no longer moves (a guessed first step says nothing of that), or,
             # piecewise quadratic, when a full step landed where exactly the pins it assumed touch.
             done = (not first) and largest_move <= step_tolerance + 1e-12 * largest_q
@@ -375,10 +365,8 @@ def hessians(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off
     used = np.empty((2, Kp), dtype=np.bool_)
     delta, d = np.empty((2, Kp)), np.empty((p, 2))
     toward, guess, engaged = np.zeros((p, 2)), np.zeros((2, Kp), dtype=np.bool_), False
-    memo = np.empty((p, 5))
     for s in range(B):
-        memo[:, :2] = -1.0
         _gradient_hessian(K[angle[s]], Kh[angle[s]], f[s], rows[s], pin_b[s], pin_local, pin_law,
                           brg_rows[s], brg_off[s], c_half[s], brg_law, table, toward, False,
                           gap_tolerance, q[s], guess, False, engaged, grad, out[s], true_grad, used,
-                          delta, d, memo)
+                          delta, d)

@@ -105,21 +105,11 @@ def _rollers(table_e, table_de, s, c, a):
 def roller_law(table_e, table_de, s, c, a, compliance):
     """(energy [J], force [N], stiffness [N/m]) of a roller bearing with free play c [m],
     law constant a and a series spring of `compliance` [m/N], at centre deflection s [m]."""
-    energy, force, stiffness, _ = roller_law_from(table_e, table_de, s, c, a, compliance, s)
-    return energy, force, stiffness
-
-
-@kernel
-def roller_law_from(table_e, table_de, s, c, a, compliance, start):
-    """`roller_law` and the rollers' share u [m] of the deflection s (the rest, s - u, is the
-    series spring's), the split found by Newton's method from u = start (s where start is not
-    in (c, s]): a start from a nearby deflection's split takes fewer steps to the same u."""
     if s <= c:
-        return 0.0, 0.0, 0.0, s
+        return 0.0, 0.0, 0.0
     if compliance == 0.0:
-        energy, force, stiffness = _rollers(table_e, table_de, s, c, a)
-        return energy, force, stiffness, s
-    u = start if c < start <= s else s
+        return _rollers(table_e, table_de, s, c, a)
+    u = s
     for _ in range(SERIES_ITERATIONS):
         energy, force, stiffness = _rollers(table_e, table_de, u, c, a)
         step = (u + compliance * force - s) / (1.0 + compliance * stiffness)
@@ -132,7 +122,7 @@ def roller_law_from(table_e, table_de, s, c, a, compliance, start):
             break
     energy, force, stiffness = _rollers(table_e, table_de, u, c, a)
     return (energy + 0.5 * compliance * force * force, force,
-            stiffness / (1.0 + compliance * stiffness), u)
+            stiffness / (1.0 + compliance * stiffness))
 
 
 def _rollers_array(s, c, a):
