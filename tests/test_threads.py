@@ -45,7 +45,7 @@ def test_chunks_on_threads_give_the_one_thread_results_to_the_bit(clearances, mo
     from rvfmu.core import newton, solver
 
     design, errors = clearances
-    monkeypatch.setattr(solver, "CHUNK", 160)           # 4 x 640 pairs: 16 chunks, >= 4 a thread
+    monkeypatch.setattr(solver, "CHUNK", 160)           # 4 x 640 pairs: 16 chunks, >= 3 a thread
     seen = []
     original = newton.kernel_threads
     monkeypatch.setattr(newton, "kernel_threads", lambda: seen.append(original()) or seen[-1])

@@ -63,9 +63,10 @@ def chain_links(sample, angle, load):
 
 
 _THREAD = threading.local()     # .single: this thread solves a chunk of its own (`map_chunks`)
-CHUNKS_PER_THREAD = 4           # chunks run on threads from this many per thread: fewer leave one
+CHUNKS_PER_THREAD = 3           # chunks run on threads from this many per thread: fewer leave one
                                 # thread idle at the end (3 chunks on 2 threads: 1.53x one thread,
-                                # against 1.69x with each chunk's pairs split)
+                                # against 1.69x with each chunk's pairs split; 7 chunks: 1.85x
+                                # against 1.59x)
 
 
 def map_chunks(function, starts):
