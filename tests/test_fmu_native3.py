@@ -508,12 +508,15 @@ def test_the_fmu_manipulation_toolbox_checker_finds_it_fmi3_compliant(native3, u
 ECOS_HOST = r'''
 """The ecos co-simulation engine (ecospy) stepping the FMI 3.0 FMU: the inputs of `varying_run`
 set before each 1 ms step, every output read after it.  ecospy's library needs oneTBB's
-libtbb.so.12: pip's `tbb` puts it in sys.prefix/lib, outside the loader's path, so it is
-loaded first (where it is missing, the system's is found as usual)."""
+libtbb.so.12: pip's `tbb` puts it in its environment's lib folder (this venv's, or the base
+Python's where a venv sees the system's packages), outside the loader's path, so it is loaded
+first (where it is missing, the system's is found as usual)."""
 import ctypes, json, sys
 from pathlib import Path
 
-for tbb in sorted(Path(sys.prefix, "lib").glob("libtbb.so.12*"))[:1]:
+found = [p for base in dict.fromkeys((sys.prefix, sys.base_prefix))
+         for p in sorted(Path(base, "lib").glob("libtbb.so.12*"))]
+for tbb in found[:1]:
     ctypes.CDLL(str(tbb), mode=ctypes.RTLD_GLOBAL)
 from ecospy import EcosSimulation, EcosSimulationStructure
 
