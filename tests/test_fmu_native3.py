@@ -31,19 +31,19 @@ from rvfmu import cli
 from rvfmu.core.checks import InputError
 from rvfmu.fmu.api import check_fmi_version, fmu_build, fmu_info
 from rvfmu.fmu.fmi3 import FMI3_SOURCE_FILES
-from rvfmu.fmu.native import (C_FLAGS, TABLE_NAME, VARIABLES, WIN64_COMPILER, native_platforms,
-                              read_table)
+from rvfmu.fmu.native import TABLE_NAME, VARIABLES, WIN64_COMPILER, native_platforms
 from test_fmu import Instance
 from test_fmu import free_instances  # noqa: F401 - frees every instance after a test
 from test_fmu_native import BAD_STEPS, MAP_POINTS, OUTPUTS, STEP, corrupt, drive, varying_run
 from test_fmu_native import native  # noqa: F401 - the FMI 2.0 native FMU fixture
+from test_fmu_native_hosts import (CYCLES, SANITIZE, STEPS, VALGRIND, assert_sanitizers_clean,
+                                   assert_valgrind_clean, compile_host, last_step_te,
+                                   sanitized_library, tool)
 
 HEADERS = Path(fmpy.__file__).parent / "c-code"     # the FMI 3.0 headers fmpy ships
 HOST_SOURCE = Path(__file__).with_name("native3_host_cycles.c")
 LIBRARY = "binaries/x86_64-linux/RVReducer.so"
 DLL = "binaries/x86_64-windows/RVReducer.dll"
-CYCLES, STEPS = 100, 300
-SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer"]
 # FMI 3.0's common functions and those of co-simulation (not model exchange's nor
 # scheduled execution's own)
 FMI3_COSIMULATION_FUNCTIONS = (
@@ -117,12 +117,6 @@ class Instance3(Instance):
 
     def step(self, time, size):
         return self.fmu.doStep(currentCommunicationPoint=time, communicationStepSize=size)
-
-
-def tool(name, package):
-    path = shutil.which(name)
-    assert path, f"{name} not found: apt-get install {package}"
-    return path
 
 
 # -- the same outputs, refusals and log lines as the FMI 2.0 native FMU ---------------------
@@ -563,13 +557,6 @@ def test_the_ecos_engine_steps_it_as_fmpy_does(native3, rv40, tmp_path):
 
 # -- memory checkers ---------------------------------------------------------------------
 
-def compile_host(target, *flags):
-    subprocess.run([tool("gcc", "gcc"), "-std=c99", "-g", "-O1", "-Wall", "-Wextra", "-Werror",
-                    *flags, f"-I{HEADERS}", str(HOST_SOURCE), "-o", str(target), "-ldl"],
-                   check=True, capture_output=True, text=True)
-    return target
-
-
 def run_cycles(host, library, unzipped, bad_resources, token, prefix=(), env=None):
     return subprocess.run([*prefix, str(host), str(library), f"{unzipped / 'resources'}/",
                            f"{bad_resources}/", token, str(CYCLES), str(STEPS)],
@@ -579,9 +566,7 @@ def run_cycles(host, library, unzipped, bad_resources, token, prefix=(), env=Non
 def assert_summary(done, unzipped):
     """The host's closing line: its counts, and the TE of its last step from the Python map."""
     assert done.returncode == 0, done.stderr[-4000:]
-    te_map, _ = read_table(unzipped / "resources" / TABLE_NAME)
-    k = STEPS - 1                                             # the inputs of the host's step k
-    last_te = te_map.evaluate_one(0.37 * k - 20.0, 300.0 * (k % 7 - 3))[0]
+    last_te = last_step_te(unzipped)
     # 4 steps discarded per cycle; one load above the momentary class warns; 15 errors logged
     # per cycle and 4 for the instances that are never made
     head = (f"cycles {CYCLES} steps {STEPS} discarded {4 * CYCLES} warnings {CYCLES} "
@@ -595,35 +580,19 @@ def assert_summary(done, unzipped):
 def test_valgrind_finds_no_error_nor_leak_over_100_instantiate_free_cycles(native3, unzipped3,
                                                                         bad_resources, tmp_path):
     valgrind = tool("valgrind", "valgrind")
-    host = compile_host(tmp_path / "host")
+    host = compile_host(tmp_path / "host", source=HOST_SOURCE)
     done = run_cycles(host, unzipped3 / LIBRARY, unzipped3, bad_resources, native3[1].guid,
-                      prefix=[valgrind, "--leak-check=full", "--show-leak-kinds=all",
-                              "--errors-for-leak-kinds=definite,indirect", "--error-exitcode=99",
-                              "--track-origins=yes"])
+                      prefix=[valgrind, *VALGRIND])
     assert_summary(done, unzipped3)
-    report = done.stderr
-    assert "ERROR SUMMARY: 0 errors from 0 contexts" in report, report[-4000:]
-    if "LEAK SUMMARY" in report:
-        assert "definitely lost: 0 bytes in 0 blocks" in report, report[-4000:]
-        assert "indirectly lost: 0 bytes in 0 blocks" in report, report[-4000:]
-    else:
-        assert "All heap blocks were freed -- no leaks are possible" in report, report[-4000:]
+    assert_valgrind_clean(done.stderr)
 
 
 def test_address_and_undefined_behaviour_sanitizers_find_nothing_over_the_same_cycles(
         native3, unzipped3, bad_resources, tmp_path):
     """The FMU's own sources/ rebuilt with the sanitizers (and its C_FLAGS: the same numbers)."""
-    library = tmp_path / "RVReducer_sanitized.so"
-    sources = unzipped3 / "sources"
-    subprocess.run([tool("gcc", "gcc"), "-std=c99", "-shared", "-fPIC", "-g", "-O1",
-                    *C_FLAGS.split(), *SANITIZE, f"-I{HEADERS}", f"-I{sources}",
-                    *(str(sources / f) for f in FMI3_SOURCE_FILES), "-o", str(library)],
-                   check=True, capture_output=True, text=True)
-    host = compile_host(tmp_path / "host_sanitized", *SANITIZE)
-    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:exitcode=98",
-               UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
-    env.pop("LD_PRELOAD", None)
+    library, env = sanitized_library(unzipped3 / "sources", FMI3_SOURCE_FILES,
+                                     tmp_path / "RVReducer_sanitized.so")
+    host = compile_host(tmp_path / "host_sanitized", *SANITIZE, source=HOST_SOURCE)
     done = run_cycles(host, library, unzipped3, bad_resources, native3[1].guid, env=env)
     assert_summary(done, unzipped3)
-    assert "Sanitizer" not in done.stderr, done.stderr[-4000:]
-    assert "runtime error" not in done.stderr, done.stderr[-4000:]
+    assert_sanitizers_clean(done)

@@ -54,11 +54,51 @@ def tool(name, package):
     return path
 
 
-def compile_host(target, *flags):
+def compile_host(target, *flags, source=HOST_SOURCE):
+    """A plain C host of the cycles (`source`: this file's FMI 2.0 one by default)."""
     subprocess.run([tool("gcc", "gcc"), "-std=c99", "-g", "-O1", "-Wall", "-Wextra", "-Werror",
-                    *flags, f"-I{HEADERS}", str(HOST_SOURCE), "-o", str(target), "-ldl"],
+                    *flags, f"-I{HEADERS}", str(source), "-o", str(target), "-ldl"],
                    check=True, capture_output=True, text=True)
     return target
+
+
+VALGRIND = ["--leak-check=full", "--show-leak-kinds=all", "--errors-for-leak-kinds=definite,indirect",
+            "--error-exitcode=99", "--track-origins=yes"]
+
+
+def assert_valgrind_clean(report):
+    """valgrind's report (stderr) says no error and no leak."""
+    assert "ERROR SUMMARY: 0 errors from 0 contexts" in report, report[-4000:]
+    if "LEAK SUMMARY" in report:
+        assert "definitely lost: 0 bytes in 0 blocks" in report, report[-4000:]
+        assert "indirectly lost: 0 bytes in 0 blocks" in report, report[-4000:]
+    else:
+        assert "All heap blocks were freed -- no leaks are possible" in report, report[-4000:]
+
+
+def sanitized_library(sources, files, library):
+    """The FMU's own sources/ (`files` of it) rebuilt with the sanitizers into `library`, and
+    with its C_FLAGS (the same numbers); the environment the sanitized run takes."""
+    subprocess.run([tool("gcc", "gcc"), "-std=c99", "-shared", "-fPIC", "-g", "-O1",
+                    *C_FLAGS.split(), *SANITIZE, f"-I{HEADERS}", f"-I{sources}",
+                    *(str(sources / f) for f in files), "-o", str(library)],
+                   check=True, capture_output=True, text=True)
+    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:exitcode=98",
+               UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
+    env.pop("LD_PRELOAD", None)
+    return library, env
+
+
+def assert_sanitizers_clean(done):
+    assert "Sanitizer" not in done.stderr, done.stderr[-4000:]
+    assert "runtime error" not in done.stderr, done.stderr[-4000:]
+
+
+def last_step_te(unzipped):
+    """The TE of the cycles host's last step (its inputs at step STEPS - 1), from the Python map."""
+    te_map, _ = read_table(unzipped / "resources" / TABLE_NAME)
+    k = STEPS - 1
+    return te_map.evaluate_one(0.37 * k - 20.0, 300.0 * (k % 7 - 3))[0]
 
 
 def run_cycles(host, library, unzipped, bad_resources, guid, prefix=(), env=None):
@@ -69,9 +109,7 @@ def run_cycles(host, library, unzipped, bad_resources, guid, prefix=(), env=None
 
 def expected_summary(unzipped):
     """The host's closing line: its counts, and the TE of its last step from the Python map."""
-    te_map, _ = read_table(unzipped / "resources" / TABLE_NAME)
-    k = STEPS - 1                                             # the inputs of the host's step k
-    last_te = te_map.evaluate_one(0.37 * k - 20.0, 300.0 * (k % 7 - 3))[0]
+    last_te = last_step_te(unzipped)
     # 4 steps discarded per cycle; one load above the momentary class warns; 15 errors logged
     # per cycle and 3 for the instances that are never made
     return (f"cycles {CYCLES} steps {STEPS} discarded {4 * CYCLES} warnings {CYCLES} "
@@ -186,37 +224,20 @@ def test_valgrind_finds_no_error_nor_leak_over_100_instantiate_free_cycles(nativ
     valgrind = tool("valgrind", "valgrind")
     host = compile_host(tmp_path / "host")
     done = run_cycles(host, unzipped / "binaries" / "linux64" / "RVReducer.so", unzipped,
-                      bad_resources, native[1].guid,
-                      prefix=[valgrind, "--leak-check=full", "--show-leak-kinds=all",
-                              "--errors-for-leak-kinds=definite,indirect", "--error-exitcode=99",
-                              "--track-origins=yes"])
+                      bad_resources, native[1].guid, prefix=[valgrind, *VALGRIND])
     assert_summary(done, unzipped)
-    report = done.stderr
-    assert "ERROR SUMMARY: 0 errors from 0 contexts" in report, report[-4000:]
-    if "LEAK SUMMARY" in report:
-        assert "definitely lost: 0 bytes in 0 blocks" in report, report[-4000:]
-        assert "indirectly lost: 0 bytes in 0 blocks" in report, report[-4000:]
-    else:
-        assert "All heap blocks were freed -- no leaks are possible" in report, report[-4000:]
+    assert_valgrind_clean(done.stderr)
 
 
 def test_address_and_undefined_behaviour_sanitizers_find_nothing_over_the_same_cycles(
         native, unzipped, bad_resources, tmp_path):
     """The FMU's own sources/ rebuilt with the sanitizers (and its C_FLAGS: the same numbers)."""
-    library = tmp_path / "RVReducer_sanitized.so"
-    sources = unzipped / "sources"
-    subprocess.run([tool("gcc", "gcc"), "-std=c99", "-shared", "-fPIC", "-g", "-O1",
-                    *C_FLAGS.split(), *SANITIZE, f"-I{HEADERS}", f"-I{sources}",
-                    *(str(sources / f) for f in SOURCE_FILES), "-o", str(library)],
-                   check=True, capture_output=True, text=True)
+    library, env = sanitized_library(unzipped / "sources", SOURCE_FILES,
+                                     tmp_path / "RVReducer_sanitized.so")
     host = compile_host(tmp_path / "host_sanitized", *SANITIZE)
-    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:exitcode=98",
-               UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
-    env.pop("LD_PRELOAD", None)
     done = run_cycles(host, library, unzipped, bad_resources, native[1].guid, env=env)
     assert_summary(done, unzipped)
-    assert "Sanitizer" not in done.stderr, done.stderr[-4000:]
-    assert "runtime error" not in done.stderr, done.stderr[-4000:]
+    assert_sanitizers_clean(done)
 
 
 # -- a third-party FMI checker -----------------------------------------------------------
