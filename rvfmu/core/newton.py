@@ -135,13 +135,12 @@ def newton_compiled(work, first_active, q0=None, chain=None):
     converged = np.zeros(B, dtype=bool)
     iterations = np.zeros(B, dtype=np.int64)
     toward, guess = c(toward, dtype=float), c(guess, dtype=np.bool_)
-    warm = np.full(B, q0 is not None)
     chain = np.zeros(B, dtype=bool) if chain is None else c(chain, dtype=np.bool_)
 
     def solve(lo, hi):
         newton_pairs(angle[lo:hi], *stiffness, *(a[lo:hi] for a in pairs), *shared,
                      *(a[lo:hi] for a in bearings), *law,
-                     toward[lo:hi], work.toward is not None, guess[lo:hi], q[lo:hi], warm[lo:hi],
+                     toward[lo:hi], work.toward is not None, guess[lo:hi], q[lo:hi], q0 is not None,
                      chain[lo:hi], MAX_ITERATIONS, STEP_TOLERANCE, GAP_TOLERANCE, converged[lo:hi],
                      iterations[lo:hi])
 

@@ -276,7 +276,7 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
     """Solve every pair; q (B, nN) holds the starts and receives the solutions, converged (B,)
     bool whether each pair converged, iterations (B,) how many Newton steps it took.
 
-    warm (B,) bool: the pair starts from its q (otherwise from q with the guessed pins
+    warm: every pair starts from its q (otherwise from q with the guessed pins
     bonded: the primal-dual first step); chain (B,) bool: the pair starts instead from the
     solution just found for the pair before it (its neighbouring angle, `newton.chain_links`),
     except where the energy is piecewise quadratic (`smooth`)."""
@@ -307,7 +307,7 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
         it = 0
         while it < max_iterations:
             it += 1
-            first = it == 1 and not (warm[s] or linked)
+            first = it == 1 and not (warm or linked)
             _gradient_hessian(Ks, Kh[angle[s]], fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law,
                               table,
                               toward[s], has_toward, gap_tolerance, qs, guess[s], first, first,
