@@ -20,6 +20,50 @@ from rvfmu.core.units import rad_to_arcsec
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def random_errors(design, seed):
+    """One reducer with every error drawn at a few micrometres (complex ones in any direction)."""
+    from rvfmu.core.errors import ErrorSet, zero_errors
+
+    rng = np.random.default_rng(seed)
+    arrays = {}
+    for name, array in zero_errors(design).arrays().items():
+        draw = rng.normal(0.0, 3e-6, array.shape)
+        if np.iscomplexobj(array):
+            draw = draw + 1j * rng.normal(0.0, 3e-6, array.shape)
+        arrays[name] = np.abs(draw) if "clearance" in name else draw
+    return ErrorSet(**arrays)
+
+
+@pytest.mark.parametrize("name", ["RV-40E-121", "RV-110E", "RV-20E"])
+def test_the_compiled_element_geometry_is_the_numpy_geometry(name):
+    """`DynamicModel._chunk` (compiled) against `_chunk_numpy` (from EquivalentModel) at 600
+    random steps (angles over many turns, speeds and accelerations of either sign, loads):
+    every array of every element equal to round-off, on both flanks, with the mesh
+    stiffness varying and constant, with the friction's drags and without."""
+    from rvfmu.core.design import preset
+    from rvfmu.core.dynamic import Motion
+
+    assert kernels.COMPILED, "numba is a dependency: the element geometry must compile"
+    design = preset(name)
+    rng = np.random.default_rng(7)
+    T = 640
+    motion = Motion(np.sort(rng.uniform(0.0, 3.0, T)), rng.uniform(-3e3, 3e3, T),
+                    rng.uniform(-300.0, 300.0, T), rng.uniform(-2e3, 2e3, T),
+                    rng.uniform(-2e3, 2e3, T))
+    for flank, mesh, friction in ((1, "varying", True), (-1, "constant", False)):
+        model = DynamicModel(design, random_errors(design, 11), mesh=mesh, flank=flank,
+                             friction=friction)
+        model.prepare(motion)
+        for start, stop in ((0, 1), (3, 620)):
+            compiled, reference = model._chunk(start, stop), model._chunk_numpy(start, stop)
+            for field, x, y in zip(reference._fields, compiled, reference):
+                assert x.shape == y.shape and x.dtype == y.dtype and x.flags.c_contiguous, field
+                np.testing.assert_allclose(x, y, rtol=0, atol=1e-13 * max(np.abs(y).max(), 1e-300),
+                                           err_msg=f"{name} {field} flank {flank}")
+        drags = model._chunk(3, 620).turn_drag
+        assert (np.count_nonzero(drags) > 0) == friction
+
+
 def test_every_element_row_lies_on_the_unknowns_the_kernel_loops_over(rv40, seed002):
     model = DynamicModel(rv40, seed002)
     angles = np.random.default_rng(3).uniform(0.0, 2 * np.pi * rv40.ratio, 2000)

@@ -58,6 +58,8 @@ from .design import RVDesign
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .friction import RPM, drag_moments, mesh_loss_factor
+from .compiled import COMPILED
+from .dynamic_geometry import fill_geometry, geometry_constants
 from .kernels import Elements, Geometry, element_forces, gather, touched_columns
 from .pin_law import contacts
 from .stiffness import transverse_contact_ratio
@@ -213,6 +215,8 @@ class DynamicModel:
         self._nominal_index = tuple({body: [self.index[f"{body}{k}_{axis}"] for k in range(count)]
                                      for body, count in counts.items()} for axis in ("x", "y", "rot"))
         self._geometry = None
+        self.compiled_geometry = True
+        self._constants = None
 
     # -- constant parts --------------------------------------------------------------
     def set_modal_damping(self, q: np.ndarray, step: int = 0) -> None:
@@ -325,7 +329,35 @@ class DynamicModel:
 
     def _chunk(self, start: int, stop: int) -> Geometry:
         """Rows, offsets, mesh stiffnesses and external forces of every element at steps
-        start..stop-1 of the motion."""
+        start..stop-1 of the motion: compiled (`dynamic_geometry`) where numba is and
+        `compiled_geometry` is on, else in numpy (`_chunk_numpy`, the reference)."""
+        if not (COMPILED and self.compiled_geometry):
+            return self._chunk_numpy(start, stop)
+        if self._constants is None:
+            self._constants = geometry_constants(self)
+        m, c = self.motion, self._constants
+        A = stop - start
+        m_lin, nb, z_p = c.linear_cols.shape[0], c.bearing_cols.shape[0], c.pin_pos.shape[0]
+        E = c.turn_cols.shape[0]
+        parts = [self._steps(start, stop), np.maximum(c.linear_cols, 0),
+                 np.empty((A, m_lin, c.linear_cols.shape[1])), np.empty((A, m_lin)),
+                 np.empty((A, m_lin)), np.maximum(c.bearing_cols, 0),
+                 np.empty((A, nb, 2, c.bearing_cols.shape[1])), np.empty((A, nb, 2)),
+                 np.empty((A, 2, z_p, 3)), np.empty((A, 2, z_p)), np.empty((A, self.n)),
+                 np.empty((A, 2, z_p, 3)), np.empty((A, 2, z_p)), np.empty((A, E)), np.empty((A, E))]
+        motion = [np.ascontiguousarray(x[start:stop]) for x in
+                  (m.theta_in, m.omega_in, m.alpha_in, m.tau_load)]
+        fill_geometry(c, *motion, *parts[2:5], *parts[6:])
+        return Geometry(*parts)
+
+    def _steps(self, start: int, stop: int) -> np.ndarray:
+        """(stop - start,) the time step into each of the motion's steps start..stop-1 [s]
+        (the run's first: 0)."""
+        m = self.motion
+        return np.diff(m.time[start - 1:stop]) if start else np.diff(m.time[:stop], prepend=m.time[0])
+
+    def _chunk_numpy(self, start: int, stop: int) -> Geometry:
+        """`_chunk` in numpy, from `EquivalentModel`."""
         m = self.motion
         theta = m.theta_in[start:stop]
         model = EquivalentModel(self.design, theta, self.flank, sun_rotation=True)
@@ -336,7 +368,7 @@ class DynamicModel:
         k_lin[:, :self.design.n_c] *= factor
         external = m.tau_load[start:stop, None] * self.load_vector() \
             + self.nominal_forces(theta, m.omega_in[start:stop], m.alpha_in[start:stop])
-        h = np.diff(m.time[start - 1:stop]) if start else np.diff(m.time[:stop], prepend=m.time[0])
+        h = self._steps(start, stop)
         L = gather(model.linear_rows, self._linear_cols)
         B = gather(model.bearing_rows, self._bearing_cols)
         # friction: each pin slips along its tangent (the disc's point turning about the disc's
@@ -509,7 +541,7 @@ def compile_kernels() -> list:
     on a host's first dynamic step."""
     from pathlib import Path
 
-    from . import kernels
+    from . import dynamic_geometry, kernels
     from .compiled import SOURCES_STAMP
     from .design import preset
     from .errors import zero_errors
@@ -525,8 +557,9 @@ def compile_kernels() -> list:
     folder = Path(kernels.__file__).parent / "__pycache__"
     files = []
     for function in (kernels.element_forces, kernels.newmark_steps, kernels.solve_in_place,
-                     kernels._newmark_residual):
-        line = function.py_func.__code__.co_firstlineno        # numba names its files by it
-        files += folder.glob(f"kernels.{function.__name__}-{line}.*.nb[ic]")
+                     kernels._newmark_residual, dynamic_geometry.fill_geometry):
+        code = function.py_func.__code__        # numba names its files by module, name and line
+        files += folder.glob(f"{Path(code.co_filename).stem}.{function.__name__}-"
+                             f"{code.co_firstlineno}.*.nb[ic]")
     # the stamp is missing where the cache folder cannot be written, and then so are the kernels
     return sorted(files) + ([SOURCES_STAMP] if files and SOURCES_STAMP.is_file() else [])
