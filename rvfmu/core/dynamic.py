@@ -158,6 +158,8 @@ class DynamicModel:
     friction: False leaves out the contacts' friction and drag (a frictionless reducer).
     """
 
+    compiled_geometry = True   # False: the element geometry in numpy (`_chunk_numpy`) even with numba
+
     def __init__(self, design: RVDesign, errors: ErrorSet, contact: str | None = None,
                  mesh: str = "varying", flank: int = 1, friction: bool = True):
         if errors.samples != 1:
@@ -215,7 +217,6 @@ class DynamicModel:
         self._nominal_index = tuple({body: [self.index[f"{body}{k}_{axis}"] for k in range(count)]
                                      for body, count in counts.items()} for axis in ("x", "y", "rot"))
         self._geometry = None
-        self.compiled_geometry = True
         self._constants = None
 
     # -- constant parts --------------------------------------------------------------

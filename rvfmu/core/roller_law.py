@@ -24,7 +24,12 @@ alpha / (2 pi).
 A linear spring of compliance C in series (the crankshaft bent and sheared at its cams
 behind the needle bearing) makes the element's energy that of the pair at equilibrium: the bearing
 deflects u where u + C F(u) = s (Newton's method from u = s, monotone because F is convex),
-Psi(s) = Phi(u) + C F(u)^2 / 2, force F(u), stiffness F'(u) / (1 + C F'(u)).
+Psi(s) = Phi(u) + C F(u)^2 / 2, force F(u), stiffness F'(u) / (1 + C F'(u)).  Newton's
+steps shrink quadratically, each about K times the square of the last, K = step / last^2;
+it stops when the step it would take next, K step^2, is below SERIES_TOLERANCE s (or a
+step itself is): the same u to round-off (a few 1e-15 s) as iterating until a step is
+below it, one solve of F fewer in most bearings, and none of the 60 of a solve whose
+steps stall at round-off.
 
 The functions here are compiled by numba where it is installed (`compiled.kernel`) and are
 called one bearing at a time; `radial_law` evaluates arrays of bearings in numpy.
@@ -43,6 +48,7 @@ N = LINE_EXPONENT
 INTERVALS = 1024                  # of the rho table
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(64)
 SERIES_ITERATIONS = 60
+SERIES_TOLERANCE = 1e-15          # of s: u's step, taken or foreseen
 
 
 def _table():
@@ -102,6 +108,15 @@ def _rollers(table_e, table_de, s, c, a):
 
 
 @kernel
+def _settled(size, last, s):
+    """Whether the series Newton iteration has converged after a step of `size` [m] that
+    followed one of `last` (0: none): the step, or the next one foreseen, size^3 / last^2,
+    below SERIES_TOLERANCE s."""
+    limit = SERIES_TOLERANCE * s
+    return size <= limit or (last > 0.0 and size * size * size <= limit * last * last)
+
+
+@kernel
 def roller_law(table_e, table_de, s, c, a, compliance):
     """(energy [J], force [N], stiffness [N/m]) of a roller bearing with free play c [m],
     law constant a and a series spring of `compliance` [m/N], at centre deflection s [m]."""
@@ -110,16 +125,18 @@ def roller_law(table_e, table_de, s, c, a, compliance):
     if compliance == 0.0:
         return _rollers(table_e, table_de, s, c, a)
     u = s
+    last = 0.0
     for _ in range(SERIES_ITERATIONS):
         energy, force, stiffness = _rollers(table_e, table_de, u, c, a)
         step = (u + compliance * force - s) / (1.0 + compliance * stiffness)
         u_new = u - step
         if u_new <= c:
             u_new = 0.5 * (u + c)
-        done = abs(u_new - u) <= 1e-15 * s
+        size = abs(u_new - u)
         u = u_new
-        if done:
+        if _settled(size, last, s):
             break
+        last = size
     energy, force, stiffness = _rollers(table_e, table_de, u, c, a)
     return (energy + 0.5 * compliance * force * force, force,
             stiffness / (1.0 + compliance * stiffness))
@@ -155,15 +172,20 @@ def radial_law(s, c, a, compliance):
     s, c, a, compliance = np.broadcast_arrays(*(np.asarray(v, dtype=float)
                                                 for v in (s, c, a, compliance)))
     u = s.copy()
+    last = np.zeros(s.shape)
+    moving = s > c          # each bearing stops where `roller_law` stops it
     for _ in range(SERIES_ITERATIONS):
+        if not moving.any():
+            break
         energy, force, stiffness = _rollers_array(u, c, a)
         u_new = u - (u + compliance * force - s) / (1.0 + compliance * stiffness)
         u_new = np.where(u_new <= c, 0.5 * (u + c), u_new)
-        u_new = np.where(s > c, u_new, s)
-        done = np.all(np.abs(u_new - u) <= 1e-15 * s)
-        u = u_new
-        if done:
-            break
+        size = np.abs(u_new - u)
+        u = np.where(moving, u_new, u)
+        limit = SERIES_TOLERANCE * s
+        settled = (size <= limit) | ((last > 0.0) & (size ** 3 <= limit * last * last))
+        moving &= ~settled
+        last = size
     energy, force, stiffness = _rollers_array(u, c, a)
     return (energy + 0.5 * compliance * force * force, force,
             stiffness / (1.0 + compliance * stiffness))

@@ -10,6 +10,8 @@ What it measures, on one core (BLAS threads set to 1 before numpy loads):
   column compares the two integrators on equal work;
 - the FMU's dynamic model at a 1 ms communication step (internal steps of at most
   0.1 ms), stepped in Python and through a bare fmpy FMI loop (`--fmu-seconds`);
+- the output revolution and the FMU's model again with the element geometry built in
+  numpy (`DynamicModel._chunk_numpy`, the reference the compiled one is held to);
 - the same short run with the kernels as plain numpy (RVTE_NUMBA=0, in a child
   process), what a host without numba gets;
 - where the Newmark time goes (cProfile, the five largest own times).
@@ -103,6 +105,7 @@ def main() -> None:
     args = parser.parse_args()
 
     from rvfmu.core.design import preset
+    from rvfmu.core.dynamic import DynamicModel
     from rvfmu.core.errors import load_errors
     from rvfmu.core.simulation import simulate
 
@@ -122,27 +125,36 @@ def main() -> None:
     simulate(design, errors, speed_rpm=1600.0, load=load, **short)      # warm-up: compile
     run("Newmark, short run", **short)
     run("solve_ivp BDF, short run", method="BDF", **short)
-    profiler = cProfile.Profile()
-    profiler.enable()
     full = run(f"Newmark, {args.revolutions:g} output rev", revolutions=args.revolutions)
-    profiler.disable()
     run("  the same without friction", revolutions=args.revolutions, friction=False)
+    DynamicModel.compiled_geometry = False
+    run("  the same, geometry in numpy", revolutions=args.revolutions)
+    DynamicModel.compiled_geometry = True
 
     # the FMU's model: 1 ms communication steps, internal steps of at most 0.1 ms
     from rvfmu.core.dynamic_reducer import DynamicReducer
 
     speed = 1600 * 2 * 3.141592653589793 / 60
-    reducer = DynamicReducer(design, errors)
-    reducer.initialize(0.0, 0.0, -load)
     comm, steps = 1e-3, int(args.fmu_seconds / 1e-3)
-    start = time.perf_counter()
-    for k in range(steps):
-        reducer.step(k * comm, comm, speed * (k + 1) * comm, -load)
-    rows.append(("FMU model, 1 ms comm (Python)", steps * 10, steps * comm,
-                 time.perf_counter() - start))
+    for label, compiled in (("FMU model, 1 ms comm (Python)", True),
+                            ("  the same, geometry in numpy", False)):
+        DynamicModel.compiled_geometry = compiled
+        reducer = DynamicReducer(design, errors)
+        reducer.initialize(0.0, 0.0, -load)
+        start = time.perf_counter()
+        for k in range(steps):
+            reducer.step(k * comm, comm, speed * (k + 1) * comm, -load)
+        rows.append((label, steps * 10, steps * comm, time.perf_counter() - start))
+    DynamicModel.compiled_geometry = True
     rows.append(("FMU, bare fmpy loop, 1 ms comm", steps * 10, steps * comm,
                  fmu_loop(design, errors, speed, load, steps, comm)))
     rows.append(plain_numpy(load, args.plain))
+    # where the time goes: the output revolution again, under the profiler (its overhead kept
+    # out of the rows above)
+    profiler = cProfile.Profile()
+    profiler.enable()
+    simulate(design, errors, speed_rpm=1600.0, load=load, revolutions=args.revolutions)
+    profiler.disable()
 
     print(f"RV-40E-121, seed 002 errors, 1600 rpm, load {load:g} N*m, step "
           f"{full.step * 1e6:.1f} us, {full.failed_steps} unconverged steps")
