@@ -18,11 +18,12 @@ profile's own time is grouped by where it is spent:
 - "compiled Newton": the active-set Newton iteration (core/newton_kernel.py, compiled);
 - "continuation, release": the no-load continuation, release rounds and contact routes
   around it (core/solver.py, core/newton.py), Python between compiled calls;
-- "geometry, offsets": element rows and error offsets per angle (core/equivalent.py);
+- "geometry, offsets": element rows and error offsets per angle (core/equivalent.py, and
+  the dynamic model's compiled geometry of its steps, core/dynamic_geometry.py);
 - "Newmark kernel": the dynamic model's compiled step (core/kernels.py);
 - "numpy": numpy and scipy routines called from Python;
 - "other Python": everything else (sampling, metrics, windup bookkeeping, the dynamic
-  model's chunk geometry outside equivalent.py, ...).
+  model's chunks outside those, ...).
 
     python studies/benchmarks/bench_profile.py [--reducers 16] [--seconds 0.2] [--top 6]
 """
@@ -50,7 +51,7 @@ def group_of(filename: str, name: str) -> str:
         return "compiled Newton"
     if path.endswith(("core/solver.py", "core/newton.py")):
         return "continuation, release"
-    if path.endswith("core/equivalent.py"):
+    if path.endswith(("core/equivalent.py", "core/dynamic_geometry.py")):
         return "geometry, offsets"
     if path.endswith("core/kernels.py"):
         return "Newmark kernel"
