@@ -111,6 +111,22 @@ def geometry_constants(model) -> GeometryConstants:
 
 
 @kernel
+def _circling(nominal, force, x, y, rot, angle, radius, mass, inertia, w, acc, w_turn, a_turn,
+              scale):
+    """A body whose centre rides a circle of `radius` at `angle`, speed w and acceleration
+    acc [rad/s, rad/s^2], turning at w_turn, a_turn: its nominal velocities into nominal[x],
+    [y], [rot] and its d'Alembert forces (minus mass times the acceleration, radius (acc t -
+    w^2 r)) into force[...]."""
+    co, si = math.cos(angle), math.sin(angle)
+    speed = radius * w
+    nominal[x], nominal[y] = -speed * si, speed * co
+    nominal[rot] = w_turn * scale
+    w2, tangential = mass * radius * w ** 2, mass * radius * acc
+    force[x], force[y] = tangential * si + w2 * co, w2 * si - tangential * co
+    force[rot] = -inertia * a_turn / scale
+
+
+@kernel
 def fill_geometry(c, theta, omega, alpha, tau_load, L, k_lin, lin, B, brg, P, pins, external,
                   tangent, pin_slip, turn_slip, turn_drag):
     """The element geometry of the steps at input angles theta (A,) [rad], speeds omega,
@@ -209,23 +225,12 @@ def fill_geometry(c, theta, omega, alpha, tau_load, L, k_lin, lin, B, brg, P, pi
         force[c.sun_rot] = -c.sun_inertia * a_in / c.scale
         force[c.carrier_rot] = -c.carrier_inertia * a_out / c.scale
         for i in range(n_c):
-            angle = th_out + two_pi * i / n_c
-            co, si = math.cos(angle), math.sin(angle)
-            speed = c.crank_radius * w_out
-            nominal[c.crank_x[i]], nominal[c.crank_y[i]] = -speed * si, speed * co
-            nominal[c.crank_rot[i]] = w_psi * c.scale
-            w2, acc = c.crank_mass * c.crank_radius * w_out ** 2, c.crank_mass * c.crank_radius * a_out
-            force[c.crank_x[i]], force[c.crank_y[i]] = acc * si + w2 * co, w2 * si - acc * co
-            force[c.crank_rot[i]] = -c.crank_inertia * a_psi / c.scale
+            _circling(nominal, force, c.crank_x[i], c.crank_y[i], c.crank_rot[i],
+                      th_out + two_pi * i / n_c, c.crank_radius, c.crank_mass, c.crank_inertia,
+                      w_out, a_out, w_psi, a_psi, c.scale)
         for j in range(2):
-            angle = psi + np.pi * j
-            co, si = math.cos(angle), math.sin(angle)
-            speed = c.e * w_psi
-            nominal[c.disc_x[j]], nominal[c.disc_y[j]] = -speed * si, speed * co
-            nominal[c.disc_rot[j]] = w_out * c.scale
-            w2, acc = c.disc_mass * c.e * w_psi ** 2, c.disc_mass * c.e * a_psi
-            force[c.disc_x[j]], force[c.disc_y[j]] = acc * si + w2 * co, w2 * si - acc * co
-            force[c.disc_rot[j]] = -c.disc_inertia * a_out / c.scale
+            _circling(nominal, force, c.disc_x[j], c.disc_y[j], c.disc_rot[j], psi + np.pi * j,
+                      c.e, c.disc_mass, c.disc_inertia, w_psi, a_psi, w_out, a_out, c.scale)
         for x in range(n):
             external[t, x] = force[x]
         external[t, c.carrier_rot] = tau_load[t] * (1.0 / c.scale) + force[c.carrier_rot]
