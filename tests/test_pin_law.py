@@ -53,6 +53,26 @@ def test_the_inverse_is_lambert_w_to_round_off_over_the_whole_range():
     np.testing.assert_allclose(approach(compiled, b, f_star), y * b * f_star, rtol=1e-12)
 
 
+def test_newton_starts_from_the_table_within_one_step_of_the_root():
+    """v(c) tabulated and interpolated is within 1e-9 of Lambert W's root over the table, so
+    the first Newton step is below the stop (STEP_TOLERANCE v) and ends the iteration there;
+    beyond the table de Bruijn's start takes over, still to round-off."""
+    from rvfmu.core import pin_law
+
+    c = np.linspace(pin_law.C_LIMIT, pin_law.ROOT_TABLE_END, 100_003)[:-1]
+    exact = -lambertw(-np.exp(-c), -1).real                  # v - ln v = c, v >= 1
+    start = pin_law._table_start(c)
+    np.testing.assert_allclose(start, exact, rtol=2e-9, atol=0)
+    first_step = (start - np.log(start) - c) * start / (start - 1.0)
+    assert np.all(np.abs(first_step) < pin_law.STEP_TOLERANCE * start)
+    for value in c[::997]:
+        assert pin_law._start(value) == pytest.approx(pin_law._table_start(np.array([value]))[0],
+                                                      rel=1e-15)
+    beyond = np.array([pin_law.ROOT_TABLE_END, 60.0, 300.0])
+    root = np.array([pin_law._root(x) for x in beyond])
+    np.testing.assert_allclose(root, -lambertw(-np.exp(-beyond), -1).real, rtol=1e-14)
+
+
 @pytest.mark.parametrize("delta", [1e-10, 1e-7, 2e-6, 1e-4, 0.05], ids=str)
 def test_force_is_the_energys_derivative_and_the_tangent_the_forces(delta):
     """Also beyond the law's range (0.05 m: past F* e^-2), where its tangent continues."""

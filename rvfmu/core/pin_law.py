@@ -24,10 +24,13 @@ range is the stated stiffness.  With the estimate's own stiffness b is exactly 2
 The solvers need the law the other way round, at a deflection: with x = F / F* and
 y = delta / (b F*), y = -x ln x, so v = -ln x > 1 solves v - ln v = c, c = -ln y (it is
 Lambert's W_-1; `reference.py` takes scipy's), and the force is F = delta / (b v).  Newton's
-method from de Bruijn's v0 = c + ln c + ln c / c converges from the right (the function is
-increasing and convex); it stops when a step is below 1e-8 v, after which the error is
-below round-off (Newton's error after a step s is at most s^2 / (2 v (v - 1))): two steps
-for the pin forces of a reducer (v > 8), four near the law's limit, MAX_STEPS at most.
+method converges (the function is increasing and convex) and stops when a step is below
+1e-8 v, after which the error is below round-off (Newton's error after a step s is at most
+s^2 / (2 v (v - 1))).  It starts from v(c) tabulated once (ROOT_INTERVALS intervals from
+the law's limit to c = ROOT_TABLE_END, each node solved to round-off) and interpolated by
+cubic Hermite polynomials on its slope dv/dc = v / (v - 1): within 1e-9 of v, so one step
+ends it, where de Bruijn's v0 = c + ln c + ln c / c, used beyond the table, takes two for
+the pin forces of a reducer (v > 8) and four near the law's limit; MAX_STEPS at most.
 The law holds while F < F* e^-2 (v = 2, three orders of magnitude above any reducer's pin
 force); beyond, a trial step of an iteration meets the tangent there continued linearly,
 so the energy stays convex and finite.
@@ -51,6 +54,9 @@ U_LIMIT = -2.0          # ln(F / F*) where the law continues as its tangent
 Y_LIMIT = -U_LIMIT * math.exp(U_LIMIT)   # delta / (b F*) there
 MAX_STEPS = 6           # Newton steps on v - ln v = c at most (four reach round-off, tests)
 STEP_TOLERANCE = 1e-8   # relative step after which v is at round-off
+C_LIMIT = -math.log(Y_LIMIT)   # c at the law's limit, where v = 2
+ROOT_TABLE_END = 40.0   # c up to which Newton starts from the table (y down to 4e-18)
+ROOT_INTERVALS = 4096
 
 
 def law_constants(pin_radius, disc_radius, groove_radius, width, youngs_modulus,
@@ -84,11 +90,61 @@ def scaled_law(stated, f_star, low, high):
     return 1.0 / (stated * spread)
 
 
+def _de_bruijn(c):
+    """de Bruijn's start for v - ln v = c (arrays or numbers, c > 1)."""
+    log_c = np.log(c)
+    return c + log_c + log_c / c
+
+
+def _root_table():
+    """(v, dv/dc) at c = C_LIMIT .. ROOT_TABLE_END, ROOT_INTERVALS + 1 nodes: Newton's method
+    from de Bruijn's start, run until it no longer moves."""
+    c = np.linspace(C_LIMIT, ROOT_TABLE_END, ROOT_INTERVALS + 1)
+    v = _de_bruijn(c)
+    for _ in range(100):
+        v_new = v - (v - np.log(v) - c) * v / (v - 1.0)
+        if np.array_equal(v_new, v):
+            break
+        v = v_new
+    v[0] = 2.0                         # the law's limit exactly: 2 - ln 2 = C_LIMIT
+    return v, v / (v - 1.0)
+
+
+ROOT_V, ROOT_DV = _root_table()
+_ROOT_STEP = (ROOT_TABLE_END - C_LIMIT) / ROOT_INTERVALS
+
+
+@kernel
+def _hermite(t, i):
+    """The table's cubic Hermite interpolant at t in [0, 1] of interval i (numbers or arrays)."""
+    t2 = t * t
+    t3 = t2 * t
+    return ((2 * t3 - 3 * t2 + 1) * ROOT_V[i] + (t3 - 2 * t2 + t) * _ROOT_STEP * ROOT_DV[i]
+            + (3 * t2 - 2 * t3) * ROOT_V[i + 1] + (t3 - t2) * _ROOT_STEP * ROOT_DV[i + 1])
+
+
+def _table_start(c):
+    """The tabulated v(c) (arrays, C_LIMIT <= c < ROOT_TABLE_END)."""
+    x = np.maximum(c - C_LIMIT, 0.0) / _ROOT_STEP
+    i = np.minimum(x.astype(np.int64), ROOT_INTERVALS - 1)
+    return _hermite(x - i, i)
+
+
+@kernel
+def _start(c):
+    """Newton's start for v - ln v = c: the table (`_table_start`), de Bruijn's beyond."""
+    if c >= ROOT_TABLE_END:
+        log_c = math.log(c)
+        return c + log_c + log_c / c
+    x = max(c - C_LIMIT, 0.0) / _ROOT_STEP
+    i = min(int(x), ROOT_INTERVALS - 1)
+    return _hermite(x - i, i)
+
+
 @kernel
 def _root(c):
     """v = ln(F* / F) with v - ln v = c, for c >= -ln Y_LIMIT."""
-    log_c = math.log(c)
-    v = c + log_c + log_c / c
+    v = _start(c)
     for _ in range(MAX_STEPS):
         step = (v - math.log(v) - c) * v / (v - 1.0)
         v -= step
@@ -132,8 +188,8 @@ def contacts(delta, law):
     y = pos / (b * f_star)
     inside = (y > 0.0) & (y <= Y_LIMIT)
     c = -np.log(np.where(inside, y, 0.5 * Y_LIMIT))
-    log_c = np.log(c)
-    v = c + log_c + log_c / c
+    on_table = c < ROOT_TABLE_END
+    v = np.where(on_table, _table_start(np.where(on_table, c, C_LIMIT)), _de_bruijn(c))
     for _ in range(MAX_STEPS):
         step = (v - np.log(v) - c) * v / (v - 1.0)
         v = v - step
