@@ -54,12 +54,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .compiled import COMPILED
 from .design import RVDesign
+from .dynamic_geometry import fill_geometry, geometry_constants
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .friction import RPM, drag_moments, mesh_loss_factor
-from .compiled import COMPILED
-from .dynamic_geometry import fill_geometry, geometry_constants
 from .kernels import Elements, Geometry, element_forces, gather, touched_columns
 from .pin_law import contacts
 from .stiffness import transverse_contact_ratio
