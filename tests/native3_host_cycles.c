@@ -26,6 +26,7 @@
 #include <string.h>
 
 #include "fmi3Functions.h"
+#include "host_checks.h"
 
 enum { THETA_IN, TAU_LOAD, THETA_OUT, OMEGA_OUT, TE, TE_ARCSEC, TAU_IN, P_LOSS, EFFICIENCY,
        TIME };   /* value references */
@@ -56,23 +57,6 @@ static void log_message(fmi3InstanceEnvironment env, fmi3Status status, fmi3Stri
 
 #define MEMBER(f) fmi3##f##TYPE *f;
 typedef struct { FUNCTIONS(MEMBER) } Fmi;
-
-#define EXPECT(call, status)                                                                      \
-    do {                                                                                          \
-        fmi3Status got_ = (call);                                                                 \
-        if (got_ != (status)) {                                                                   \
-            fprintf(stderr, "line %d: %s returned %d, not %d\n", __LINE__, #call, (int)got_,      \
-                    (int)(status));                                                               \
-            return 11;                                                                            \
-        }                                                                                         \
-    } while (0)
-#define CHECK(condition)                                                                          \
-    do {                                                                                          \
-        if (!(condition)) {                                                                       \
-            fprintf(stderr, "line %d: %s does not hold\n", __LINE__, #condition);                 \
-            return 12;                                                                            \
-        }                                                                                         \
-    } while (0)
 
 static int load(void *lib, Fmi *fmi) {
 #define LOAD(f)                                                                                   \

@@ -20,7 +20,6 @@ from ctypes import byref
 from pathlib import Path
 from unittest import mock
 
-import fmpy
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description
@@ -36,11 +35,10 @@ from test_fmu import Instance
 from test_fmu import free_instances  # noqa: F401 - frees every instance after a test
 from test_fmu_native import BAD_STEPS, MAP_POINTS, OUTPUTS, STEP, corrupt, drive, varying_run
 from test_fmu_native import native  # noqa: F401 - the FMI 2.0 native FMU fixture
-from test_fmu_native_hosts import (CYCLES, SANITIZE, STEPS, VALGRIND, assert_sanitizers_clean,
-                                   assert_valgrind_clean, compile_host, last_step_te,
-                                   sanitized_library, tool)
+from test_fmu_native_hosts import (CYCLES, SANITIZE, STEPS, VALGRIND,
+                                   assert_sanitizers_clean, assert_valgrind_clean, compile_host,
+                                   last_step_te, nan_table_resources, sanitized_library, tool)
 
-HEADERS = Path(fmpy.__file__).parent / "c-code"     # the FMI 3.0 headers fmpy ships
 HOST_SOURCE = Path(__file__).with_name("native3_host_cycles.c")
 LIBRARY = "binaries/x86_64-linux/RVReducer.so"
 DLL = "binaries/x86_64-windows/RVReducer.dll"
@@ -81,12 +79,8 @@ def unzipped3(native3, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def bad_resources(unzipped3, tmp_path_factory):
-    """A copy of resources/ whose table has a NaN in it: instantiation must return NULL."""
-    resources = tmp_path_factory.mktemp("bad") / "resources"
-    shutil.copytree(unzipped3 / "resources", resources)
-    table = resources / TABLE_NAME
-    table.write_bytes(corrupt(bytearray(table.read_bytes()), "nan"))
-    return resources
+    """resources/ with a NaN in the table: instantiation must return NULL."""
+    return nan_table_resources(unzipped3, tmp_path_factory)
 
 
 class Instance3(Instance):

@@ -27,7 +27,7 @@ from rvfmu.fmu.native import C_FLAGS, SOURCE_FILES, TABLE_NAME, read_table
 from test_fmu_native import corrupt, native  # noqa: F401 - the native FMU fixture
 
 SPEED = 1600 * 2 * np.pi / 60    # rad/s at the input, as in seeds 000/001
-HEADERS = Path(fmpy.__file__).parent / "c-code"    # the FMI 2.0 headers fmpy ships
+HEADERS = Path(fmpy.__file__).parent / "c-code"    # the FMI 2.0 and 3.0 headers fmpy ships
 HOST_SOURCE = Path(__file__).with_name("native_host_cycles.c")
 CYCLES, STEPS = 100, 300
 SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer"]
@@ -38,14 +38,19 @@ def unzipped(native, tmp_path_factory):
     return Path(extract(str(native[0]), unzipdir=tmp_path_factory.mktemp("unzipped")))
 
 
-@pytest.fixture(scope="module")
-def bad_resources(unzipped, tmp_path_factory):
-    """A copy of resources/ whose table has a NaN in it: fmi2Instantiate must return NULL."""
+def nan_table_resources(unzipped, tmp_path_factory):
+    """A copy of an unzipped FMU's resources/ whose table has a NaN in it."""
     resources = tmp_path_factory.mktemp("bad") / "resources"
     shutil.copytree(unzipped / "resources", resources)
     table = resources / TABLE_NAME
     table.write_bytes(corrupt(bytearray(table.read_bytes()), "nan"))
     return resources
+
+
+@pytest.fixture(scope="module")
+def bad_resources(unzipped, tmp_path_factory):
+    """resources/ with a NaN in the table: fmi2Instantiate must return NULL."""
+    return nan_table_resources(unzipped, tmp_path_factory)
 
 
 def tool(name, package):
