@@ -174,6 +174,7 @@ def radial_law(s, c, a, compliance):
     u = s.copy()
     last = np.zeros(s.shape)
     moving = s > c          # each bearing stops where `roller_law` stops it
+    limit = SERIES_TOLERANCE * s
     for _ in range(SERIES_ITERATIONS):
         if not moving.any():
             break
@@ -182,7 +183,6 @@ def radial_law(s, c, a, compliance):
         u_new = np.where(u_new <= c, 0.5 * (u + c), u_new)
         size = np.abs(u_new - u)
         u = np.where(moving, u_new, u)
-        limit = SERIES_TOLERANCE * s
         settled = (size <= limit) | ((last > 0.0) & (size ** 3 <= limit * last * last))
         moving &= ~settled
         last = size
