@@ -37,7 +37,9 @@ from test_fmu_native import BAD_STEPS, MAP_POINTS, OUTPUTS, STEP, corrupt, drive
 from test_fmu_native import native  # noqa: F401 - the FMI 2.0 native FMU fixture
 from test_fmu_native_hosts import (CYCLES, SANITIZE, STEPS, VALGRIND,
                                    assert_sanitizers_clean, assert_valgrind_clean, compile_host,
-                                   last_step_te, nan_table_resources, sanitized_library, tool)
+                                   fmutool_check, last_step_te, nan_table_resources,
+                                   sanitized_library, tool, without_line)
+from test_fmu_native_hosts import fmutool  # noqa: F401 - fmu-manipulation-toolbox's command
 
 HOST_SOURCE = Path(__file__).with_name("native3_host_cycles.c")
 LIBRARY = "binaries/x86_64-linux/RVReducer.so"
@@ -468,29 +470,17 @@ def test_fmpy_simulates_it_as_the_fmi2_fmu_in_a_process_without_rvte_nor_python_
     assert np.ptp(three["te_arcsec"]) > 10.0 and (three["P_loss"] > 0).any()
 
 
-def test_the_fmu_manipulation_toolbox_checker_finds_it_fmi3_compliant(native3, unzipped3, tmp_path):
-    import fmu_manipulation_toolbox  # noqa: F401 - fails here, not in a subprocess, if missing
-
-    command = [sys.executable, "-c",
-               "from fmu_manipulation_toolbox.cli.fmutool import fmutool; fmutool()"]
-    done = subprocess.run([*command, "-input", str(native3[0]), "-check"], capture_output=True,
-                          text=True, timeout=300)
-    log = done.stdout + done.stderr
-    assert done.returncode == 0, log
+def test_the_fmu_manipulation_toolbox_checker_finds_it_fmi3_compliant(native3, unzipped3, fmutool,
+                                                                       tmp_path):
+    code, log = fmutool_check(fmutool, native3[0])
+    assert code == 0, log
     assert "This FMU seems to be compliant with FMI-3.0." in log
     assert "No semantic error against the FMI-3 standard." in log
     assert "ERROR" not in log
-    # and it does catch what it checks: an output left out of <ModelStructure>
-    broken = tmp_path / "broken"
-    shutil.copytree(unzipped3, broken)
-    description = broken / "modelDescription.xml"
-    text = description.read_text()
-    assert '<Output valueReference="6" />' in text                # tau_in's
-    description.write_text(text.replace('<Output valueReference="6" />', "", 1))
-    archive = shutil.move(shutil.make_archive(str(broken), "zip", broken), tmp_path / "broken.fmu")
-    done = subprocess.run([*command, "-input", str(archive), "-check"], capture_output=True,
-                          text=True, timeout=300)
-    assert done.returncode != 0, done.stdout + done.stderr
+    # and it does catch what it checks: an output left out of <ModelStructure> (tau_in's)
+    broken = without_line(unzipped3, tmp_path, '<Output valueReference="6" />')
+    code, log = fmutool_check(fmutool, broken)
+    assert code != 0, log
 
 
 ECOS_HOST = r'''
