@@ -21,7 +21,8 @@ import pytest
 
 from rvfmu.core import kernels
 from rvfmu.core.errors import stack
-from rvfmu.core.newton_kernel import _solve_spd
+from rvfmu.core.newton import bearing_columns
+from rvfmu.core.newton_kernel import _bearing_deflections, _solve_spd
 from rvfmu.core.quasistatic import te_curve, windup
 from tolerance.sampling import errors_from_unit
 from tolerance.study import load_study
@@ -116,6 +117,27 @@ def test_chains_link_neighbouring_angles_of_one_reducer_and_load_only():
     expected[[CHAIN_LENGTH // 2, CHAIN_LENGTH // 2 + 1, CHAIN_LENGTH + 3, CHAIN_LENGTH + 4]] = False
     expected[2 * CHAIN_LENGTH] = False                  # a new reducer
     assert np.array_equal(link, expected)
+
+
+def test_the_bearing_loops_visit_the_unknowns_a_bearing_touches_and_sum_as_over_all():
+    """Each bearing's rows are summed over the unknowns they touch at any angle
+    (`newton.bearing_columns`); the other terms are exact zeros, so the deflections are those
+    of the rows over every unknown."""
+    rng = np.random.default_rng(5)
+    B, p, n = 3, 3, 7
+    rows = np.zeros((B, p, 2, n))
+    rows[0, 0, 0, 4], rows[2, 0, 1, 1], rows[1, 0, :, 2] = 0.7, -1.3, (0.2, 0.9)   # 1, 2, 4
+    rows[:, 2, :, :] = rng.standard_normal((B, 2, n))                               # all seven
+    cols = bearing_columns(rows)
+    np.testing.assert_array_equal(cols, [[1, 2, 4, -1, -1, -1, -1], [-1] * n, list(range(n))])
+    assert bearing_columns(rows[:, :0]).shape == (0, 1)
+    offset, q = rng.standard_normal((B, p, 2)), rng.standard_normal((B, n))
+    out = np.empty((p, 2))
+    for s in range(B):
+        _bearing_deflections(rows[s], cols, offset[s], q[s], out)
+        np.testing.assert_allclose(out, np.einsum("pxn,n->px", rows[s], q[s]) + offset[s],
+                                   rtol=1e-15, atol=1e-15)
+        assert np.all(out[1] == offset[s, 1])                # touching nothing: the offset alone
 
 
 def test_the_cholesky_solve_matches_lapack_and_refuses_an_indefinite_matrix():

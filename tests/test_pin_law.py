@@ -20,7 +20,7 @@ from rvfmu.core import kernels
 from rvfmu.core.checks import InputError
 from rvfmu.core.design import preset, preset_file
 from rvfmu.core.errors import load_errors, stack
-from rvfmu.core.pin_law import U_LIMIT, approach, contact, contacts, law_constants
+from rvfmu.core.pin_law import U_LIMIT, approach, contact, contact_forces, contacts, law_constants
 from rvfmu.core.quasistatic import equilibrium_te, input_angles, te_curve, windup
 from rvfmu.core.stiffness import (disc_curvature_radius_at_largest_lever,
                                   hertz_line_contact_approach, pin_contact_loads,
@@ -49,6 +49,9 @@ def test_the_inverse_is_lambert_w_to_round_off_over_the_whole_range():
     compiled = np.array([contact(v * b * f_star, law)[1] for v in y])
     np.testing.assert_allclose(compiled, exact, rtol=1e-12)
     np.testing.assert_allclose(contacts(y * b * f_star, law)[1], compiled, rtol=1e-14)
+    # the compiled loop over an array (the equilibria's pin forces): the same forces, its shape
+    grid = (y * b * f_star).reshape(2, 4, 50)
+    np.testing.assert_array_equal(contact_forces(grid, law), compiled.reshape(2, 4, 50))
     # and approach(force(delta)) is delta
     np.testing.assert_allclose(approach(compiled, b, f_star), y * b * f_star, rtol=1e-12)
 
@@ -91,6 +94,8 @@ def test_nothing_in_clearance_and_the_linear_law_without_b():
     assert contact(3e-6, linear) == pytest.approx((0.5 * 2e8 * 9e-12, 600.0, 2e8))
     e, f, k = contacts(np.array([-1e-6, 3e-6]), linear)
     assert list(f) == [0.0, 600.0] and list(k) == [0.0, 2e8]
+    assert list(contact_forces(np.array([-1e-6, 0.0, 3e-6]), linear)) == [0.0, 0.0, 600.0]
+    assert list(contact_forces(np.array([-1e-6, 0.0]), law)) == [0.0, 0.0]
 
 
 @pytest.mark.parametrize("name", ["RV-40E-121", "RV-20E", "RV-110E"])
@@ -167,6 +172,8 @@ def test_the_compiled_and_numpy_iterations_agree_on_the_law(rv40_hertz, seed002_
         plain = run()
     assert compiled.converged.all() and plain.converged.all()
     np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-8)
+    # the pin forces: the compiled law's, the numpy law's
+    np.testing.assert_allclose(compiled.pin_force_max, plain.pin_force_max, rtol=1e-9, atol=1e-9)
 
 
 def test_the_dynamic_tangent_is_the_derivative_of_the_law(rv40_hertz, seed002_hertz):

@@ -157,23 +157,37 @@ def newton_compiled(work, first_active, q0=None, chain=None):
     return q, converged, int(iterations.max(initial=0))
 
 
+def bearing_columns(brg_rows: np.ndarray) -> np.ndarray:
+    """(p, w) the reduced unknowns each bearing's rows (A, p, 2, nN) touch at any angle, in
+    ascending order, -1 after the last (`kernels.touched_columns`): a bearing joins two
+    bodies, five or six of the 15-odd unknowns, and the compiled loops over its rows skip
+    the others (whose terms are exact zeros, so the sums are those over every unknown to
+    the bit)."""
+    if brg_rows.shape[1] == 0:
+        return np.full((0, 1), -1, dtype=np.int64)
+    return kernels.touched_columns(brg_rows)
+
+
 def _kernel_arguments(work):
     """The arrays of `work` as the compiled kernels take them: (angle (B,), [K_red, mode
-    stiffness] per angle, [f, rows, pin_b] per pair, [pin_local, pin_law] shared, [bearing rows,
-    offsets, half clearances] per pair (p = 0 without bearings with clearance), [each bearing's
-    (k, roller-law a, series compliance), the roller law's table])."""
+    stiffness, bearing rows] per angle and the unknowns those touch (`bearing_columns`), [f,
+    rows, pin_b] per pair, [pin_local, pin_law] shared, [bearing offsets, half clearances] per
+    pair (p = 0 without bearings with clearance), [each bearing's (k, roller-law a, series
+    compliance), the roller law's table])."""
     sys = work.system
     B, nN = work.f.shape
     c = np.ascontiguousarray
-    if work.brg_rows is None:
-        brg_rows, brg_off, c_half = np.zeros((B, 0, 2, nN)), np.zeros((B, 0, 2)), np.zeros((B, 0))
+    if not sys.brg_k.size:
+        brg_rows, brg_off, c_half = np.zeros((sys.K_red.shape[0], 0, 2, nN)), np.zeros((B, 0, 2)), \
+            np.zeros((B, 0))
     else:
-        brg_rows, brg_off, c_half = work.brg_rows, work.brg_off, work.c_half
+        brg_rows, brg_off, c_half = sys.brg_rows, work.brg_off, work.c_half
     return (c(work.angle, dtype=np.int64),
-            [c(sys.K_red, dtype=float), c(sys.mode_stiffness, dtype=float)],
+            [c(sys.K_red, dtype=float), c(sys.mode_stiffness, dtype=float), c(brg_rows, dtype=float),
+             sys.brg_cols],
             [c(work.f, dtype=float), c(work.rows, dtype=float), c(work.pin_b, dtype=float)],
             [c(sys.pin_local, dtype=np.int64), c(sys.model.pin_law, dtype=float)],
-            [c(brg_rows, dtype=float), c(brg_off, dtype=float), c(c_half, dtype=float)],
+            [c(brg_off, dtype=float), c(c_half, dtype=float)],
             [c(np.stack([sys.brg_k, sys.brg_law_a, sys.brg_law_compliance], axis=-1), dtype=float),
              c(np.stack([TABLE_E, TABLE_DE]))])
 
@@ -258,20 +272,25 @@ class Work:
         self.angle = angle
         self.rows = rows
         self.f, self.pin_b, self.brg_off, self.c_half = f, pin_b, brg_off, c_half
-        self.brg_rows = system.brg_rows[angle] if system.brg_k.size else None
-        self.toward = bearing_direction if self.brg_rows is not None else None
+        self.toward = bearing_direction if system.brg_k.size else None
 
     def subset(self, keep):
         new = object.__new__(Work)
         new.system, new.angle = self.system, self.angle[keep]
         for name in ("rows", "f", "pin_b", "brg_off", "c_half"):
             setattr(new, name, getattr(self, name)[keep])
-        for name in ("products", "K"):
-            if name in self.__dict__:
+        for name in ("products", "K", "brg_rows"):
+            if self.__dict__.get(name) is not None:
                 setattr(new, name, getattr(self, name)[keep])
-        new.brg_rows = None if self.brg_rows is None else self.brg_rows[keep]
         new.toward = None if self.toward is None else self.toward[keep]
         return new
+
+    @cached_property
+    def brg_rows(self):
+        """(B, p, 2, nN) the rows of the bearings with clearance at each pair's angle, None
+        without such bearings: gathered on first use (the compiled iteration reads the
+        system's, per angle)."""
+        return self.system.brg_rows[self.angle] if self.system.brg_k.size else None
 
     @cached_property
     def K(self):

@@ -16,9 +16,10 @@ where numba is absent or switched off (RVTE_NUMBA=0, `kernels.COMPILED`).
 Array arguments, B pairs, nN reduced unknowns, K pins per disc, p bearings
 with clearance (p may be 0):
 angle: (B,) each pair's angle, indexing K, Kh: (A, nN, nN) reduced stiffness per angle, and
-what the Hessian adds (the mode stiffness); f: (B, nN); rows: (B, 2, K, 3); pin_b: (B, 2, K);
-pin_local: (2, 3);
-brg_rows: (B, p, 2, nN); brg_off: (B, p, 2); c_half: (B, p); brg_law: (p, 3), each bearing's
+what the Hessian adds (the mode stiffness), and brg_rows: (A, p, 2, nN) the bearings' rows per
+angle; brg_cols: (p, nN) the unknowns those touch (`newton.bearing_columns`); f: (B, nN); rows:
+(B, 2, K, 3); pin_b: (B, 2, K); pin_local: (2, 3);
+brg_off: (B, p, 2); c_half: (B, p); brg_law: (p, 3), each bearing's
 stiffness k, roller-law constant a (0: linear) and series compliance; pin_law: (3,) the pins'
 law (`pin_law.contact`: stated stiffness k, b, F*); table: (2, T) the
 roller law's table (`roller_law.TABLE_E`, `TABLE_DE`);
@@ -45,12 +46,15 @@ def _deflections(rows, pin_b, pin_local, q, out):
 
 
 @kernel
-def _bearing_deflections(brg_rows, brg_off, q, out):
+def _bearing_deflections(brg_rows, brg_cols, brg_off, q, out):
     """Bearing deflections out (p, 2) of one pair at q (nN,)."""
     for b in range(brg_rows.shape[0]):
         for x in range(2):
             s = brg_off[b, x]
-            for i in range(q.size):
+            for w in range(brg_cols.shape[1]):
+                i = brg_cols[b, w]
+                if i < 0:
+                    break
                 s += brg_rows[b, x, i] * q[i]
             out[b, x] = s
 
@@ -85,8 +89,8 @@ def _bearing(dx, dy, c_half, law, table):
 
 
 @kernel
-def _energy(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table, q, delta,
-            d):
+def _energy(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg_off, c_half, brg_law, table, q,
+            delta, d):
     """Reduced energy of one pair at q [J] (up to a constant); pin deflections into delta
     (2, K) and bearing deflections into d (p, 2)."""
     n = q.size
@@ -100,25 +104,27 @@ def _energy(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, br
     for j in range(2):
         for k in range(delta.shape[1]):
             e += contact(delta[j, k], pin_law)[0]
-    _bearing_deflections(brg_rows, brg_off, q, d)
+    _bearing_deflections(brg_rows, brg_cols, brg_off, q, d)
     for b in range(d.shape[0]):
         e += _radial(np.sqrt(d[b, 0] ** 2 + d[b, 1] ** 2), c_half[b], brg_law[b], table)[0]
     return e
 
 
 @kernel
-def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law,
-                      table, toward, has_toward, gap_tolerance, q, guess, use_guess, engaged,
+def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg_off, c_half,
+                      brg_law, table, toward, has_toward, gap_tolerance, q, guess, use_guess, engaged,
                       grad, hess, true_grad, used, delta, d):
     """`newton.Work.gradient_hessian` for one pair, into grad, hess, true_grad (nN,) / (nN, nN)
     and used (2, K); delta and d are work space."""
     n = q.size
     kp = pin_law[0]
     for i in range(n):
+        for j in range(n):
+            hess[i, j] = K[i, j] + Kh[i, j]
+    for i in range(n):
         s = f[i]
         for j in range(n):
             s += K[i, j] * q[j]
-            hess[i, j] = K[i, j] + Kh[i, j]
         grad[i] = s
         true_grad[i] = s
     _deflections(rows, pin_b, pin_local, q, delta)
@@ -137,16 +143,17 @@ def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_o
                 if dk <= 0.0:
                     tangent = kp
             used[j, k] = act
-            for x in range(3):
-                grad[loc[x]] += force * rows[j, k, x]
-                true_grad[loc[x]] += true_force * rows[j, k, x]
+            if force != 0.0 or true_force != 0.0:       # an open pin adds nothing
+                for x in range(3):
+                    grad[loc[x]] += force * rows[j, k, x]
+                    true_grad[loc[x]] += true_force * rows[j, k, x]
             if act:
                 for x in range(3):
                     for y in range(3):
                         hess[loc[x], loc[y]] += tangent * rows[j, k, x] * rows[j, k, y]
     if brg_rows.shape[0] == 0:
         return
-    _bearing_deflections(brg_rows, brg_off, q, d)
+    _bearing_deflections(brg_rows, brg_cols, brg_off, q, d)
     for b in range(d.shape[0]):
         dx, dy = d[b, 0], d[b, 1]
         kb, c = brg_law[b, 0], c_half[b]
@@ -156,14 +163,21 @@ def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_o
             txx, txy, tyy = kb, 0.0, kb
             if has_toward:
                 gx, gy = (dx - c * toward[b, 0]) * kb, (dy - c * toward[b, 1]) * kb
-        for i in range(n):
+        cols = brg_cols[b]
+        for wi in range(cols.size):
+            i = cols[wi]
+            if i < 0:
+                break
             rx, ry = brg_rows[b, 0, i], brg_rows[b, 1, i]
             true_grad[i] += rx * fx + ry * fy
             grad[i] += rx * gx + ry * gy
             if rx == 0.0 and ry == 0.0:
                 continue
             ux, uy = txx * rx + txy * ry, txy * rx + tyy * ry
-            for j in range(n):
+            for wj in range(cols.size):
+                j = cols[wj]
+                if j < 0:
+                    break
                 sx, sy = brg_rows[b, 0, j], brg_rows[b, 1, j]
                 if sx != 0.0 or sy != 0.0:
                     hess[i, j] += ux * sx + uy * sy
@@ -221,8 +235,8 @@ def _slope(alpha, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, t
 
 
 @kernel
-def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law, table, q, step,
-                 delta0, ddelta, d0, dd, zero_b, zero_d):
+def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg_off, c_half, brg_law, table,
+                 q, step, delta0, ddelta, d0, dd, zero_b, zero_d):
     """`newton.Work.line_search` for one pair: the exact minimiser of the energy along step."""
     n = q.size
     quad, lin = 0.0, 0.0
@@ -235,8 +249,8 @@ def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_hal
         lin += (kq + f[i]) * step[i]
     _deflections(rows, pin_b, pin_local, q, delta0)
     _deflections(rows, zero_b, pin_local, step, ddelta)
-    _bearing_deflections(brg_rows, brg_off, q, d0)
-    _bearing_deflections(brg_rows, zero_d, step, dd)
+    _bearing_deflections(brg_rows, brg_cols, brg_off, q, d0)
+    _bearing_deflections(brg_rows, brg_cols, zero_d, step, dd)
     d1_0, _ = _slope(0.0, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table)
     lo, hi = 0.0, 1.0
     d1, d2 = _slope(hi, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table)
@@ -269,7 +283,7 @@ def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_hal
 
 
 @kernel
-def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half,
+def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pin_law, brg_off, c_half,
                  brg_law, table,
                  toward, has_toward, guess, q, warm, chain, max_iterations, step_tolerance,
                  gap_tolerance, converged, iterations):
@@ -279,7 +293,9 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
     warm: every pair starts from its q (otherwise from q with the guessed pins
     bonded: the primal-dual first step); chain (B,) bool: the pair starts instead from the
     solution just found for the pair before it (its neighbouring angle, `newton.chain_links`),
-    except where the energy is piecewise quadratic (`smooth`)."""
+    or, where that pair was itself linked, from the line through the two solutions before
+    it (their linear extrapolation to its angle), except where the energy is piecewise
+    quadratic (`smooth`)."""
     B, n = q.shape
     p = brg_rows.shape[1]
     Kp = rows.shape[2]
@@ -293,22 +309,27 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
     zero_b, zero_d = np.zeros((2, Kp)), np.zeros((p, 2))
     trial_q, step = np.empty(n), np.empty(n)
     factor = np.empty((n, n))
+    bcols = brg_cols
     for s in range(B):
         qs = q[s]
         # piecewise quadratic, the primal-dual first step lands at once, and where a pin ends
         # within the gap tolerance of its switch a warm start may settle on its other side
         linked = chain[s] and s > 0 and not smooth
-        if linked:
+        if linked and s > 1 and chain[s - 1]:
+            # two neighbours solved: on along the line through them
+            for i in range(n):
+                qs[i] = 2.0 * q[s - 1, i] - q[s - 2, i]
+        elif linked:
             qs[:] = q[s - 1]
         Ks, fs, rs, bs = K[angle[s]], f[s], rows[s], pin_b[s]
-        Bs, os_, cs = brg_rows[s], brg_off[s], c_half[s]
-        energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, qs, delta, d)
+        Bs, os_, cs = brg_rows[angle[s]], brg_off[s], c_half[s]
+        energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, bcols, os_, cs, brg_law, table, qs, delta, d)
         done = False
         it = 0
         while it < max_iterations:
             it += 1
             first = it == 1 and not (warm or linked)
-            _gradient_hessian(Ks, Kh[angle[s]], fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law,
+            _gradient_hessian(Ks, Kh[angle[s]], fs, rs, bs, pin_local, pin_law, Bs, bcols, os_, cs, brg_law,
                               table,
                               toward[s], has_toward, gap_tolerance, qs, guess[s], first, first,
                               grad, hess, true_grad, used, delta, d)
@@ -319,7 +340,7 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
                 step[:] = -np.linalg.solve(hess, grad)
             for i in range(n):
                 trial_q[i] = qs[i] + step[i]
-            trial = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, trial_q,
+            trial = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, bcols, os_, cs, brg_law, table, trial_q,
                             delta_trial, d_trial)
             slope = 0.0
             for i in range(n):
@@ -327,15 +348,15 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
             full = trial <= energy + 1e-4 * slope + 1e-13 * abs(energy)
             alpha = 1.0
             if not full:
-                alpha = _line_search(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law, table, qs, step,
-                                     delta, ddelta, d, dd, zero_b, zero_d)
+                alpha = _line_search(Ks, fs, rs, bs, pin_local, pin_law, Bs, bcols, os_, cs, brg_law, table,
+                                     qs, step, delta, ddelta, d, dd, zero_b, zero_d)
             largest_move, largest_q = 0.0, 0.0
             for i in range(n):
                 qs[i] += alpha * step[i]
                 largest_move = max(largest_move, abs(alpha * step[i]))
                 largest_q = max(largest_q, abs(qs[i]))
-            energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, os_, cs, brg_law,
-                                                table, qs, delta, d)
+            energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, bcols, os_, cs,
+                                                brg_law, table, qs, delta, d)
             # Done when a step no longer moves (a guessed first step says nothing of that), or,
             # piecewise quadratic, when a full step landed where exactly the pins it assumed touch.
             done = (not first) and largest_move <= step_tolerance + 1e-12 * largest_q
@@ -354,8 +375,8 @@ def newton_pairs(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg
 
 
 @kernel
-def hessians(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off, c_half, brg_law,
-             table, q, gap_tolerance, out):
+def hessians(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pin_law, brg_off, c_half,
+             brg_law, table, q, gap_tolerance, out):
     """The Newton iteration's Hessian (the true contacts, none guessed) of every pair at q
     (B, nN) into out (B, nN, nN): `newton.Work.hessian` with `active` None."""
     B, n = q.shape
@@ -367,6 +388,6 @@ def hessians(angle, K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_off
     toward, guess, engaged = np.zeros((p, 2)), np.zeros((2, Kp), dtype=np.bool_), False
     for s in range(B):
         _gradient_hessian(K[angle[s]], Kh[angle[s]], f[s], rows[s], pin_b[s], pin_local, pin_law,
-                          brg_rows[s], brg_off[s], c_half[s], brg_law, table, toward, False,
+                          brg_rows[angle[s]], brg_cols, brg_off[s], c_half[s], brg_law, table, toward, False,
                           gap_tolerance, q[s], guess, False, engaged, grad, out[s], true_grad, used,
                           delta, d)

@@ -177,6 +177,17 @@ def contact(delta, law):
     return energy + f_limit * over + 0.5 * tangent * over * over, f_limit + tangent * over, tangent
 
 
+@kernel
+def contact_forces(delta, law):
+    """`contact`'s force for a C-contiguous array of deflections, of the same shape: what
+    `contacts(delta, law)[1]` gives, compiled (the equilibria's pin forces)."""
+    flat = delta.ravel()
+    out = np.empty(flat.size)
+    for i in range(flat.size):
+        out[i] = contact(flat[i], law)[1]
+    return out.reshape(delta.shape)
+
+
 def contacts(delta, law):
     """`contact` for an array of deflections: (energy, force, tangent), each delta's shape."""
     delta = np.asarray(delta, dtype=float)

@@ -34,10 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
 from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
-from .newton import GAP_TOLERANCE, Work, chain_links, map_chunks, newton, pin_delta
-from .pin_law import contacts
+from .newton import GAP_TOLERANCE, Work, bearing_columns, chain_links, map_chunks, newton, pin_delta
+from .pin_law import contact_forces, contacts
 
 CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
 REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
@@ -124,7 +125,8 @@ class ReducedSystem:
         # Pins in reduced coordinates: disc j's unknowns sit at pin_local[j] of N.
         position = {dof: k for k, dof in enumerate(N)}
         self.pin_local = np.array([[position[d] for d in row] for row in model.pin_dofs])
-        self.brg_rows = model.bearing_rows[:, self.nl_bearings][..., N]           # (A, nbn, 2, nN)
+        self.brg_rows = np.ascontiguousarray(model.bearing_rows[:, self.nl_bearings][..., N])  # (A, nbn, 2, nN)
+        self.brg_cols = bearing_columns(self.brg_rows)
         self.brg_k = model.bearing_k[self.nl_bearings]
         self.brg_law_a = model.bearing_law_a[self.nl_bearings] * float(rollers)
         self.brg_law_compliance = model.bearing_law_compliance[self.nl_bearings]
@@ -175,7 +177,7 @@ class ReducedSystem:
         self.K_red = self.K_red + self.reg_matrix
         # Newton directions need some stiffness along the mode before a pin touches; this
         # one enters the Hessian only (the energy and its minimiser do not see it).
-        self.mode_stiffness = MODE_DIRECTION_STIFFNESS * model.pin_k * along
+        self.mode_stiffness = np.ascontiguousarray(MODE_DIRECTION_STIFFNESS * model.pin_k * along)
 
     # -- one chunk -------------------------------------------------------------------------
     def solve(self, errors: ErrorSet, sample, angle, tau_load, half_clearance, probe,
@@ -279,7 +281,7 @@ class ReducedSystem:
         delta = pin_delta(model.pin_rows[angle], qn[:, self.pin_local], pin_b)
         n_c = model.design.n_c
         mesh = np.einsum("bmn,bn->bm", model.linear_rows[angle][:, :n_c], q) + lin_b[:, :n_c]
-        return Equilibrium(q, contacts(delta, model.pin_law)[1], model.linear_k[:n_c] * mesh,
+        return Equilibrium(q, pin_forces(delta, model.pin_law), model.linear_k[:n_c] * mesh,
                            converged, iterations)
 
     def _probe_steps(self):
@@ -461,6 +463,15 @@ class ReducedSystem:
         rigid = np.isfinite(mu) & np.all(after <= GAP_TOLERANCE, axis=(1, 2))
         mu = np.where(np.isfinite(mu), mu, 0.0)
         return q0 + mu[:, None] * self.mode[angle][:, self.N], rigid
+
+
+def pin_forces(delta, law):
+    """(B, 2, z_p) [N] the pins' forces at deflections delta: the compiled law where the
+    iteration is compiled (`kernels.COMPILED`), else `contacts` in numpy; the two agree to
+    round-off (tests/test_pin_law.py)."""
+    if kernels.COMPILED:
+        return contact_forces(np.ascontiguousarray(delta, dtype=float), np.asarray(law, dtype=float))
+    return contacts(delta, law)[1]
 
 
 def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_load,
