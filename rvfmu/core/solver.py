@@ -173,6 +173,7 @@ class ReducedSystem:
         # load, only the pins stop the carrier.
         m_hat = mode[:, N] / np.linalg.norm(mode[:, N], axis=1, keepdims=True)
         along = m_hat[:, :, None] * m_hat[:, None, :]
+        self.mode_unit = np.ascontiguousarray(m_hat)                               # (A, nN)
         self.reg_matrix = self.reg * (np.eye(nN) - along)
         self.K_red = self.K_red + self.reg_matrix
         # Newton directions need some stiffness along the mode before a pin touches; this
@@ -293,13 +294,20 @@ class ReducedSystem:
         a = angle[group]
         f = f0[group] - loads[:, None] * self.g_red[a]
         if centre is not None:
-            f = f - np.einsum("bij,bj->bi", self.reg_matrix[a], centre)
+            f = f - self.reg_pull(a, centre)
         direction = np.where(loads > 0, 1.0, -1.0)
         count = None if first_count is None else first_count[group]
         toward = None if bearing_direction is None else bearing_direction[group]
         return self._elastic(a, f, pin_b[group], brg_off[group], c_half[group], direction, count, q0,
                              f_errors=f0[group], bearing_direction=toward, chain=chain,
                              every_pin=every_pin)
+
+    def reg_pull(self, angle, centre):
+        """(B, nN) the weak springs' force at zero displacement when centred on `centre` (B, nN):
+        reg_matrix[angle] @ centre, as reg (c - m (m . c)) with m the unit mode, without
+        gathering the (B, nN, nN) matrices."""
+        m = self.mode_unit[angle]
+        return self.reg * (centre - m * np.einsum("bi,bi->b", m, centre)[:, None])
 
     def _release(self, group, angle, f0, pin_b, brg_off, c_half, loads, q, rounds=RELEASE_ROUNDS):
         """The weak springs let go of the floating parts: `rounds` solves of the pairs
