@@ -140,6 +140,24 @@ def test_the_bearing_loops_visit_the_unknowns_a_bearing_touches_and_sum_as_over_
         assert np.all(out[1] == offset[s, 1])                # touching nothing: the offset alone
 
 
+def test_the_weak_springs_pull_as_their_matrix_does_and_leave_the_mechanism_free(rv40):
+    """`ReducedSystem.reg_pull`, reg (c - m (m . c)) with m the unit mechanism mode, is the
+    release rounds' reg_matrix[angle] @ centre without the matrices: the same to round-off,
+    and nothing along the mode."""
+    from rvfmu.core.equivalent import EquivalentModel
+    from rvfmu.core.solver import ReducedSystem
+
+    model = EquivalentModel(rv40, np.linspace(0.0, 0.3, 12), -1)
+    system = ReducedSystem(model, np.ones(model.bearing_k.size, dtype=bool))
+    angle = np.arange(30) % 12
+    centre = np.random.default_rng(7).standard_normal((30, system.N.size)) * 1e-6
+    matrix = np.einsum("bij,bj->bi", system.reg_matrix[angle], centre)
+    np.testing.assert_allclose(system.reg_pull(angle, centre), matrix, rtol=0,
+                               atol=1e-14 * np.abs(matrix).max())
+    along = system.mode_unit[angle] * 3e-6
+    assert np.abs(system.reg_pull(angle, along)).max() <= 1e-15 * system.reg * 3e-6
+
+
 def test_the_cholesky_solve_matches_lapack_and_refuses_an_indefinite_matrix():
     rng = np.random.default_rng(3)
     for n in (3, 9, 15):
