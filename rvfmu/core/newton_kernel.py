@@ -17,7 +17,7 @@ Array arguments, B pairs, nN reduced unknowns, K pins per disc, p bearings
 with clearance (p may be 0):
 angle: (B,) each pair's angle, indexing K, Kh: (A, nN, nN) reduced stiffness per angle, and
 what the Hessian adds (the mode stiffness), and brg_rows: (A, p, 2, nN) the bearings' rows per
-angle; brg_cols: (p, nN) the unknowns those touch (`newton.bearing_columns`); f: (B, nN); rows:
+angle; brg_cols: (p, w) the unknowns those touch (`newton.bearing_columns`); f: (B, nN); rows:
 (B, 2, K, 3); pin_b: (B, 2, K); pin_local: (2, 3);
 brg_off: (B, p, 2); c_half: (B, p); brg_law: (p, 3), each bearing's
 stiffness k, roller-law constant a (0: linear) and series compliance; pin_law: (3,) the pins'
@@ -309,7 +309,6 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
     zero_b, zero_d = np.zeros((2, Kp)), np.zeros((p, 2))
     trial_q, step = np.empty(n), np.empty(n)
     factor = np.empty((n, n))
-    bcols = brg_cols
     for s in range(B):
         qs = q[s]
         # piecewise quadratic, the primal-dual first step lands at once, and where a pin ends
@@ -323,16 +322,16 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
             qs[:] = q[s - 1]
         Ks, fs, rs, bs = K[angle[s]], f[s], rows[s], pin_b[s]
         Bs, os_, cs = brg_rows[angle[s]], brg_off[s], c_half[s]
-        energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, bcols, os_, cs, brg_law, table, qs, delta, d)
+        energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law, table, qs,
+                         delta, d)
         done = False
         it = 0
         while it < max_iterations:
             it += 1
             first = it == 1 and not (warm or linked)
-            _gradient_hessian(Ks, Kh[angle[s]], fs, rs, bs, pin_local, pin_law, Bs, bcols, os_, cs, brg_law,
-                              table,
-                              toward[s], has_toward, gap_tolerance, qs, guess[s], first, first,
-                              grad, hess, true_grad, used, delta, d)
+            _gradient_hessian(Ks, Kh[angle[s]], fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs,
+                              brg_law, table, toward[s], has_toward, gap_tolerance, qs, guess[s], first,
+                              first, grad, hess, true_grad, used, delta, d)
             if _solve_spd(hess, grad, factor, step):
                 for i in range(n):
                     step[i] = -step[i]
@@ -340,22 +339,22 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
                 step[:] = -np.linalg.solve(hess, grad)
             for i in range(n):
                 trial_q[i] = qs[i] + step[i]
-            trial = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, bcols, os_, cs, brg_law, table, trial_q,
-                            delta_trial, d_trial)
+            trial = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law, table,
+                            trial_q, delta_trial, d_trial)
             slope = 0.0
             for i in range(n):
                 slope += true_grad[i] * step[i]
             full = trial <= energy + 1e-4 * slope + 1e-13 * abs(energy)
             alpha = 1.0
             if not full:
-                alpha = _line_search(Ks, fs, rs, bs, pin_local, pin_law, Bs, bcols, os_, cs, brg_law, table,
-                                     qs, step, delta, ddelta, d, dd, zero_b, zero_d)
+                alpha = _line_search(Ks, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law,
+                                     table, qs, step, delta, ddelta, d, dd, zero_b, zero_d)
             largest_move, largest_q = 0.0, 0.0
             for i in range(n):
                 qs[i] += alpha * step[i]
                 largest_move = max(largest_move, abs(alpha * step[i]))
                 largest_q = max(largest_q, abs(qs[i]))
-            energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, bcols, os_, cs,
+            energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs,
                                                 brg_law, table, qs, delta, d)
             # Done when a step no longer moves (a guessed first step says nothing of that), or,
             # piecewise quadratic, when a full step landed where exactly the pins it assumed touch.

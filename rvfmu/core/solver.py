@@ -125,8 +125,8 @@ class ReducedSystem:
         # Pins in reduced coordinates: disc j's unknowns sit at pin_local[j] of N.
         position = {dof: k for k, dof in enumerate(N)}
         self.pin_local = np.array([[position[d] for d in row] for row in model.pin_dofs])
-        self.brg_rows = np.ascontiguousarray(model.bearing_rows[:, self.nl_bearings][..., N])  # (A, nbn, 2, nN)
-        self.brg_cols = bearing_columns(self.brg_rows)
+        self.brg_rows = np.ascontiguousarray(model.bearing_rows[:, self.nl_bearings][..., N])
+        self.brg_cols = bearing_columns(self.brg_rows)                # (A, nbn, 2, nN) rows, (nbn, w)
         self.brg_k = model.bearing_k[self.nl_bearings]
         self.brg_law_a = model.bearing_law_a[self.nl_bearings] * float(rollers)
         self.brg_law_compliance = model.bearing_law_compliance[self.nl_bearings]
