@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 
 from rvfmu.core import kernels
+from rvfmu.core.kernels import touched_columns
 from rvfmu.core.errors import stack
-from rvfmu.core.newton import bearing_columns
 from rvfmu.core.newton_kernel import _bearing_deflections, _solve_spd
 from rvfmu.core.quasistatic import te_curve, windup
 from tolerance.sampling import errors_from_unit
@@ -121,16 +121,16 @@ def test_chains_link_neighbouring_angles_of_one_reducer_and_load_only():
 
 def test_the_bearing_loops_visit_the_unknowns_a_bearing_touches_and_sum_as_over_all():
     """Each bearing's rows are summed over the unknowns they touch at any angle
-    (`newton.bearing_columns`); the other terms are exact zeros, so the deflections are those
+    (`kernels.touched_columns`); the other terms are exact zeros, so the deflections are those
     of the rows over every unknown."""
     rng = np.random.default_rng(5)
     B, p, n = 3, 3, 7
     rows = np.zeros((B, p, 2, n))
     rows[0, 0, 0, 4], rows[2, 0, 1, 1], rows[1, 0, :, 2] = 0.7, -1.3, (0.2, 0.9)   # 1, 2, 4
     rows[:, 2, :, :] = rng.standard_normal((B, 2, n))                               # all seven
-    cols = bearing_columns(rows)
+    cols = touched_columns(rows)
     np.testing.assert_array_equal(cols, [[1, 2, 4, -1, -1, -1, -1], [-1] * n, list(range(n))])
-    assert bearing_columns(rows[:, :0]).shape == (0, 1)
+    assert touched_columns(rows[:, :0]).shape == (0, 1)
     offset, q = rng.standard_normal((B, p, 2)), rng.standard_normal((B, n))
     out = np.empty((p, 2))
     for s in range(B):

@@ -81,9 +81,9 @@ Geometry = namedtuple("Geometry", [
 def touched_columns(rows: np.ndarray) -> np.ndarray:
     """(E, w) the unknowns that element rows (A, E, ..., n) touch, at any of the A instants:
     each element joins two bodies, so a handful of the n.  Shorter lists are padded with
-    -1 (`gather` gives those a zero coefficient)."""
+    -1 (`gather` gives those a zero coefficient); no elements (E = 0) give (0, 1)."""
     touched = np.any(rows != 0.0, axis=tuple(k for k in range(rows.ndim - 1) if k != 1))  # (E, n)
-    cols = np.full((touched.shape[0], max(1, int(touched.sum(axis=1).max()))), -1, dtype=np.int64)
+    cols = np.full((touched.shape[0], max(1, int(touched.sum(axis=1).max(initial=0)))), -1, dtype=np.int64)
     for e, row in enumerate(touched):
         found = np.flatnonzero(row)
         cols[e, :found.size] = found

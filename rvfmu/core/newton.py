@@ -157,20 +157,9 @@ def newton_compiled(work, first_active, q0=None, chain=None):
     return q, converged, int(iterations.max(initial=0))
 
 
-def bearing_columns(brg_rows: np.ndarray) -> np.ndarray:
-    """(p, w) the reduced unknowns each bearing's rows (A, p, 2, nN) touch at any angle, in
-    ascending order, -1 after the last (`kernels.touched_columns`): a bearing joins two
-    bodies, five or six of the 15-odd unknowns, and the compiled loops over its rows skip
-    the others (whose terms are exact zeros, so the sums are those over every unknown to
-    the bit)."""
-    if brg_rows.shape[1] == 0:
-        return np.full((0, 1), -1, dtype=np.int64)
-    return kernels.touched_columns(brg_rows)
-
-
 def _kernel_arguments(work):
     """The arrays of `work` as the compiled kernels take them: (angle (B,), [K_red, mode
-    stiffness, bearing rows] per angle and the unknowns those touch (`bearing_columns`), [f,
+    stiffness, bearing rows] per angle and the unknowns those touch (`kernels.touched_columns`), [f,
     rows, pin_b] per pair, [pin_local, pin_law] shared, [bearing offsets, half clearances] per
     pair (p = 0 without bearings with clearance), [each bearing's (k, roller-law a, series
     compliance), the roller law's table])."""

@@ -17,7 +17,7 @@ Array arguments, B pairs, nN reduced unknowns, K pins per disc, p bearings
 with clearance (p may be 0):
 angle: (B,) each pair's angle, indexing K, Kh: (A, nN, nN) reduced stiffness per angle, and
 what the Hessian adds (the mode stiffness), and brg_rows: (A, p, 2, nN) the bearings' rows per
-angle; brg_cols: (p, w) the unknowns those touch (`newton.bearing_columns`); f: (B, nN); rows:
+angle; brg_cols: (p, w) the unknowns those touch (`kernels.touched_columns`); f: (B, nN); rows:
 (B, 2, K, 3); pin_b: (B, 2, K); pin_local: (2, 3);
 brg_off: (B, p, 2); c_half: (B, p); brg_law: (p, 3), each bearing's
 stiffness k, roller-law constant a (0: linear) and series compliance; pin_law: (3,) the pins'

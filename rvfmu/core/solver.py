@@ -37,7 +37,7 @@ import numpy as np
 from . import kernels
 from .equivalent import EquivalentModel
 from .errors import ErrorSet, zero_errors
-from .newton import GAP_TOLERANCE, Work, bearing_columns, chain_links, map_chunks, newton, pin_delta
+from .newton import GAP_TOLERANCE, Work, chain_links, map_chunks, newton, pin_delta
 from .pin_law import contact_forces, contacts
 
 CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
@@ -126,7 +126,8 @@ class ReducedSystem:
         position = {dof: k for k, dof in enumerate(N)}
         self.pin_local = np.array([[position[d] for d in row] for row in model.pin_dofs])
         self.brg_rows = np.ascontiguousarray(model.bearing_rows[:, self.nl_bearings][..., N])
-        self.brg_cols = bearing_columns(self.brg_rows)                # (A, nbn, 2, nN) rows, (nbn, w)
+        # (A, nbn, 2, nN) rows; the unknowns each bearing touches (nbn, w), for the compiled loops
+        self.brg_cols = kernels.touched_columns(self.brg_rows)
         self.brg_k = model.bearing_k[self.nl_bearings]
         self.brg_law_a = model.bearing_law_a[self.nl_bearings] * float(rollers)
         self.brg_law_compliance = model.bearing_law_compliance[self.nl_bearings]
