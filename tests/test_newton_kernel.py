@@ -22,7 +22,8 @@ import pytest
 from rvfmu.core import kernels
 from rvfmu.core.kernels import touched_columns
 from rvfmu.core.errors import stack
-from rvfmu.core.newton_kernel import _bearing_deflections, _solve_spd
+from rvfmu.core.newton_kernel import (_bearing_deflections, _energy, _evaluate, _gradient_hessian,
+                                      _solve_spd)
 from rvfmu.core.quasistatic import te_curve, windup
 from tolerance.sampling import errors_from_unit
 from tolerance.study import load_study
@@ -156,6 +157,61 @@ def test_the_weak_springs_pull_as_their_matrix_does_and_leave_the_mechanism_free
                                atol=1e-14 * np.abs(matrix).max())
     along = system.mode_unit[angle] * 3e-6
     assert np.abs(system.reg_pull(angle, along)).max() <= 1e-15 * system.reg * 3e-6
+
+
+@pytest.mark.parametrize("laws", ["linear", "hertz and rollers"])
+def test_one_pass_gives_the_energy_gradient_and_hessian_of_the_two_to_the_bit(rv40_hertz, laws):
+    """`_evaluate`, which every Newton step after the first calls where the step before landed,
+    is `_energy` and `_gradient_hessian` (nothing guessed or engaged) in one pass: the same
+    numbers to the bit, with pins open, touching and pressed, and bearings inside their play
+    and out of it, linear and by the roller law."""
+    from rvfmu.core.equivalent import EquivalentModel
+    from rvfmu.core.roller_law import TABLE_DE, TABLE_E
+    from rvfmu.core.solver import ReducedSystem
+
+    model = EquivalentModel(rv40_hertz, np.linspace(0.0, 0.3, 6), -1)
+    system = ReducedSystem(model, np.ones(model.bearing_k.size, dtype=bool))
+    rng = np.random.default_rng(17)
+    n, K, p = system.N.size, 40, system.brg_k.size
+    hertz = laws != "linear"
+    pin_law = np.array(model.pin_law, dtype=float) if hertz else np.array([2.2e8, 0.0, 0.0])
+    brg_law = np.stack([system.brg_k, system.brg_law_a if hertz else 0.0 * system.brg_k,
+                        system.brg_law_compliance], axis=-1)
+    assert (brg_law[:, 1] > 0).any() == hertz and (pin_law[1] > 0) == hertz
+    table = np.stack([TABLE_E, TABLE_DE])
+    c_half = np.full(p, 5e-6)
+    for a in range(6):
+        Ks = np.ascontiguousarray(system.K_red[a])
+        Kh = np.ascontiguousarray(system.mode_stiffness[a])
+        Bs = np.ascontiguousarray(system.brg_rows[a])
+        q = rng.standard_normal(n) * 2e-6
+        f = rng.standard_normal(n) * 10.0
+        rows = rng.standard_normal((2, K, 3)) * 0.3
+        pin_b = rng.standard_normal((2, K)) * 1e-6
+        pin_b[0, :3] = -np.einsum("kx,x->k", rows[0, :3], q[system.pin_local[0]])   # at contact
+        # the bearings' deflections: every other one inside its play, the others 1-20 um out of it
+        radius = np.where(np.arange(p) % 2 == 0, 0.5 * c_half, c_half + rng.uniform(1e-6, 2e-5, p))
+        turn = rng.uniform(0.0, 2 * np.pi, p)
+        brg_off = np.stack([np.cos(turn), np.sin(turn)], axis=-1) * radius[:, None] \
+            - np.einsum("bxn,n->bx", Bs, q)
+        delta, d = np.empty((2, K)), np.empty((p, 2))
+        energy = _energy(Ks, f, rows, pin_b, system.pin_local, pin_law, Bs, system.brg_cols, brg_off,
+                         c_half, brg_law, table, q, delta, d)
+        grad, hess, true_grad = np.empty(n), np.empty((n, n)), np.empty(n)
+        used = np.empty((2, K), dtype=bool)
+        _gradient_hessian(Ks, Kh, f, rows, pin_b, system.pin_local, pin_law, Bs, system.brg_cols,
+                          brg_off, c_half, brg_law, table, np.zeros((p, 2)), False, 1e-12, q,
+                          np.zeros((2, K), dtype=bool), False, False, grad, hess, true_grad, used,
+                          delta, d)
+        inside = np.hypot(d[:, 0], d[:, 1]) <= c_half
+        assert inside.any() and not inside.all() and (delta > 0).any() and (delta < 0).any()
+        grad1, hess1, used1 = np.empty(n), np.empty((n, n)), np.empty((2, K), dtype=bool)
+        energy1 = _evaluate(Ks, Kh, f, rows, pin_b, system.pin_local, pin_law, Bs, system.brg_cols,
+                            brg_off, c_half, brg_law, table, 1e-12, q, grad1, hess1, used1,
+                            np.empty((2, K)), np.empty((p, 2)))
+        assert energy1 == energy
+        assert np.array_equal(grad1, grad) and np.array_equal(grad, true_grad)
+        assert np.array_equal(hess1, hess) and np.array_equal(used1, used)
 
 
 def test_the_cholesky_solve_matches_lapack_and_refuses_an_indefinite_matrix():

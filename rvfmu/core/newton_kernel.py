@@ -9,7 +9,12 @@ pair, and the pairs are solved one after another, each stopping when it has
 converged.  The algorithm is that of `newton.newton`, step for step: the
 primal-dual first step with the guessed pins (and bearings) engaged, then
 semismooth Newton steps on the true energy, a full step where it lowers the
-energy and the exact line search otherwise, the same tolerances.  The two
+energy and the exact line search otherwise, the same tolerances.  Every step
+after the first starts where the step before landed, and a full step lands at
+its trial point, whose energy the step needs anyway: there one pass over the
+elements gives the energy, the gradient and the Hessian together
+(`_evaluate`), the same sums in the same order, so the numbers are those of
+the separate functions to the bit (tests/test_newton_kernel.py).  The two
 agree to round-off (tests/test_newton_kernel.py); the numpy iteration is used
 where numba is absent or switched off (RVTE_NUMBA=0, `kernels.COMPILED`).
 
@@ -184,6 +189,73 @@ def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_c
 
 
 @kernel
+def _evaluate(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg_off, c_half, brg_law,
+              table, gap_tolerance, q, grad, hess, used, delta, d):
+    """The energy of one pair at q (returned), as `_energy` gives it, and into grad and hess its
+    gradient and the iteration's Hessian there, as `_gradient_hessian` gives them with nothing
+    guessed or engaged: the same sums in the same order, in one pass over the elements where
+    those two make one each (every Newton step after the first is evaluated where the step
+    before landed, and a full step lands at its trial point)."""
+    n = q.size
+    kp = pin_law[0]
+    e = 0.0
+    for i in range(n):
+        kq, g = 0.0, f[i]           # summed as the two functions sum them, to the bit
+        for j in range(n):
+            kq += K[i, j] * q[j]
+            g += K[i, j] * q[j]
+            hess[i, j] = K[i, j] + Kh[i, j]
+        grad[i] = g
+        e += q[i] * (0.5 * kq + f[i])
+    _deflections(rows, pin_b, pin_local, q, delta)
+    for j in range(2):
+        loc = pin_local[j]
+        for k in range(rows.shape[1]):
+            dk = delta[j, k]
+            energy, force, tangent = contact(dk, pin_law)
+            e += energy
+            act = dk > -gap_tolerance
+            if dk <= 0.0:
+                tangent = kp
+            used[j, k] = act
+            if force != 0.0:
+                for x in range(3):
+                    grad[loc[x]] += force * rows[j, k, x]
+            if act:
+                for x in range(3):
+                    for y in range(3):
+                        hess[loc[x], loc[y]] += tangent * rows[j, k, x] * rows[j, k, y]
+    if brg_rows.shape[0] == 0:
+        return e
+    _bearing_deflections(brg_rows, brg_cols, brg_off, q, d)
+    for b in range(d.shape[0]):
+        dx, dy = d[b, 0], d[b, 1]
+        c = c_half[b]
+        e += _radial(np.sqrt(dx ** 2 + dy ** 2), c, brg_law[b], table)[0]
+        fx, fy, txx, txy, tyy = _bearing(dx, dy, c, brg_law[b], table)
+        if fx == 0.0 and fy == 0.0 and txx == 0.0 and txy == 0.0 and tyy == 0.0:
+            continue                        # inside its play: adds nothing
+        cols = brg_cols[b]
+        for wi in range(cols.size):
+            i = cols[wi]
+            if i < 0:
+                break
+            rx, ry = brg_rows[b, 0, i], brg_rows[b, 1, i]
+            grad[i] += rx * fx + ry * fy
+            if rx == 0.0 and ry == 0.0:
+                continue
+            ux, uy = txx * rx + txy * ry, txy * rx + tyy * ry
+            for wj in range(cols.size):
+                j = cols[wj]
+                if j < 0:
+                    break
+                sx, sy = brg_rows[b, 0, j], brg_rows[b, 1, j]
+                if sx != 0.0 or sy != 0.0:
+                    hess[i, j] += ux * sx + uy * sy
+    return e
+
+
+@kernel
 def _solve_spd(A, b, L, x):
     """x = A^-1 b for the symmetric positive definite Hessian A (n, n) of one pair, by Cholesky
     into L (n, n); False where a pivot is not positive (the caller then solves by LU).
@@ -301,9 +373,9 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
     Kp = rows.shape[2]
     # piecewise quadratic (no bearing with clearance, linear pins): a consistent active set is exact
     smooth = p == 0 and pin_law[1] == 0.0
-    grad, true_grad = np.empty(n), np.empty(n)
-    hess = np.empty((n, n))
-    used = np.empty((2, Kp), dtype=np.bool_)
+    grad, true_grad, grad_next = np.empty(n), np.empty(n), np.empty(n)
+    hess, hess_next = np.empty((n, n)), np.empty((n, n))
+    used, used_next = np.empty((2, Kp), dtype=np.bool_), np.empty((2, Kp), dtype=np.bool_)
     delta, delta_trial, ddelta = np.empty((2, Kp)), np.empty((2, Kp)), np.empty((2, Kp))
     d, d_trial, dd = np.empty((p, 2)), np.empty((p, 2)), np.empty((p, 2))
     zero_b, zero_d = np.zeros((2, Kp)), np.zeros((p, 2))
@@ -320,18 +392,28 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
                 qs[i] = 2.0 * q[s - 1, i] - q[s - 2, i]
         elif linked:
             qs[:] = q[s - 1]
-        Ks, fs, rs, bs = K[angle[s]], f[s], rows[s], pin_b[s]
+        Ks, Khs, fs, rs, bs = K[angle[s]], Kh[angle[s]], f[s], rows[s], pin_b[s]
         Bs, os_, cs = brg_rows[angle[s]], brg_off[s], c_half[s]
-        energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law, table, qs,
-                         delta, d)
+        guessed = not (warm or linked)      # the first step bonds the guessed pins
+        # ready: grad, hess and used hold the true gradient and Hessian at qs, evaluated with
+        # its energy (`_evaluate`); every step but a guessed first one starts so
+        ready = not guessed
+        if ready:
+            energy = _evaluate(Ks, Khs, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law,
+                               table, gap_tolerance, qs, grad, hess, used, delta, d)
+        else:
+            energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law, table,
+                             qs, delta, d)
         done = False
         it = 0
         while it < max_iterations:
             it += 1
-            first = it == 1 and not (warm or linked)
-            _gradient_hessian(Ks, Kh[angle[s]], fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs,
-                              brg_law, table, toward[s], has_toward, gap_tolerance, qs, guess[s], first,
-                              first, grad, hess, true_grad, used, delta, d)
+            first = it == 1 and guessed
+            if not ready:
+                _gradient_hessian(Ks, Khs, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs,
+                                  brg_law, table, toward[s], has_toward, gap_tolerance, qs, guess[s],
+                                  first, first, grad, hess, true_grad, used, delta, d)
+            slope_grad = grad if ready else true_grad
             if _solve_spd(hess, grad, factor, step):
                 for i in range(n):
                     step[i] = -step[i]
@@ -339,11 +421,12 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
                 step[:] = -np.linalg.solve(hess, grad)
             for i in range(n):
                 trial_q[i] = qs[i] + step[i]
-            trial = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law, table,
-                            trial_q, delta_trial, d_trial)
+            trial = _evaluate(Ks, Khs, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law,
+                              table, gap_tolerance, trial_q, grad_next, hess_next, used_next,
+                              delta_trial, d_trial)
             slope = 0.0
             for i in range(n):
-                slope += true_grad[i] * step[i]
+                slope += slope_grad[i] * step[i]
             full = trial <= energy + 1e-4 * slope + 1e-13 * abs(energy)
             alpha = 1.0
             if not full:
@@ -354,8 +437,6 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
                 qs[i] += alpha * step[i]
                 largest_move = max(largest_move, abs(alpha * step[i]))
                 largest_q = max(largest_q, abs(qs[i]))
-            energy = trial if full else _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs,
-                                                brg_law, table, qs, delta, d)
             # Done when a step no longer moves (a guessed first step says nothing of that), or,
             # piecewise quadratic, when a full step landed where exactly the pins it assumed touch.
             done = (not first) and largest_move <= step_tolerance + 1e-12 * largest_q
@@ -369,6 +450,15 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
                 done = consistent
             if done:
                 break
+            if full:                        # landed on the trial point: its evaluation is the next
+                energy = trial
+                grad, grad_next = grad_next, grad
+                hess, hess_next = hess_next, hess
+                used, used_next = used_next, used
+            else:
+                energy = _evaluate(Ks, Khs, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs,
+                                   brg_law, table, gap_tolerance, qs, grad, hess, used, delta, d)
+            ready = True
         converged[s] = done
         iterations[s] = it
 
