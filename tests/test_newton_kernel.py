@@ -206,7 +206,7 @@ def test_one_pass_gives_the_energy_gradient_and_hessian_of_the_two_to_the_bit(rv
         inside = np.hypot(d[:, 0], d[:, 1]) <= c_half
         assert inside.any() and not inside.all() and (delta > 0).any() and (delta < 0).any()
         grad1, hess1, used1 = np.empty(n), np.empty((n, n)), np.empty((2, K), dtype=bool)
-        energy1 = _evaluate(Ks, Kh, f, rows, pin_b, system.pin_local, pin_law, Bs, system.brg_cols,
+        energy1 = _evaluate(Ks, Ks + Kh, f, rows, pin_b, system.pin_local, pin_law, Bs, system.brg_cols,
                             brg_off, c_half, brg_law, table, 1e-12, q, grad1, hess1, used1,
                             np.empty((2, K)), np.empty((p, 2)))
         assert energy1 == energy

@@ -189,13 +189,14 @@ def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_c
 
 
 @kernel
-def _evaluate(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg_off, c_half, brg_law,
+def _evaluate(K, Kt, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg_off, c_half, brg_law,
               table, gap_tolerance, q, grad, hess, used, delta, d):
     """The energy of one pair at q (returned), as `_energy` gives it, and into grad and hess its
     gradient and the iteration's Hessian there, as `_gradient_hessian` gives them with nothing
     guessed or engaged: the same sums in the same order, in one pass over the elements where
     those two make one each (every Newton step after the first is evaluated where the step
-    before landed, and a full step lands at its trial point)."""
+    before landed, and a full step lands at its trial point).  Kt: K + Kh, the Hessian's
+    constant part, summed once per pair."""
     n = q.size
     kp = pin_law[0]
     e = 0.0
@@ -204,7 +205,7 @@ def _evaluate(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg
         for j in range(n):
             kq += K[i, j] * q[j]
             g += K[i, j] * q[j]
-            hess[i, j] = K[i, j] + Kh[i, j]
+            hess[i, j] = Kt[i, j]
         grad[i] = g
         e += q[i] * (0.5 * kq + f[i])
     _deflections(rows, pin_b, pin_local, q, delta)
@@ -231,10 +232,19 @@ def _evaluate(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg
     for b in range(d.shape[0]):
         dx, dy = d[b, 0], d[b, 1]
         c = c_half[b]
-        e += _radial(np.sqrt(dx ** 2 + dy ** 2), c, brg_law[b], table)[0]
-        fx, fy, txx, txy, tyy = _bearing(dx, dy, c, brg_law[b], table)
-        if fx == 0.0 and fy == 0.0 and txx == 0.0 and txy == 0.0 and tyy == 0.0:
+        # `_bearing` and the energy of `_energy` from one evaluation of the law
+        s = np.sqrt(dx ** 2 + dy ** 2)
+        norm = max(s, 1e-300)
+        if norm <= c:
             continue                        # inside its play: adds nothing
+        energy, force, radial, across = _radial(norm, c, brg_law[b], table)
+        if s != norm:
+            energy = _radial(s, c, brg_law[b], table)[0]
+        e += energy
+        nx, ny = dx / norm, dy / norm
+        fx, fy = force * nx, force * ny
+        txx, txy, tyy = (across + (radial - across) * nx * nx, (radial - across) * nx * ny,
+                         across + (radial - across) * ny * ny)
         cols = brg_cols[b]
         for wi in range(cols.size):
             i = cols[wi]
@@ -242,16 +252,12 @@ def _evaluate(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg
                 break
             rx, ry = brg_rows[b, 0, i], brg_rows[b, 1, i]
             grad[i] += rx * fx + ry * fy
-            if rx == 0.0 and ry == 0.0:
-                continue
             ux, uy = txx * rx + txy * ry, txy * rx + tyy * ry
-            for wj in range(cols.size):
+            for wj in range(cols.size):     # a row that is zero at this angle adds a zero
                 j = cols[wj]
                 if j < 0:
                     break
-                sx, sy = brg_rows[b, 0, j], brg_rows[b, 1, j]
-                if sx != 0.0 or sy != 0.0:
-                    hess[i, j] += ux * sx + uy * sy
+                hess[i, j] += ux * brg_rows[b, 0, j] + uy * brg_rows[b, 1, j]
     return e
 
 
@@ -380,7 +386,7 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
     d, d_trial, dd = np.empty((p, 2)), np.empty((p, 2)), np.empty((p, 2))
     zero_b, zero_d = np.zeros((2, Kp)), np.zeros((p, 2))
     trial_q, step = np.empty(n), np.empty(n)
-    factor = np.empty((n, n))
+    factor, Kts = np.empty((n, n)), np.empty((n, n))
     for s in range(B):
         qs = q[s]
         # piecewise quadratic, the primal-dual first step lands at once, and where a pin ends
@@ -393,13 +399,16 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
         elif linked:
             qs[:] = q[s - 1]
         Ks, Khs, fs, rs, bs = K[angle[s]], Kh[angle[s]], f[s], rows[s], pin_b[s]
+        for i in range(n):
+            for j in range(n):
+                Kts[i, j] = Ks[i, j] + Khs[i, j]
         Bs, os_, cs = brg_rows[angle[s]], brg_off[s], c_half[s]
         guessed = not (warm or linked)      # the first step bonds the guessed pins
         # ready: grad, hess and used hold the true gradient and Hessian at qs, evaluated with
         # its energy (`_evaluate`); every step but a guessed first one starts so
         ready = not guessed
         if ready:
-            energy = _evaluate(Ks, Khs, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law,
+            energy = _evaluate(Ks, Kts, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law,
                                table, gap_tolerance, qs, grad, hess, used, delta, d)
         else:
             energy = _energy(Ks, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law, table,
@@ -421,7 +430,7 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
                 step[:] = -np.linalg.solve(hess, grad)
             for i in range(n):
                 trial_q[i] = qs[i] + step[i]
-            trial = _evaluate(Ks, Khs, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law,
+            trial = _evaluate(Ks, Kts, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law,
                               table, gap_tolerance, trial_q, grad_next, hess_next, used_next,
                               delta_trial, d_trial)
             slope = 0.0
@@ -456,7 +465,7 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
                 hess, hess_next = hess_next, hess
                 used, used_next = used_next, used
             else:
-                energy = _evaluate(Ks, Khs, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs,
+                energy = _evaluate(Ks, Kts, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs,
                                    brg_law, table, gap_tolerance, qs, grad, hess, used, delta, d)
             ready = True
         converged[s] = done
