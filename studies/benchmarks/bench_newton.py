@@ -70,7 +70,8 @@ def main(argv=None):
     ]
 
     start = time.perf_counter()
-    te_curve(study.design, full.take([0]), tau_load=0.0, points=16)    # compile or load the kernel
+    for _, design, errors, tau, _ in cases:     # compile or load the kernels of every case
+        te_curve(design, errors.take([0]), tau_load=tau, points=16)
     warm = time.perf_counter() - start
 
     rows, worst = [], []
