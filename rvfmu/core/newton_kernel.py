@@ -116,6 +116,25 @@ def _energy(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg_off, 
 
 
 @kernel
+def _add_bearing(brg_rows, cols, b, gx, gy, txx, txy, tyy, grad, hess):
+    """Bearing b's force (gx, gy) into grad and its stiffness [[txx, txy], [txy, tyy]] into hess,
+    over the unknowns `cols` it touches (`kernels.touched_columns`; a row that is zero at this
+    angle adds a zero)."""
+    for wi in range(cols.size):
+        i = cols[wi]
+        if i < 0:
+            break
+        rx, ry = brg_rows[b, 0, i], brg_rows[b, 1, i]
+        grad[i] += rx * gx + ry * gy
+        ux, uy = txx * rx + txy * ry, txy * rx + tyy * ry
+        for wj in range(cols.size):
+            j = cols[wj]
+            if j < 0:
+                break
+            hess[i, j] += ux * brg_rows[b, 0, j] + uy * brg_rows[b, 1, j]
+
+
+@kernel
 def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg_off, c_half,
                       brg_law, table, toward, has_toward, gap_tolerance, q, guess, use_guess, engaged,
                       grad, hess, true_grad, used, delta, d):
@@ -173,19 +192,8 @@ def _gradient_hessian(K, Kh, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_c
             i = cols[wi]
             if i < 0:
                 break
-            rx, ry = brg_rows[b, 0, i], brg_rows[b, 1, i]
-            true_grad[i] += rx * fx + ry * fy
-            grad[i] += rx * gx + ry * gy
-            if rx == 0.0 and ry == 0.0:
-                continue
-            ux, uy = txx * rx + txy * ry, txy * rx + tyy * ry
-            for wj in range(cols.size):
-                j = cols[wj]
-                if j < 0:
-                    break
-                sx, sy = brg_rows[b, 0, j], brg_rows[b, 1, j]
-                if sx != 0.0 or sy != 0.0:
-                    hess[i, j] += ux * sx + uy * sy
+            true_grad[i] += brg_rows[b, 0, i] * fx + brg_rows[b, 1, i] * fy
+        _add_bearing(brg_rows, cols, b, gx, gy, txx, txy, tyy, grad, hess)
 
 
 @kernel
@@ -219,7 +227,7 @@ def _evaluate(K, Kt, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg
             if dk <= 0.0:
                 tangent = kp
             used[j, k] = act
-            if force != 0.0:
+            if force != 0.0:                # an open pin adds nothing
                 for x in range(3):
                     grad[loc[x]] += force * rows[j, k, x]
             if act:
@@ -245,19 +253,7 @@ def _evaluate(K, Kt, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg
         fx, fy = force * nx, force * ny
         txx, txy, tyy = (across + (radial - across) * nx * nx, (radial - across) * nx * ny,
                          across + (radial - across) * ny * ny)
-        cols = brg_cols[b]
-        for wi in range(cols.size):
-            i = cols[wi]
-            if i < 0:
-                break
-            rx, ry = brg_rows[b, 0, i], brg_rows[b, 1, i]
-            grad[i] += rx * fx + ry * fy
-            ux, uy = txx * rx + txy * ry, txy * rx + tyy * ry
-            for wj in range(cols.size):     # a row that is zero at this angle adds a zero
-                j = cols[wj]
-                if j < 0:
-                    break
-                hess[i, j] += ux * brg_rows[b, 0, j] + uy * brg_rows[b, 1, j]
+        _add_bearing(brg_rows, brg_cols[b], b, fx, fy, txx, txy, tyy, grad, hess)
     return e
 
 
