@@ -78,6 +78,39 @@ def test_the_tangent_is_the_derivative_of_the_forces_with_friction(rv40f, seed00
                                        atol=max(1e-6 * np.abs(C).max(), noise))
 
 
+def test_the_working_arrays_carry_nothing_from_one_evaluation_to_the_next(rv40f, seed002):
+    """The Newmark loop evaluates the forces into working arrays made once (`scratch`): after
+    a loaded state, a state with every bearing inside its clearance (no normal force, so no
+    Coulomb friction in them) gives what fresh arrays give, to the bit, and so does the
+    loaded state after it."""
+    from rvfmu.core.kernels import element_forces, forces_into, scratch
+
+    errors = seed002.replace(**{name: np.full_like(getattr(seed002, name), 20e-6)
+                                for name in ("crank_disc_clearance", "crank_carrier_clearance",
+                                             "main_bearing_clearance")})
+    model = DynamicModel(rv40f, errors, mesh="varying")
+    model.prepare(ramp_motion(np.array([0.0, 1e-4]), 100.0, 0.0, -300.0))
+    loaded = static_start(model, -300.0, 0.0)
+    v = 1e-4 * np.random.default_rng(5).standard_normal(model.n)
+    g, a = model.geometry(1)
+    work = scratch(model.elements, g)
+    states = (loaded, np.zeros(model.n), loaded)
+    kept, fresh = [], []
+    for q in states:
+        for out, arrays in ((kept, work), (fresh, None)):
+            f, K, C = np.empty(model.n), np.empty((model.n, model.n)), np.empty((model.n, model.n))
+            if arrays is None:
+                powers = element_forces(model.elements, g, a, q, v, f, K, C)
+            else:
+                powers = forces_into(model.elements, g, a, q, v, f, K, C, arrays)
+            out.append((f, K, C, powers))
+    for (f1, K1, C1, p1), (f2, K2, C2, p2) in zip(kept, fresh):
+        assert np.array_equal(f1, f2) and np.array_equal(K1, K2) and np.array_equal(C1, C2)
+        assert p1 == p2
+    # the states differ where it matters: loaded bearings rub, free ones do not
+    assert kept[0][3][0] > kept[1][3][0]
+
+
 def _balance(design, errors, load, step, duration=0.04, speed_rpm=1600.0):
     """Works over a run from rest [J], the input ramped to speed over 10 ms and stepped by
     Newmark at `step` (the mean mesh stiffness: its steps would do work of their own):

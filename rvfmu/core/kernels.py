@@ -61,6 +61,14 @@ Elements = namedtuple("Elements", [
     "modal_c",         # (n, n) modal damping on the unknowns' velocities [N s/m]
 ])
 
+Scratch = namedtuple("Scratch", [
+    "bearing_load",    # (nb,) each bearing's normal force [N] (for the friction it presses)
+    "bearing_grad",    # (nb, 2) its gradient over the bearing's (x, y) deflection [N/m]
+    "mesh_load",       # (m,) each mesh's |force| [N]
+    "mesh_sign",       # (m,) and its sign
+    "disc_f", "disc_k", "disc_c",  # (3,), (3, 3), (3, 3): one disc's pins over its unknowns
+])
+
 Geometry = namedtuple("Geometry", [
     "h",               # (A,) time step into each step [s] (the run's first: 0)
     "linear_cols",     # (m, w) unknowns each mesh or support row touches (-1: none)
@@ -115,11 +123,26 @@ def regularised_sign(w, scale):
 
 
 @kernel
+def scratch(el, g):
+    """The working arrays of `forces_into` for the elements el and geometry g: made once for
+    a run of steps instead of at every evaluation."""
+    nb, m = el.bearing_k.shape[0], g.linear_cols.shape[0]
+    return Scratch(np.zeros(nb), np.zeros((nb, 2)), np.zeros(m), np.zeros(m), np.zeros(3),
+                   np.zeros((3, 3)), np.zeros((3, 3)))
+
+
+@kernel
 def element_forces(el, g, a, q, v, f, K, C):
     """Forces of every element at step a of geometry g into f (n,), with their derivatives in
     q and v into K and C (n, n): the EOM is M q'' + f = F.  f, K, C are overwritten.
     Returns (friction power, damper power) [W]: what the contacts' friction and the
     damping (dashpots and the modal matrix) dissipate at this state (each >= 0)."""
+    return forces_into(el, g, a, q, v, f, K, C, scratch(el, g))
+
+
+@kernel
+def forces_into(el, g, a, q, v, f, K, C, work):
+    """`element_forces` with its working arrays `work` (`scratch`) given."""
     f[:] = 0.0
     K[:, :] = 0.0
     C[:, :] = 0.0
@@ -127,10 +150,10 @@ def element_forces(el, g, a, q, v, f, K, C):
     nb = el.bearing_k.shape[0]
     # each element's normal force and its gradient over the element's own unknowns (for the
     # friction it presses): bearings along (x, y), meshes signed by their force
-    bearing_load = np.zeros(nb)
-    bearing_grad = np.zeros((nb, 2))
-    mesh_load = np.zeros(g.linear_cols.shape[0])
-    mesh_sign = np.zeros(g.linear_cols.shape[0])
+    bearing_load, bearing_grad = work.bearing_load, work.bearing_grad
+    mesh_load, mesh_sign = work.mesh_load, work.mesh_sign
+    bearing_load[:] = 0.0
+    bearing_grad[:, :] = 0.0
     # meshes and sun support: bilateral springs
     cols, L = g.linear_cols, g.L[a]
     for e in range(cols.shape[0]):
@@ -190,18 +213,23 @@ def element_forces(el, g, a, q, v, f, K, C):
                 j, cx, cy = cols[b, y], B[b, 0, y], B[b, 1, y]
                 K[i, j] += tx * cx + ty * cy
                 C[i, j] += c * (bx * cx + by * cy)
-    # pins: unilateral along their normals, over each disc's own three unknowns
+    # pins: unilateral along their normals, over each disc's own three unknowns; each disc's
+    # pins are summed over its three unknowns first (`work.disc_*`), then added in once
+    mu = el.pin_friction
+    df, dk, dc = work.disc_f, work.disc_k, work.disc_c
     for j in range(2):
         dofs = el.pin_dofs[j]
-        R = g.P[a, j]                                      # (z_p, 3)
+        q0, q1, q2 = q[dofs[0]], q[dofs[1]], q[dofs[2]]
+        v0, v1, v2 = v[dofs[0]], v[dofs[1]], v[dofs[2]]
+        R, T = g.P[a, j], g.pin_tangent[a, j]                # (z_p, 3) normal and slip rows
+        df[:] = 0.0
+        dk[:, :] = 0.0
+        dc[:, :] = 0.0
         for p in range(R.shape[0]):
-            delta = g.pin_offset[a, j, p]
-            rate = 0.0
-            for x in range(3):
-                delta += R[p, x] * q[dofs[x]]
-                rate += R[p, x] * v[dofs[x]]
+            delta = g.pin_offset[a, j, p] + R[p, 0] * q0 + R[p, 1] * q1 + R[p, 2] * q2
             if delta <= 0.0:
                 continue                                   # open
+            rate = R[p, 0] * v0 + R[p, 1] * v1 + R[p, 2] * v2
             if el.impact:
                 s = min(delta / el.impact_depth, 1.0)
                 ramp = s * s * (3.0 - 2.0 * s)             # IMPACT's cubic step of the damping
@@ -217,27 +245,31 @@ def element_forces(el, g, a, q, v, f, K, C):
             if normal <= 0.0:
                 continue                                   # a separating dashpot pulls nothing
             damper_power += c * rate * rate
-            for x in range(3):
-                f[dofs[x]] += R[p, x] * normal
-                for y in range(3):
-                    K[dofs[x], dofs[y]] += k * R[p, x] * R[p, y]
-                    C[dofs[x], dofs[y]] += c * R[p, x] * R[p, y]
-            if el.pin_friction == 0.0:
+            if mu == 0.0:
+                for x in range(3):
+                    df[x] += R[p, x] * normal
+                    for y in range(3):
+                        dk[x, y] += k * R[p, x] * R[p, y]
+                        dc[x, y] += c * R[p, x] * R[p, y]
                 continue
             # friction along the tangent: mu N s(w), w the disc's slip past the pin
-            T = g.pin_tangent[a, j, p]
-            w = g.pin_slip[a, j, p]
-            for x in range(3):
-                w += T[x] * v[dofs[x]]
+            w = g.pin_slip[a, j, p] + T[p, 0] * v0 + T[p, 1] * v1 + T[p, 2] * v2
             sign, dsign = regularised_sign(w, el.slip_scale)
-            resist = el.pin_friction * normal
+            resist = mu * normal
             friction_power += resist * sign * w
+            slide = resist * dsign
             for x in range(3):
-                f[dofs[x]] += T[x] * resist * sign
+                df[x] += R[p, x] * normal + T[p, x] * resist * sign
+                kx = k * R[p, x] + mu * sign * k * T[p, x]
+                cx = c * R[p, x] + mu * sign * c * T[p, x]
                 for y in range(3):
-                    K[dofs[x], dofs[y]] += el.pin_friction * sign * k * T[x] * R[p, y]
-                    C[dofs[x], dofs[y]] += el.pin_friction * sign * c * T[x] * R[p, y] \
-                        + resist * dsign * T[x] * T[y]
+                    dk[x, y] += kx * R[p, y]
+                    dc[x, y] += cx * R[p, y] + slide * T[p, x] * T[p, y]
+        for x in range(3):
+            f[dofs[x]] += df[x]
+            for y in range(3):
+                K[dofs[x], dofs[y]] += dk[x, y]
+                C[dofs[x], dofs[y]] += dc[x, y]
     # input shaft: the sun's rotation deviation against a torsional spring to the housing
     s = el.shaft
     f[s] += el.shaft_k * q[s] + el.shaft_c * v[s]
@@ -297,14 +329,15 @@ def element_forces(el, g, a, q, v, f, K, C):
 
 
 @kernel
-def _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma, mass, f, K, C, residual):
+def _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma, mass, f, K, C, residual,
+                      work):
     """The Newmark rule's acceleration and velocity at displacement q into a, v, the element
-    forces into f, K, C (`element_forces`) and the step's residual M a + f - F into residual;
-    returns the (friction, damper) powers."""
+    forces into f, K, C (`forces_into`, working arrays `work`) and the step's residual
+    M a + f - F into residual; returns the (friction, damper) powers."""
     for i in range(q.size):
         a[i] = (q[i] - q_old[i] - h * v_old[i]) / (beta * h * h) - (0.5 / beta - 1.0) * a_old[i]
         v[i] = v_old[i] + h * ((1.0 - gamma) * a_old[i] + gamma * a[i])
-    powers = element_forces(el, g, k, q, v, f, K, C)
+    powers = forces_into(el, g, k, q, v, f, K, C, work)
     for i in range(q.size):
         residual[i] = mass[i] * a[i] + f[i] - g.external[k, i]
     return powers
@@ -376,6 +409,7 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
     f, residual, dq, start = np.empty(n), np.zeros(n), np.empty(n), np.empty(n)
     q_old, v_old, a_old = np.empty(n), np.empty(n), np.empty(n)
     K, C, J = np.empty((n, n)), np.empty((n, n)), np.empty((n, n))
+    work = scratch(el, g)
     most, failed = 0, 0
     powers = (0.0, 0.0)
     for k in range(first, stop):
@@ -392,7 +426,7 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
             it += 1
             if not evaluated:
                 powers = _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma,
-                                           mass, f, K, C, residual)
+                                           mass, f, K, C, residual, work)
             J[:, :] = C             # in place: no temporaries compiled, whole arrays in numpy
             J *= kc
             J += K
@@ -414,7 +448,7 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
                     for i in range(n):
                         q[i] = start[i] + fraction * dq[i]
                     powers = _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma,
-                                               mass, f, K, C, residual)
+                                               mass, f, K, C, residual, work)
                     if np.sqrt(np.sum(residual * residual)) < norm:
                         break
                     fraction *= 0.5
