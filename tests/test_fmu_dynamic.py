@@ -167,38 +167,49 @@ def test_fmpy_simulate_fmu_runs_the_dynamic_model_given_as_a_start_value(fmu):
     wound_back(te_dyn[50:], te_qs[50:])
 
 
-def test_the_fmu_bundles_the_compiled_kernels_and_a_host_loads_them_without_compiling(fmu, tmp_path):
+def test_the_fmu_bundles_the_compiled_kernels_and_a_host_loads_them_without_compiling(
+        fmu, tmp_path, rv40, seed002):
+    """A host with numba runs the FMU's dynamic model, from its initial equilibrium (the
+    quasi-static Newton kernels) through its communication steps, on the kernels the FMU
+    carries: nothing is compiled."""
     import zipfile
 
     from rvfmu.core.dynamic import compile_kernels
 
-    expected = {path.name for path in compile_kernels()}
+    expected = {path.name for path in compile_kernels(rv40, seed002)}
     assert expected, "numba is a dependency: the kernels must compile"
     with zipfile.ZipFile(fmu[0]) as archive:
         archive.extractall(tmp_path)
         bundled = {name.rsplit("/", 1)[1] for name in archive.namelist()
                    if "rvfmu/core/__pycache__/" in name}
     assert bundled == expected
-    assert {name.split(".")[1].split("-")[0] for name in expected} >= {
-        "element_forces", "newmark_steps", "fill_geometry"}
-    # the FMU's own copy of the core (not the installed rvfmu) finds the kernels in its cache
-    script = ("import sys; sys.path.insert(0, sys.argv[1])\n"
+    needed = {"element_forces", "newmark_steps", "fill_geometry", "communication_step",
+              "newton_pairs"}
+    assert {name.split(".")[1].split("-")[0] for name in expected} >= needed
+    # the FMU's own copy of the core (not the installed rvfmu), with the design and errors it
+    # carries, finds the kernels in its cache
+    script = ("import sys; from pathlib import Path; sys.path.insert(0, sys.argv[1])\n"
               "import numpy as np, rvfmu\n"
               "assert rvfmu.__file__.startswith(sys.argv[1]), rvfmu.__file__\n"
-              "from rvfmu.core.design import preset\n"
+              "from rvfmu.core.design import load_design\n"
               "from rvfmu.core.dynamic import DynamicModel, ramp_motion\n"
-              "from rvfmu.core.errors import zero_errors\n"
+              "from rvfmu.core.dynamic_reducer import DynamicReducer\n"
+              "from rvfmu.core.errors import load_errors\n"
               "from rvfmu.core.newmark import NewmarkStepper\n"
-              "d = preset('RV-40E-121'); m = DynamicModel(d, zero_errors(d))\n"
+              "d = load_design(Path(sys.argv[1]) / 'design.toml')\n"
+              "e = load_errors(Path(sys.argv[1]) / 'errors.toml', d)\n"
+              "m = DynamicModel(d, e)\n"
               "m.prepare(ramp_motion(np.arange(3) * 1e-4, 10.0, 0.0))\n"
-              "NewmarkStepper.starting_at(m, np.zeros(m.n)).advance(2)\n")
+              "NewmarkStepper.starting_at(m, np.zeros(m.n)).advance(2)\n"
+              "r = DynamicReducer(d, e); r.initialize(0.0, 0.0, -206.0)\n"
+              "r.step(0.0, 1e-3, 0.1, -206.0)\n")
     proc = subprocess.run([sys.executable, "-c", script, str(tmp_path / "resources")],
                           env={**os.environ, "NUMBA_DEBUG_CACHE": "1"},
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     loaded = [line for line in proc.stdout.splitlines() if line.startswith("[cache] data loaded")]
-    # the element forces, the Newmark steps and the element geometry of their steps
-    assert len(loaded) == 3 and all(str(tmp_path) in line for line in loaded)
+    assert {line.split("__pycache__/")[1].split(".")[1].split("-")[0] for line in loaded} >= needed
+    assert all(str(tmp_path) in line for line in loaded)
     assert "data saved" not in proc.stdout
 
 
@@ -217,3 +228,33 @@ def test_the_dynamic_input_torque_is_the_mean_over_the_communication_step(rv40, 
                  for m in range(4)]
         assert big.tau_in == pytest.approx(np.mean([o.tau_in for o in small]), rel=1e-9, abs=1e-12)
         assert big.te == pytest.approx(small[-1].te, rel=1e-9, abs=1e-15)
+
+
+def test_the_compiled_communication_step_is_the_python_one(rv40, seed002, monkeypatch):
+    """With numba a communication step is one compiled call (`communication_step`); the same
+    steps made of the Python calls (the route without it) reach the same state to the bit and
+    the same outputs to round-off (only the sums of the means run in another order), through
+    changes of speed and load, and with the crank bearings' roller law and the Hertz pins."""
+    from rvfmu.core import dynamic_reducer
+    from rvfmu.core.design import preset
+
+    if not dynamic_reducer.COMPILED:
+        pytest.fail("numba is a dependency: the communication step must compile")
+    for design in (rv40, preset("RV-40E-121")):
+        runs = []
+        for compiled in (True, False):
+            monkeypatch.setattr(dynamic_reducer, "COMPILED", compiled)
+            reducer = dynamic_reducer.DynamicReducer(design, seed002)
+            reducer.initialize(0.0, 0.0, -206.0)
+            outputs, theta = [], 0.0
+            for k in range(30):
+                theta += FAST * (1.0 + 0.2 * np.sin(k / 5.0)) * 1e-3
+                outputs.append(reducer.step(k * 1e-3, 1e-3, theta, -206.0 * (1.0 + 0.5 * np.cos(k / 7.0))))
+            runs.append((outputs, reducer.state))
+        (fast, end), (slow, reference) = runs
+        for name in ("q", "v", "a"):
+            assert np.array_equal(getattr(end, name), getattr(reference, name)), name
+        for a, b in zip(fast, slow):
+            for name in ("theta_out", "omega_out", "te", "tau_in", "p_loss", "efficiency"):
+                assert getattr(a, name) == pytest.approx(getattr(b, name), rel=1e-13, abs=1e-300), name
+        assert np.ptp([o.tau_in for o in fast]) > 1.0      # the load and the speed did change

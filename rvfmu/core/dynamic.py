@@ -534,33 +534,47 @@ class DynamicModel:
         return g
 
 
-def compile_kernels() -> list:
-    """Compile the dynamic model's kernels (numba, `kernels.COMPILED`) for the types a run
-    gives them, unless numba's disk cache already holds them, and return the cache files
+def compile_kernels(design: RVDesign | None = None, errors: ErrorSet | None = None) -> list:
+    """Compile the kernels the dynamic model runs (numba, `kernels.COMPILED`) for the types a
+    run gives them, unless numba's disk cache already holds them, and return the cache files
     and the stamp of the sources they were compiled from ([] without numba).  The FMU bundles
-    these files: the same kernels.py in its resources then loads them instead of compiling
-    on a host's first dynamic step."""
+    these files: the same sources in its resources then load them instead of compiling on a
+    host's first dynamic step.  The run: a few Newmark steps with each contact law, and the
+    FMU's dynamic model (`DynamicReducer`) of `design` with `errors` (default: the RV-20E
+    without errors) initialised under both signs of load, whose elastic equilibrium takes
+    the quasi-static Newton kernels, and stepped."""
     from pathlib import Path
 
-    from . import dynamic_geometry, kernels
+    from . import dynamic_geometry, dynamic_reducer, kernels, newton_kernel, pin_law, roller_law
     from .compiled import SOURCES_STAMP
     from .design import preset
+    from .dynamic_reducer import DynamicReducer
     from .errors import zero_errors
     from .newmark import NewmarkStepper
 
     if not kernels.COMPILED:
         return []
-    design = preset("RV-20E")
     for contact in ("linear", "impact"):    # hertz passes the same types as linear
-        model = DynamicModel(design, zero_errors(design), contact)
+        small = preset("RV-20E")
+        model = DynamicModel(small, zero_errors(small), contact)
         model.prepare(ramp_motion(np.array([0.0, 1e-4]), 10.0, 0.0))
         NewmarkStepper.starting_at(model, np.zeros(model.n)).advance(1)
+    design = preset("RV-20E") if design is None else design
+    errors = zero_errors(design) if errors is None else errors
+    for load in (-0.1, 0.1):
+        reducer = DynamicReducer(design, errors)
+        reducer.initialize(0.0, 0.0, load * design.rated_torque)
+        reducer.step(0.0, 1e-3, 1e-3, load * design.rated_torque)
     folder = Path(kernels.__file__).parent / "__pycache__"
     files = []
-    for function in (kernels.element_forces, kernels.newmark_steps, kernels.solve_in_place,
-                     kernels._newmark_residual, dynamic_geometry.fill_geometry):
-        code = function.py_func.__code__        # numba names its files by module, name and line
-        files += folder.glob(f"{Path(code.co_filename).stem}.{function.__name__}-"
-                             f"{code.co_firstlineno}.*.nb[ic]")
+    # every kernel this process has compiled or loaded from the cache: those called from
+    # Python (a kernel's callees are in its own cache files)
+    for module in (kernels, dynamic_geometry, dynamic_reducer, newton_kernel, pin_law, roller_law):
+        kernels_here = {id(f): f for f in vars(module).values() if hasattr(f, "py_func")}
+        for function in kernels_here.values():          # once each: some have two names
+            if function.signatures and function.py_func.__module__ == module.__name__:
+                code = function.py_func.__code__    # numba names its files by module, name and line
+                files += folder.glob(f"{Path(code.co_filename).stem}.{function.__name__}-"
+                                     f"{code.co_firstlineno}.*.nb[ic]")
     # the stamp is missing where the cache folder cannot be written, and then so are the kernels
     return sorted(files) + ([SOURCES_STAMP] if files and SOURCES_STAMP.is_file() else [])

@@ -11,6 +11,13 @@ dissipate over the step and what it leaves of the power that passes.  The state
 is the displacements, velocities and accelerations of every unknown with the
 last input angle and time: a master can save it, roll back and re-step to
 the same results.
+
+Where numba is, a communication step is one compiled call (`communication_step`):
+the element geometry of its internal steps, the Newmark steps and the means over
+the step, which in Python cost a fixed tenth of a millisecond of small numpy
+operations and calls around them.  Without it (or with the geometry in numpy,
+`DynamicModel.compiled_geometry`) the same step runs as the Python calls it is
+made of, the reference the tests hold it to.
 """
 
 from __future__ import annotations
@@ -19,11 +26,14 @@ import math
 
 import numpy as np
 
+from .compiled import COMPILED, kernel
 from .dynamic import DynamicModel, Motion, at_rest
+from .dynamic_geometry import fill_geometry, geometry_constants
 from .errors import ErrorSet
-from .newmark import NewmarkStepper, State
+from .kernels import Geometry, element_forces, newmark_steps
+from .newmark import (BETA, CYCLE_TOLERANCE, GAMMA, MAX_ITERATIONS, TOLERANCE, NewmarkStepper,
+                      State, static_start)
 from .reducer_model import Outputs, step_efficiency
-from .newmark import static_start
 
 DEFAULT_INTERNAL_STEP = 1e-4   # [s]: 10 kHz, 25 steps per stage-1 mesh period of an RV-110E at 1600 rpm
 
@@ -80,10 +90,21 @@ class DynamicReducer:
     def step(self, time: float, step_size: float, theta_in: float, tau_load: float) -> Outputs:
         """Outputs at time + step_size for the inputs there."""
         count = max(1, math.ceil(step_size / self.internal_step - 1e-9))
-        t = time + step_size * np.arange(count + 1) / count
         omega = (theta_in - self.theta_in) / step_size
-        angles = self.theta_in + omega * (t - time)
         model = self._model(tau_load)
+        if COMPILED and model.compiled_geometry:
+            if model._constants is None:
+                model._constants = geometry_constants(model)
+            q, v, a = (x.copy() for x in (self.state.q, self.state.v, self.state.a))
+            tau_in, p_loss, speed = communication_step(
+                model._constants, model.elements, model.mass, float(time), float(step_size), count,
+                self.theta_in, omega, float(tau_load), q, v, a, model.sun_rot, model.carrier_rot,
+                model.shaft_k, model.shaft_c, model.scale)
+            p_out = -float(tau_load) * (omega / self.design.ratio + speed)
+            self.state = State(q, v, a)
+            return self._advanced(time, step_size, theta_in, tau_load, omega, tau_in, p_loss, p_out)
+        t = time + step_size * np.arange(count + 1) / count
+        angles = self.theta_in + omega * (t - time)
         # the nominal motion's d'Alembert forces come at this constant speed (centripetal terms)
         model.prepare(Motion(t, angles, np.full(t.size, omega), np.zeros(t.size), tau_load))
         stepper = NewmarkStepper(model, self.state)
@@ -103,6 +124,10 @@ class DynamicReducer:
         p_out = -float(tau_load) * mean(omega / self.design.ratio
                                         + v[:, model.carrier_rot] / model.scale)
         self.state = stepper.state
+        return self._advanced(time, step_size, theta_in, tau_load, omega, tau_in, p_loss, p_out)
+
+    def _advanced(self, time, step_size, theta_in, tau_load, omega, tau_in, p_loss, p_out) -> Outputs:
+        """Take the step's end as the reducer's time and inputs; its outputs."""
         self.time, self.theta_in, self.omega_in = time + step_size, float(theta_in), omega
         rate, self.tau_load = (float(tau_load) - self.tau_load) / step_size, float(tau_load)
         return self._outputs(omega, tau_in, self.tau_load, rate, p_loss, p_out)
@@ -124,3 +149,47 @@ class DynamicReducer:
             raise ValueError("not a state of this model: wrong sizes or non-finite values")
         self.time, self.theta_in, self.omega_in, self.tau_load = scalars
         self.state = State(*[a.copy() for a in arrays])
+
+
+@kernel
+def communication_step(c, el, mass, time, step_size, count, theta_start, omega, tau_load, q, v, a,
+                       sun_rot, carrier_rot, shaft_k, shaft_c, scale):
+    """One communication step of `DynamicReducer.step` in one call: count internal steps
+    from time to time + step_size [s], the input angle from theta_start [rad] at omega
+    [rad/s], under tau_load [N*m]; the element geometry from the model's constants c
+    (`geometry_constants`), the elements el and the masses, the state q, v, a updated in
+    place.  Returns the means over the step (trapezoids over the internal steps, as the
+    Python route takes them) of the input torque [N*m], of the dissipated power [W] and of
+    the carrier's speed deviation [rad/s]."""
+    A = count + 1
+    t, h = np.empty(A), np.empty(A)
+    theta, speed, alpha, load = np.empty(A), np.full(A, omega), np.zeros(A), np.full(A, tau_load)
+    for i in range(A):
+        t[i] = time + step_size * float(i) / count
+        theta[i] = theta_start + omega * (t[i] - time)
+        h[i] = t[i] - t[i - 1] if i else 0.0
+    m, nb, z_p = c.linear_cols.shape[0], c.bearing_cols.shape[0], c.pin_pos.shape[0]
+    w_lin, w_brg, E, n = c.linear_cols.shape[1], c.bearing_cols.shape[1], c.turn_cols.shape[0], q.size
+    g = Geometry(h, np.maximum(c.linear_cols, 0), np.empty((A, m, w_lin)), np.empty((A, m)),
+                 np.empty((A, m)), np.maximum(c.bearing_cols, 0), np.empty((A, nb, 2, w_brg)),
+                 np.empty((A, nb, 2)), np.empty((A, 2, z_p, 3)), np.empty((A, 2, z_p)),
+                 np.empty((A, n)), np.empty((A, 2, z_p, 3)), np.empty((A, 2, z_p)), np.empty((A, E)),
+                 np.empty((A, E)))
+    fill_geometry(c, theta, speed, alpha, load, g.L, g.linear_k, g.linear_offset, g.B,
+                  g.bearing_offset, g.P, g.pin_offset, g.external, g.pin_tangent, g.pin_slip,
+                  g.turn_slip, g.turn_drag)
+    out_q, out_v, power = np.empty((A, n)), np.empty((A, n)), np.empty((A, 2))
+    out_q[0], out_v[0] = q, v
+    f, K, C = np.empty(n), np.empty((n, n)), np.empty((n, n))
+    power[0, 0], power[0, 1] = element_forces(el, g, 0, q, v, f, K, C)
+    newmark_steps(el, g, 1, A, mass, q, v, a, BETA, GAMMA, TOLERANCE, CYCLE_TOLERANCE,
+                  MAX_ITERATIONS, out_q, out_v, power)
+    torque, loss, turn = 0.0, 0.0, 0.0
+    for i in range(count):
+        w = 0.5 * (t[i + 1] - t[i])
+        torque += w * ((shaft_k * out_q[i + 1, sun_rot] + shaft_c * out_v[i + 1, sun_rot]) / scale
+                       + (shaft_k * out_q[i, sun_rot] + shaft_c * out_v[i, sun_rot]) / scale)
+        loss += w * (power[i + 1, 0] + power[i + 1, 1] + power[i, 0] + power[i, 1])
+        turn += w * (out_v[i + 1, carrier_rot] / scale + out_v[i, carrier_rot] / scale)
+    return torque / step_size, loss / step_size, turn / step_size
+

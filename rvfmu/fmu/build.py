@@ -87,7 +87,7 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
     # pythonfmu leaves __pycache__ folders out): a host with numba loads them instead of
     # compiling on its first dynamic step
     with zipfile.ZipFile(built, "a", zipfile.ZIP_DEFLATED) as archive:
-        for path in compile_kernels():
+        for path in compile_kernels(design, errors):
             archive.write(path, f"resources/rvfmu/core/__pycache__/{path.name}")
     return Path(built)
 
