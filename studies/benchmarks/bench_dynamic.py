@@ -9,7 +9,9 @@ What it measures, on one core (BLAS threads set to 1 before numpy loads):
   seconds of the same run, and Newmark on that same interval, so the ratio
   column compares the two integrators on equal work;
 - the FMU's dynamic model at a 1 ms communication step (internal steps of at most
-  0.1 ms), stepped in Python and through a bare fmpy FMI loop (`--fmu-seconds`);
+  0.1 ms): each step one compiled call (`dynamic_reducer.communication_step`), the same
+  steps as the Python calls they are made of, and through a bare fmpy FMI loop
+  (`--fmu-seconds`);
 - the output revolution and the FMU's model again with the element geometry built in
   numpy (`DynamicModel._chunk_numpy`, the reference the compiled one is held to);
 - the same short run with the kernels as plain numpy (RVTE_NUMBA=0, in a child
@@ -56,8 +58,10 @@ def fmu_loop(design, errors, speed, load, steps, comm) -> float:
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
         fmu.exitInitializationMode()
+        fmu.setReal([vr["theta_in"], vr["tau_load"]], [speed * comm, -load])
+        fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=comm)   # loads the kernels
         start = time.perf_counter()
-        for k in range(steps):
+        for k in range(1, steps + 1):
             fmu.setReal([vr["theta_in"], vr["tau_load"]], [speed * (k + 1) * comm, -load])
             fmu.doStep(currentCommunicationPoint=k * comm, communicationStepSize=comm)
             fmu.getReal([vr["te"], vr["tau_in"]])
@@ -131,21 +135,29 @@ def main() -> None:
     run("  the same, geometry in numpy", revolutions=args.revolutions)
     DynamicModel.compiled_geometry = True
 
-    # the FMU's model: 1 ms communication steps, internal steps of at most 0.1 ms
+    # the FMU's model: 1 ms communication steps, internal steps of at most 0.1 ms; each step one
+    # compiled call, then the same steps as the Python calls they are made of, then those with
+    # the geometry in numpy
+    from rvfmu.core import dynamic_reducer
+    from rvfmu.core.compiled import COMPILED
     from rvfmu.core.dynamic_reducer import DynamicReducer
 
     speed = 1600 * 2 * 3.141592653589793 / 60
     comm, steps = 1e-3, int(args.fmu_seconds / 1e-3)
-    for label, compiled in (("FMU model, 1 ms comm (Python)", True),
-                            ("  the same, geometry in numpy", False)):
+    for label, one_call, compiled in (("FMU model, 1 ms comm (one call)", True, True),
+                                      ("  the same, the step in Python", False, True),
+                                      ("  the same, geometry in numpy", False, False)):
         DynamicModel.compiled_geometry = compiled
+        dynamic_reducer.COMPILED = COMPILED and one_call and compiled
         reducer = DynamicReducer(design, errors)
         reducer.initialize(0.0, 0.0, -load)
+        reducer.step(0.0, comm, speed * comm, -load)    # warm-up: loads this route's kernels
         start = time.perf_counter()
-        for k in range(steps):
+        for k in range(1, steps + 1):
             reducer.step(k * comm, comm, speed * (k + 1) * comm, -load)
         rows.append((label, steps * 10, steps * comm, time.perf_counter() - start))
     DynamicModel.compiled_geometry = True
+    dynamic_reducer.COMPILED = COMPILED
     rows.append(("FMU, bare fmpy loop, 1 ms comm", steps * 10, steps * comm,
                  fmu_loop(design, errors, speed, load, steps, comm)))
     rows.append(plain_numpy(load, args.plain))
