@@ -192,4 +192,3 @@ def communication_step(c, el, mass, time, step_size, count, theta_start, omega, 
         loss += w * (power[i + 1, 0] + power[i + 1, 1] + power[i, 0] + power[i, 1])
         turn += w * (out_v[i + 1, carrier_rot] / scale + out_v[i, carrier_rot] / scale)
     return torque / step_size, loss / step_size, turn / step_size
-

@@ -84,8 +84,9 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
             canHandleVariableCommunicationStepSize=True, needsExecutionTool=True)
     complete_model_description(Path(built))
     # the compiled dynamic-model kernels (numba's cache files, keyed by the source's content;
-    # pythonfmu leaves __pycache__ folders out): a host with numba loads them instead of
-    # compiling on its first dynamic step
+    # pythonfmu leaves __pycache__ folders out), those its dynamic model runs for this design
+    # and these errors: a host with numba loads them instead of compiling on its first dynamic
+    # initialisation and step
     with zipfile.ZipFile(built, "a", zipfile.ZIP_DEFLATED) as archive:
         for path in compile_kernels(design, errors):
             archive.write(path, f"resources/rvfmu/core/__pycache__/{path.name}")
