@@ -183,7 +183,7 @@ def test_the_fmu_bundles_the_compiled_kernels_and_a_host_loads_them_without_comp
         bundled = {name.rsplit("/", 1)[1] for name in archive.namelist()
                    if "rvfmu/core/__pycache__/" in name}
     assert bundled == expected
-    needed = {"element_forces", "newmark_steps", "fill_geometry", "communication_step",
+    needed = {"element_forces", "newmark_steps", "build_geometry", "communication_step",
               "newton_pairs"}
     assert {name.split(".")[1].split("-")[0] for name in expected} >= needed
     # the FMU's own copy of the core (not the installed rvfmu), with the design and errors it

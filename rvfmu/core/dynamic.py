@@ -56,7 +56,7 @@ import numpy as np
 
 from .compiled import COMPILED
 from .design import RVDesign
-from .dynamic_geometry import fill_geometry, geometry_constants
+from .dynamic_geometry import build_geometry, geometry_constants
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .friction import RPM, drag_moments, mesh_loss_factor
@@ -334,22 +334,17 @@ class DynamicModel:
         `compiled_geometry` is on, else in numpy (`_chunk_numpy`, the reference)."""
         if not (COMPILED and self.compiled_geometry):
             return self._chunk_numpy(start, stop)
+        m = self.motion
+        return build_geometry(self.constants(), self._steps(start, stop),
+                              *(np.ascontiguousarray(x[start:stop]) for x in
+                                (m.theta_in, m.omega_in, m.alpha_in, m.tau_load)))
+
+    def constants(self):
+        """The constants of the compiled element geometry (`geometry_constants`), gathered
+        once per model."""
         if self._constants is None:
             self._constants = geometry_constants(self)
-        m, c = self.motion, self._constants
-        A = stop - start
-        m_lin, nb, z_p = c.linear_cols.shape[0], c.bearing_cols.shape[0], c.pin_pos.shape[0]
-        E = c.turn_cols.shape[0]
-        parts = [self._steps(start, stop), np.maximum(c.linear_cols, 0),
-                 np.empty((A, m_lin, c.linear_cols.shape[1])), np.empty((A, m_lin)),
-                 np.empty((A, m_lin)), np.maximum(c.bearing_cols, 0),
-                 np.empty((A, nb, 2, c.bearing_cols.shape[1])), np.empty((A, nb, 2)),
-                 np.empty((A, 2, z_p, 3)), np.empty((A, 2, z_p)), np.empty((A, self.n)),
-                 np.empty((A, 2, z_p, 3)), np.empty((A, 2, z_p)), np.empty((A, E)), np.empty((A, E))]
-        motion = [np.ascontiguousarray(x[start:stop]) for x in
-                  (m.theta_in, m.omega_in, m.alpha_in, m.tau_load)]
-        fill_geometry(c, *motion, *parts[2:5], *parts[6:])
-        return Geometry(*parts)
+        return self._constants
 
     def _steps(self, start: int, stop: int) -> np.ndarray:
         """(stop - start,) the time step into each of the motion's steps start..stop-1 [s]
@@ -554,12 +549,12 @@ def compile_kernels(design: RVDesign | None = None, errors: ErrorSet | None = No
 
     if not kernels.COMPILED:
         return []
+    small = preset("RV-20E")
     for contact in ("linear", "impact"):    # hertz passes the same types as linear
-        small = preset("RV-20E")
         model = DynamicModel(small, zero_errors(small), contact)
         model.prepare(ramp_motion(np.array([0.0, 1e-4]), 10.0, 0.0))
         NewmarkStepper.starting_at(model, np.zeros(model.n)).advance(1)
-    design = preset("RV-20E") if design is None else design
+    design = small if design is None else design
     errors = zero_errors(design) if errors is None else errors
     for load in (-0.1, 0.1):
         reducer = DynamicReducer(design, errors)

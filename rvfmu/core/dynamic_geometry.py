@@ -23,6 +23,7 @@ import numpy as np
 from .compiled import kernel
 from .equivalent import _layout, _unit
 from .friction import DRAG_FLOOR, RPM, drag_moments
+from .kernels import Geometry
 from .stiffness import transverse_contact_ratio
 
 DRAG_NONE, DRAG_BEARING, DRAG_CONSTANT = 0, 1, 2
@@ -278,3 +279,22 @@ def fill_geometry(c, theta, omega, alpha, tau_load, L, k_lin, lin, B, brg, P, pi
                 turn_drag[t, e] = c.drag_coefficient[e]
             else:
                 turn_drag[t, e] = 0.0
+
+
+@kernel
+def build_geometry(c, h, theta, omega, alpha, tau_load):
+    """The `Geometry` of the steps with time steps h (A,) [s] into them, at input angles theta
+    (A,) [rad], speeds omega, accelerations alpha, under tau_load (A,) [N*m]: its arrays made
+    and filled (`fill_geometry`) from the model's constants c."""
+    A, n = theta.shape[0], c.linear_template.shape[1]
+    m, nb, z_p = c.linear_cols.shape[0], c.bearing_cols.shape[0], c.pin_pos.shape[0]
+    E = c.turn_cols.shape[0]
+    g = Geometry(h, np.maximum(c.linear_cols, 0), np.empty((A, m, c.linear_cols.shape[1])),
+                 np.empty((A, m)), np.empty((A, m)), np.maximum(c.bearing_cols, 0),
+                 np.empty((A, nb, 2, c.bearing_cols.shape[1])), np.empty((A, nb, 2)),
+                 np.empty((A, 2, z_p, 3)), np.empty((A, 2, z_p)), np.empty((A, n)),
+                 np.empty((A, 2, z_p, 3)), np.empty((A, 2, z_p)), np.empty((A, E)), np.empty((A, E)))
+    fill_geometry(c, theta, omega, alpha, tau_load, g.L, g.linear_k, g.linear_offset, g.B,
+                  g.bearing_offset, g.P, g.pin_offset, g.external, g.pin_tangent, g.pin_slip,
+                  g.turn_slip, g.turn_drag)
+    return g

@@ -28,9 +28,9 @@ import numpy as np
 
 from .compiled import COMPILED, kernel
 from .dynamic import DynamicModel, Motion, at_rest
-from .dynamic_geometry import fill_geometry, geometry_constants
+from .dynamic_geometry import build_geometry
 from .errors import ErrorSet
-from .kernels import Geometry, element_forces, newmark_steps
+from .kernels import element_forces, newmark_steps
 from .newmark import (BETA, CYCLE_TOLERANCE, GAMMA, MAX_ITERATIONS, TOLERANCE, NewmarkStepper,
                       State, static_start)
 from .reducer_model import Outputs, step_efficiency
@@ -93,11 +93,9 @@ class DynamicReducer:
         omega = (theta_in - self.theta_in) / step_size
         model = self._model(tau_load)
         if COMPILED and model.compiled_geometry:
-            if model._constants is None:
-                model._constants = geometry_constants(model)
             q, v, a = (x.copy() for x in (self.state.q, self.state.v, self.state.a))
             tau_in, p_loss, speed = communication_step(
-                model._constants, model.elements, model.mass, float(time), float(step_size), count,
+                model.constants(), model.elements, model.mass, float(time), float(step_size), count,
                 self.theta_in, omega, float(tau_load), q, v, a, model.sun_rot, model.carrier_rot,
                 model.shaft_k, model.shaft_c, model.scale)
             p_out = -float(tau_load) * (omega / self.design.ratio + speed)
@@ -168,16 +166,8 @@ def communication_step(c, el, mass, time, step_size, count, theta_start, omega, 
         t[i] = time + step_size * float(i) / count
         theta[i] = theta_start + omega * (t[i] - time)
         h[i] = t[i] - t[i - 1] if i else 0.0
-    m, nb, z_p = c.linear_cols.shape[0], c.bearing_cols.shape[0], c.pin_pos.shape[0]
-    w_lin, w_brg, E, n = c.linear_cols.shape[1], c.bearing_cols.shape[1], c.turn_cols.shape[0], q.size
-    g = Geometry(h, np.maximum(c.linear_cols, 0), np.empty((A, m, w_lin)), np.empty((A, m)),
-                 np.empty((A, m)), np.maximum(c.bearing_cols, 0), np.empty((A, nb, 2, w_brg)),
-                 np.empty((A, nb, 2)), np.empty((A, 2, z_p, 3)), np.empty((A, 2, z_p)),
-                 np.empty((A, n)), np.empty((A, 2, z_p, 3)), np.empty((A, 2, z_p)), np.empty((A, E)),
-                 np.empty((A, E)))
-    fill_geometry(c, theta, speed, alpha, load, g.L, g.linear_k, g.linear_offset, g.B,
-                  g.bearing_offset, g.P, g.pin_offset, g.external, g.pin_tangent, g.pin_slip,
-                  g.turn_slip, g.turn_drag)
+    g = build_geometry(c, h, theta, speed, alpha, load)
+    n = q.size
     out_q, out_v, power = np.empty((A, n)), np.empty((A, n)), np.empty((A, 2))
     out_q[0], out_v[0] = q, v
     f, K, C = np.empty(n), np.empty((n, n)), np.empty((n, n))
