@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import norm
 
+from rvfmu.core.checks import InputError
 from tolerance import load_study
 from tolerance.frames import load_results
 
@@ -43,9 +44,12 @@ def main() -> None:
     parser.add_argument("--confidence", type=float, default=0.95)
     args = parser.parse_args()
 
-    study = load_study(args.study)
+    try:
+        study = load_study(args.study)
+        frame = load_results(study.output, f"sobol-n{args.n}")
+    except InputError as exc:
+        raise SystemExit(f"error: {exc}") from None
     groups = list(dict.fromkeys(study.problem()["groups"]))     # SALib's order of the AB_i
-    frame = load_results(study.output, f"sobol-n{args.n}")
     y = frame[args.metric].to_numpy()
     G = len(groups)
     if y.size != args.n * (G + 2):
