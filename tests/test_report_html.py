@@ -29,6 +29,7 @@ import tolerance
 from rvfmu.cli import main
 from rvfmu.core.checks import InputError
 from tolerance import report, run_mc, run_sobol
+from tolerance.summaries import order_text
 from tolerance_toy import write_study
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -154,8 +155,12 @@ def test_the_html_tables_show_the_numbers_of_the_json_outputs(study, written):
             for k, _ in enumerate(entry["convergence"]["n"]):
                 assert ("sobol_indices.json", ("metrics", column, "convergence", "ST",
                                                group["name"], k)) in seen
-    # The Markdown summary shows the same numbers, in the same digits, and no figure.
+    # ... and the order of the ranks that sobol_indices.json holds, in the page and the summary
     markdown = written.markdown.read_text()
+    for entry in sobol["metrics"].values():
+        line = f"Order: {order_text(entry['order_groups'])}. Ranks joined by"
+        assert line in written.html.read_text() and line in markdown
+    # The Markdown summary shows the same numbers, in the same digits, and no figure.
     assert written.markdown == out / "report.md" and "data:image" not in markdown
     for src, key, scale, text in page.cells:
         if src is not None:

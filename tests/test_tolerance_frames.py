@@ -255,14 +255,17 @@ def test_sobol_frame_is_long_ranked_and_matches_the_json(sobol):
     df = result.to_df()
     assert list(df.columns) == ["metric", "factor", "rank", "S1", "S1_conf", "ST", "ST_conf",
                                 "S1_reported", "ST_reported", "not_converged", "ci_wide",
-                                "S1_above_ST", "notes", "ranking_converged"]
+                                "S1_above_ST", "notes", "ranking_converged", "ST_above_next",
+                                "ST_above_next_conf", "order_settled"]
     groups = list(result.study.groups)
     assert len(df) == 2 * len(groups)
     assert pd.api.types.is_string_dtype(df["metric"]) and pd.api.types.is_string_dtype(df["factor"])
     assert df["rank"].dtype == np.int64
-    for column in ("S1", "S1_conf", "ST", "ST_conf", "S1_reported", "ST_reported"):
+    for column in ("S1", "S1_conf", "ST", "ST_conf", "S1_reported", "ST_reported",
+                   "ST_above_next", "ST_above_next_conf"):
         assert df[column].dtype == np.float64, column
-    for column in ("not_converged", "ci_wide", "S1_above_ST", "ranking_converged"):
+    for column in ("not_converged", "ci_wide", "S1_above_ST", "ranking_converged",
+                   "order_settled"):
         assert df[column].dtype == bool, column
     document = result.to_json()["metrics"]
     for metric, table in df.groupby("metric", sort=False):
@@ -276,6 +279,14 @@ def test_sobol_frame_is_long_ranked_and_matches_the_json(sobol):
             assert row["not_converged"] == ("not converged" in row["notes"])
             assert row["ci_wide"] == ("CI wide" in row["notes"])
             assert row["S1_above_ST"] == ("beyond their CIs" in row["notes"])
+            step = item["next"]
+            if step is None:                       # the last rank: nothing below it
+                assert row["rank"] == len(groups) and np.isnan(row["ST_above_next"])
+                assert not row["order_settled"]
+            else:
+                assert row["ST_above_next"] == pytest.approx(step["difference"], abs=0, rel=1e-15)
+                assert row["ST_above_next_conf"] == step["half_width"]
+                assert row["order_settled"] == step["settled"]
         assert table["ranking_converged"].nunique() == 1
         assert table["ranking_converged"].iloc[0] == \
             document[metric]["convergence"]["converged"]

@@ -8,6 +8,7 @@ import pytest
 
 from rvfmu.cli import main
 from tolerance import run_sobol, sobol
+from tolerance.summaries import order_text
 from tolerance_toy import write_study
 
 ISHIGAMI = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[-np.pi, np.pi]] * 3}
@@ -84,6 +85,63 @@ def test_a_constant_output_gives_zero_indices_not_nan():
     X = sobol.sample(ISHIGAMI, 16, seed=1)
     ind = sobol.indices(ISHIGAMI, np.ones(X.shape[0]))
     assert ind.constant and not ind.ST.any()
+    assert ind.order() is None and ind.order_groups() is None
+
+
+LINEAR = {"num_vars": 4, "names": ["a", "b", "c", "d"], "bounds": [[0.0, 1.0]] * 4}
+SLOPES = np.array([4.0, 2.0, 2.0, 1.0])
+
+
+def test_the_order_of_neighbouring_ranks_is_settled_where_their_st_differ():
+    # y = sum(k_i x_i), x_i uniform and independent: ST_i = k_i^2 / sum(k^2) = 0.64, 0.16,
+    # 0.16, 0.04.  b and c explain the same share: their order is not settled, whatever n.
+    X = sobol.sample(LINEAR, 1024, seed=2)
+    ind = sobol.indices(LINEAR, X @ SLOPES, resamples=300, seed=2)
+    np.testing.assert_allclose(ind.ST, SLOPES ** 2 / np.sum(SLOPES ** 2), atol=0.01)
+    ranked = [ind.names[g] for g in ind.ranking()]
+    assert ranked[0] == "a" and set(ranked[1:3]) == {"b", "c"} and ranked[3] == "d"
+    steps = ind.order()
+    assert [(s.upper, s.lower) for s in steps] == list(zip(ind.ranking()[:-1], ind.ranking()[1:]))
+    assert [s.settled for s in steps] == [True, False, True]
+    assert ind.order_groups() == [[1], [2, 3], [4]]
+    assert order_text(ind.order_groups()) == "1 | 2-3 | 4"
+    tie = steps[1]
+    assert abs(tie.difference) < tie.half_width and 0.3 < tie.kept < 0.7
+    assert steps[0].kept == 1.0 and steps[2].kept == 1.0
+    # the order is judged by the difference's own interval, narrower than the two intervals
+    # together: the estimates move together
+    for s in steps:
+        assert s.half_width < ind.ST_conf[s.upper] + ind.ST_conf[s.lower]
+
+
+def test_the_interval_of_an_st_difference_is_that_of_the_same_resamples(ishigami_run):
+    # Jansen's ST on the standardised output, by hand, over the base samples SALib's bootstrap
+    # draws (SALib 1.6: default_rng(seed).integers(n, size=(n, resamples)), seed = ours + 1):
+    # each difference over the same resampled rows gives the interval, to round-off (an
+    # interval from the two spreads alone, as if the estimates were independent, differs by
+    # 0.7 % and 7 % here).
+    n, X, y, result = ishigami_run
+    ind = result.indices
+    Y = ((y - y.mean()) / y.std()).reshape(n, 5)
+    A, AB, B = Y[:, 0], Y[:, 1:4], Y[:, 4]
+    rows = np.random.default_rng(3 + 1).integers(n, size=(n, 300))
+    boots = np.stack([0.5 * np.mean((A[rows] - AB[rows, g]) ** 2, axis=0)
+                      / np.var(np.r_[A[rows], B[rows]], axis=0) for g in range(3)], axis=1)
+    np.testing.assert_allclose(boots, ind.ST_resamples, rtol=1e-10)
+    steps = ind.order()
+    assert [(s.upper, s.lower) for s in steps] == [(0, 1), (1, 2)]
+    for s in steps:
+        spread = boots[:, s.upper] - boots[:, s.lower]
+        assert s.difference == pytest.approx(ind.ST[s.upper] - ind.ST[s.lower], rel=1e-14)
+        assert s.half_width == pytest.approx(1.959964 * spread.std(ddof=1), rel=1e-6)
+        assert s.kept == np.mean(spread > 0)
+    assert ind.order_groups() == [[1], [2], [3]]
+
+
+def test_indices_without_resamples_say_nothing_of_the_order():
+    ind = sobol.Indices(("a", "b"), 64, np.array([0.5, 0.2]), np.full(2, 0.05),
+                        np.array([0.6, 0.3]), np.full(2, 0.05), None, None, 0.95)
+    assert ind.order() is None and ind.order_groups() is None
 
 
 @pytest.fixture(scope="module")
@@ -111,7 +169,12 @@ def test_toy_reducer_ranks_the_dominant_tolerance_first(toy_sobol):
     out = result.study.output
     for name in ("sobol_indices.json", "sobol_ranking.txt", "sobol_bars.png", "sobol_convergence.png"):
         assert (out / name).is_file()
-    assert "crank_cam_eccentricity" in (out / "sobol_ranking.txt").read_text().split("\n")[5]
+    text = (out / "sobol_ranking.txt").read_text()
+    assert "crank_cam_eccentricity" in text.split("\n")[5]
+    for column in ("te_pp_arcsec", "rms_arcsec"):
+        groups = result.analyses[column].indices.order_groups()
+        assert groups[0] == [1]                  # the dominant tolerance is told apart
+        assert f"  order: {order_text(groups)}  (ranks joined by '-'" in text
 
 
 def test_sobol_cli_json_is_machine_readable(toy_sobol, capsys):
@@ -123,6 +186,10 @@ def test_sobol_cli_json_is_machine_readable(toy_sobol, capsys):
     ranking = data["metrics"]["te_pp_arcsec"]["groups"]
     assert ranking[0]["name"] == "crank_cam_eccentricity" and ranking[0]["rank"] == 1
     assert set(ranking[0]) >= {"S1", "S1_conf", "ST", "ST_conf", "S1_reported", "ST_reported", "notes"}
+    assert ranking[0]["next"]["factor"] == ranking[1]["name"] and ranking[0]["next"]["settled"]
+    assert ranking[0]["next"]["difference"] > ranking[0]["next"]["half_width"] > 0
+    assert ranking[-1]["next"] is None
+    assert data["metrics"]["te_pp_arcsec"]["order_groups"][0] == [1]
     assert data["n"] == 32 and data["evaluations"] == 160
     assert data["metrics"]["te_pp_arcsec"]["convergence"]["n"] == [8, 16, 32]
     assert Path(data["output"]) == result.study.output

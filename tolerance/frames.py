@@ -239,14 +239,23 @@ def sobol_frame(analyses: dict) -> pd.DataFrame:
     Columns: metric (its column), factor (Sobol group), rank (1 = largest reported ST,
     then S1), S1, S1_conf, ST, ST_conf (estimates and half-widths of their bootstrap
     intervals), S1_reported, ST_reported (clipped to [0, 1]), the notes' flags
-    not_converged, ci_wide, S1_above_ST (bool), notes (the table's text), and
-    ranking_converged (the metric's ST moved by at most CONVERGED_CHANGE from N/2 to N).
+    not_converged, ci_wide, S1_above_ST (bool), notes (the table's text),
+    ranking_converged (the metric's ST moved by at most CONVERGED_CHANGE from N/2 to N),
+    and the order over the next rank (`sobol.Indices.order`): ST_above_next (the ST
+    difference), ST_above_next_conf (the half-width of its bootstrap interval),
+    order_settled (that interval excludes 0); NaN and False on the last rank and where the
+    indices carry no resamples.
     """
     parts = []
     for column, result in analyses.items():
         ind = result.indices
         order = ind.ranking()
         notes = ind.flags()
+        above, above_conf = np.full(order.size, np.nan), np.full(order.size, np.nan)
+        settled = np.zeros(order.size, dtype=bool)
+        for rank, step in enumerate(ind.order() or ()):
+            above[rank], above_conf[rank], settled[rank] = (step.difference, step.half_width,
+                                                            step.settled)
         parts.append(pd.DataFrame({
             "metric": column, "factor": [ind.names[g] for g in order],
             "rank": np.arange(1, len(order) + 1, dtype=np.int64),
@@ -256,7 +265,8 @@ def sobol_frame(analyses: dict) -> pd.DataFrame:
             "not_converged": ind.not_converged[order], "ci_wide": ind.ci_wide[order],
             "S1_above_ST": ind.S1_above_ST[order],
             "notes": ["; ".join(notes[g]) for g in order],
-            "ranking_converged": bool(result.convergence.converged)}))
+            "ranking_converged": bool(result.convergence.converged),
+            "ST_above_next": above, "ST_above_next_conf": above_conf, "order_settled": settled}))
     return pd.concat(parts, ignore_index=True)
 
 

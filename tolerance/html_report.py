@@ -47,7 +47,7 @@ from .aliasing import aliases
 from .evaluate import FRICTION_METRICS, WINDUP_METRICS, evaluate
 from .montecarlo import PERCENTILES, MCAnalysis, Yield
 from .summaries import (NOTES_LEGEND, column_label, figure_convergence, figure_mc, figure_sobol,
-                     operating_text)
+                     operating_text, order_text)
 from .sampling import KEYS
 from .sobol import Convergence, Indices, SobolAnalysis
 from .store import FILE_DIGEST, software_versions, study_output_folder
@@ -601,6 +601,10 @@ def _sobol_section(study: Study, found: Found) -> Section:
         blocks.append(Table(("rank", "factor", "S1", "± CI", "ST", "± CI", "notes"), rows,
                             f"Ranking by ST; sum S1 = {total:.3f} (1 − sum S1 = share of "
                             "interactions)"))
+        if entry.get("order_groups"):
+            blocks.append(Para(f"Order: {order_text(entry['order_groups'])}. Ranks joined by "
+                               f"'-' cannot be told apart: the {conf} interval of their ST "
+                               "difference includes 0."))
         conv = entry["convergence"]
         rows = [(g["name"], *[_json_num(s, src, "metrics", column, "convergence", "ST", g["name"], k,
                                         fmt=".3f") for k in range(len(conv["n"]))])
@@ -618,8 +622,10 @@ def _sobol_section(study: Study, found: Found) -> Section:
     blocks += _aliasing_blocks(s, src)
     analyses = sobol_analyses(s)
     if analyses:
-        blocks.append(Figure(_png(figure_sobol(study, analyses)), "S1 and ST of each factor with "
-                             "their bootstrap intervals, ranked by ST"))
+        order = {column: entry.get("order_groups") for column, entry in s["metrics"].items()}
+        blocks.append(Figure(_png(figure_sobol(study, analyses, order)), "S1 and ST of each "
+                             "factor with their bootstrap intervals, ranked by ST; shaded: "
+                             "neighbouring ranks whose order is not settled"))
         for column, analysis in analyses.items():   # one figure per metric: readable at page width
             blocks.append(Figure(_png(figure_convergence(study, {column: analysis})),
                                  f"Convergence of ST for {column}"))

@@ -23,6 +23,15 @@ Reading the estimates:
   (S1 - S1_conf > ST + ST_conf) is sampling noise: flagged, raise n.
 - Wide intervals.  An index known only to +-WIDE_CI cannot rank factors whose
   indices differ by less; it is flagged.
+- The order of two neighbouring ranks.  Their intervals overlap long before
+  their order is in doubt: both estimates come from the same rows and move
+  together, so what decides the order is the interval of their difference.
+  SALib's bootstrap resamples the base samples once for every group
+  (`keep_resamples`); the difference of two groups' ST over those resamples
+  gives its interval, at the same confidence and by the same normal rule as
+  SALib's own.  The order is settled where that interval excludes zero
+  (`Indices.order`); neighbouring ranks whose order is not settled form one
+  group (`Indices.order_groups`), within which the ranking says nothing.
 - Convergence.  The indices are computed again from the first N/4 and N/2
   base samples (each base sample owns a block of D+2, or 2D+2, consecutive
   rows of the Saltelli matrix, and the first N/4 points of a Sobol' sequence
@@ -40,6 +49,7 @@ import numpy as np
 from SALib.analyze import sobol as salib_analyze
 from SALib.sample import sobol as salib_sample
 from SALib.util import extract_group_names
+from scipy.stats import norm
 
 WIDE_CI = 0.1            # half-width of an index's interval above which its rank is uncertain
 CONVERGED_CHANGE = 0.05  # largest |ST(N) - ST(N/2)| of a converged study (5 % of the variance)
@@ -72,6 +82,8 @@ class Indices:
     S1, S1_conf, ST, ST_conf: (G,) estimates and the half-widths of their
     bootstrap intervals at `confidence`; S2, S2_conf: (G, G) upper triangles
     (NaN elsewhere) or None.  constant: the output did not vary (all zero).
+    ST_resamples: (R, G) ST over each of SALib's R bootstrap resamples, the same
+    base samples for every group, or None (indices read back from a file).
     """
 
     names: tuple
@@ -84,6 +96,7 @@ class Indices:
     S2_conf: np.ndarray | None
     confidence: float
     constant: bool = False
+    ST_resamples: np.ndarray | None = None
 
     @property
     def S1_reported(self) -> np.ndarray:
@@ -139,6 +152,53 @@ class Indices:
         """Group indices from the most to the least important: by reported ST, then S1."""
         return np.lexsort((-self.S1_reported, -self.ST_reported))
 
+    def order(self) -> list[RankStep] | None:
+        """For each pair of neighbouring ranks, the difference of their ST with its bootstrap
+        interval (`RankStep`), from the top down; None without the resamples or for a
+        constant output."""
+        if self.ST_resamples is None or self.constant:
+            return None
+        z = norm.ppf(0.5 + self.confidence / 2)
+        ranked = self.ranking()
+        steps = []
+        for upper, lower in zip(ranked[:-1], ranked[1:]):
+            spread = self.ST_resamples[:, upper] - self.ST_resamples[:, lower]
+            steps.append(RankStep(int(upper), int(lower), float(self.ST[upper] - self.ST[lower]),
+                                  float(z * spread.std(ddof=1)), float(np.mean(spread > 0.0))))
+        return steps
+
+    def order_groups(self) -> list[list[int]] | None:
+        """The ranks (1 = first) in runs whose order is not settled: [[1], [2], [3, 4], ...].
+        Two neighbouring ranks share a run unless their order is settled (`order`)."""
+        steps = self.order()
+        if steps is None:
+            return None
+        groups = [[1]]
+        for rank, step in enumerate(steps, start=2):
+            if step.settled:
+                groups.append([rank])
+            else:
+                groups[-1].append(rank)
+        return groups
+
+
+@dataclass(frozen=True)
+class RankStep:
+    """The order of two neighbouring ranks: groups `upper` (ranked first) and `lower`,
+    difference = ST[upper] - ST[lower], half_width of its bootstrap interval at the
+    indices' confidence, kept: the share of resamples in which upper's ST exceeds lower's."""
+
+    upper: int
+    lower: int
+    difference: float
+    half_width: float
+    kept: float
+
+    @property
+    def settled(self) -> bool:
+        """The interval of the difference excludes zero on upper's side."""
+        return self.difference - self.half_width > 0.0
+
 
 def _beyond_unit_interval(value, conf):
     """An estimate outside [0, 1] by more than its interval's half-width: not converged."""
@@ -163,12 +223,13 @@ def indices(problem: dict, y: np.ndarray, second_order: bool = False, resamples:
         return Indices(names, n, zero, zero, zero, zero, square, square, confidence, constant=True)
     # SALib seeds its bootstrap only for a truthy seed: 0 would give different CIs each run.
     si = salib_analyze.analyze(problem, y, calc_second_order=second_order, num_resamples=resamples,
-                               conf_level=confidence, seed=int(seed) + 1)
+                               conf_level=confidence, seed=int(seed) + 1, keep_resamples=True)
     S2 = np.asarray(si["S2"], dtype=float) if second_order else None
     S2_conf = np.asarray(si["S2_conf"], dtype=float) if second_order else None
     return Indices(names, n, np.asarray(si["S1"], dtype=float), np.asarray(si["S1_conf"], dtype=float),
                    np.asarray(si["ST"], dtype=float), np.asarray(si["ST_conf"], dtype=float),
-                   S2, S2_conf, confidence)
+                   S2, S2_conf, confidence,
+                   ST_resamples=np.asarray(si["ST_conf_all"], dtype=float).reshape(resamples, G))
 
 
 @dataclass(frozen=True)

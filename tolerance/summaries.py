@@ -184,6 +184,9 @@ NOTES_LEGEND = (
     "this is sampling noise: raise n.",
     f"  CI wide: the interval is wider than +-{WIDE_CI:g}; factors whose indices differ by less "
     "cannot be ranked.",
+    "  order: two neighbouring ranks are told apart where the CI of their ST difference (over "
+    "the same bootstrap resamples) excludes 0; their own CIs may overlap even then, since both "
+    "estimates come from the same rows and move together.",
 )
 
 
@@ -209,6 +212,16 @@ def sobol_table(study, analyses: dict, n: int, evaluations: int, second_order: b
             lines.append(f"  {rank:>4}  {ind.names[g]:<{width}}{s1:>16}{st:>16}  "
                          + "; ".join(flags[g]))
         lines.append(f"  sum S1 = {ind.S1_reported.sum():.3f} (1 - sum S1 = share of interactions)")
+        groups = ind.order_groups()
+        if groups is not None:
+            lines.append(f"  order: {order_text(groups)}  (ranks joined by '-' cannot be told "
+                         f"apart: the {conf} CI of their ST difference includes 0)")
+            loose = [(rank, step) for rank, step in enumerate(ind.order(), start=1)
+                     if not step.settled]
+            if loose:
+                lines.append("  not settled: " + ", ".join(
+                    f"{rank}~{rank + 1} {step.difference:+.3f} ± {step.half_width:.3f}"
+                    for rank, step in loose))
         changes = ", ".join(f"N={m}" for m in conv.n)
         state = "converged" if conv.converged else "NOT converged: raise n"
         lines.append(f"  convergence ({changes}): max |ST(N) - ST(N/2)| = {conv.max_change:.3f} "
@@ -223,6 +236,11 @@ def sobol_table(study, analyses: dict, n: int, evaluations: int, second_order: b
     return "\n".join(lines)
 
 
+def order_text(groups) -> str:
+    """Runs of ranks whose order is not settled (`Indices.order_groups`): "1 | 2-3 | 4"."""
+    return " | ".join(str(g[0]) if len(g) == 1 else f"{g[0]}-{g[-1]}" for g in groups)
+
+
 def sobol_json(study, analyses: dict, n: int, evaluations: int, second_order: bool,
                extra: dict) -> dict:
     metrics = {}
@@ -230,13 +248,15 @@ def sobol_json(study, analyses: dict, n: int, evaluations: int, second_order: bo
         ind, conv = result.indices, result.convergence
         flags = ind.flags()
         rank_of = {int(g): r for r, g in enumerate(ind.ranking(), start=1)}
+        steps = {step.upper: step for step in ind.order() or ()}
         groups = [{"name": name, "rank": rank_of[g],
                    "S1": _num(ind.S1[g]), "S1_conf": _num(ind.S1_conf[g]),
                    "ST": _num(ind.ST[g]), "ST_conf": _num(ind.ST_conf[g]),
                    "S1_reported": _num(ind.S1_reported[g]), "ST_reported": _num(ind.ST_reported[g]),
-                   "notes": flags[g]} for g, name in enumerate(ind.names)]
+                   "notes": flags[g], "next": _step_json(ind, steps.get(g))}
+                  for g, name in enumerate(ind.names)]
         groups.sort(key=lambda item: item["rank"])
-        entry = {"constant": ind.constant, "groups": groups,
+        entry = {"constant": ind.constant, "groups": groups, "order_groups": ind.order_groups(),
                  "convergence": {"n": list(conv.n),
                                  "ST": {name: [_num(v) for v in conv.ST[:, g]]
                                         for g, name in enumerate(ind.names)},
@@ -257,10 +277,22 @@ def sobol_json(study, analyses: dict, n: int, evaluations: int, second_order: bo
             "metrics": metrics, **extra}
 
 
-def figure_sobol(study, analyses: dict):
+def _step_json(ind, step) -> dict | None:
+    """A group's order over the next rank (`sobol.RankStep`) for sobol_indices.json."""
+    if step is None:
+        return None
+    return {"factor": ind.names[step.lower], "difference": _num(step.difference),
+            "half_width": _num(step.half_width), "kept": _num(step.kept),
+            "settled": step.settled}
+
+
+def figure_sobol(study, analyses: dict, runs: dict | None = None):
     """S1 and ST bars (reported values) with bootstrap intervals, a panel per metric: a Figure.
 
     analyses: {column: SobolAnalysis}; factors ranked by ST, named as in the study file.
+    Runs of neighbouring ranks whose order is not settled are shaded: runs {column: runs of
+    ranks (`Indices.order_groups`)}, by default those of the indices where they carry their
+    bootstrap resamples.
     """
     from matplotlib.figure import Figure
 
@@ -276,6 +308,12 @@ def figure_sobol(study, analyses: dict):
                label="S1 (alone)", color="C0")
         ax.bar(x + 0.2, ind.ST_reported[order], 0.4, yerr=ind.ST_conf[order], capsize=3,
                label="ST (with interactions)", color="C1")
+        shaded = (runs or {}).get(column) or ind.order_groups() or []
+        label = "ranks whose order is not settled"
+        for run in shaded:
+            if len(run) > 1:   # rank r sits at x = r - 1; a gap keeps neighbouring runs apart
+                ax.axvspan(run[0] - 1.45, run[-1] - 0.55, color="0.87", zorder=0, label=label)
+                label = None
         ax.set_xticks(x, [ind.names[g] for g in order], rotation=30, ha="right", fontsize=8)
         ax.set_xlabel("tolerance factors, ranked by ST")
         ax.set_ylabel("Sobol index (share of variance)")
