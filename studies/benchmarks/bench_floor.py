@@ -132,7 +132,7 @@ class StageCounter:
 
 
 def quasi_static(file: str, reducers: int):
-    """(study, wall [s], {stage: [pairs solved, steps, seconds]}) of one timed evaluation of
+    """(study, wall [s], {stage: `StageCounter.stats` row}) of one timed evaluation of
     `reducers` of the study's reducers, after an untimed one (numba loads its kernels)."""
     from tolerance import montecarlo
     from tolerance.evaluate import evaluate
@@ -153,17 +153,18 @@ def print_stages(label, study, reducers, wall, stats):
     """The stage table of one quasi-static route; returns its summary row."""
     pairs = reducers * study.points
     newton = sum(row[2] for row in stats.values())
-    floor = sum(row[3] * row[2] / max(row[1], 1) for row in stats.values())
+    floor = 0.0                 # [s]: every solve at its fewest steps, at its stage's cost per step
     print(f"\n{label} ({study.points} points, {reducers} reducers, {wall:.2f} s, "
           f"{reducers / wall:.2f} reducers/s; the compiled iteration {100 * newton / wall:.0f} %)")
     print(f"{'stage':<56} {'solves/point':>12} {'steps/solve':>11} {'fewest':>7} "
           f"{'us/step':>8} {'us/point':>9} {'at fewest':>10}")
     for stage, (solved, steps, seconds, fewest) in sorted(stats.items(),
                                                           key=lambda item: -item[1][2]):
-        per_step = 1e6 * seconds / max(steps, 1)
+        per_step = seconds / max(steps, 1)
+        floor += fewest * per_step
         print(f"{stage:<56} {solved / pairs:>12.3f} {steps / max(solved, 1):>11.2f} "
-              f"{fewest / max(solved, 1):>7.2f} {per_step:>8.2f} {1e6 * seconds / pairs:>9.1f} "
-              f"{fewest * per_step / pairs:>10.1f}")
+              f"{fewest / max(solved, 1):>7.2f} {1e6 * per_step:>8.2f} "
+              f"{1e6 * seconds / pairs:>9.1f} {1e6 * fewest * per_step / pairs:>10.1f}")
     print(f"{'all':<56} {'':>12} {'':>11} {'':>7} {'':>8} {1e6 * newton / pairs:>9.1f} "
           f"{1e6 * floor / pairs:>10.1f}")
     rest = wall - newton
