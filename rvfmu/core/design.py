@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .checks import InputError, finite_number, integer, non_negative, positive
-from .units import ARCSEC, DEG, GPA, MM
+from .units import ARCSEC, DEG, GPA, MM, RPM
 
 
 @dataclass(frozen=True)
@@ -79,6 +79,10 @@ DESIGN_FIELDS = (
     FieldSpec("carrier_inertia", "carrier_inertia_kg_m2", 1.0, "positive",
               "carrier (output flange)"),
     FieldSpec("rated_torque", "rated_torque_Nm", 1.0, "positive", "catalogue rated output torque"),
+    FieldSpec("allowable_output_speed", "allowable_output_speed_rpm", RPM, "positive",
+              "catalogue allowable output speed (rvfmu/core/limits.py refuses beyond "
+              "SPEED_FACTOR x it); left out, the fastest frame of the E series' (RV-6E)",
+              100.0),
     FieldSpec("youngs_modulus", "youngs_modulus_GPa", GPA, "positive", "steel of the parts"),
     FieldSpec("poisson_ratio", "poisson_ratio", 1.0, "fraction", "steel of the parts"),
     FieldSpec("needle_rollers", "needle_rollers", 1, "count",
@@ -209,6 +213,7 @@ class RVDesign:
     tapered_pitch_diameter: float = 0.0
     main_bearing_pitch_diameter: float = 0.0
     seal_torque: float = 0.0
+    allowable_output_speed: float = 100.0 * RPM
 
     def __post_init__(self):
         for spec in DESIGN_FIELDS:

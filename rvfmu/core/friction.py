@@ -44,9 +44,8 @@ from .errors import ErrorSet
 from .limits import check_load
 from .quasistatic import NO_LOAD_PROBE, _checked_errors
 from .solver import solve_pairs
-from .units import MM
+from .units import MM, RPM
 
-RPM = 2.0 * math.pi / 60.0       # rad/s per rpm
 # Palmgren's drag: 1e-7 f0 (nu n)^(2/3) d_m^3 for nu*n >= 2000 (cSt rpm), 160e-7 f0 d_m^3
 # below; the larger of the two is continuous (the branches differ by 0.8 % at 2000).
 DRAG_FLOOR = 160.0

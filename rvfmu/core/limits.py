@@ -36,3 +36,36 @@ def check_load(field: str, torque, rated_torque: float, where: str = "") -> str 
                 f"above the momentary maximum class ({MOMENTARY_FACTOR:g} x): the "
                 "small-displacement model is stretched; treat the results with care")
     return None
+
+
+# Speed.  The catalogue gives each frame an allowable output speed (RV-40E: 70 rpm, at a
+# rated speed of 15 rpm); beyond it the lubrication, the bearings' drag and the friction
+# coefficients the losses use have no rating behind them.  Up to SPEED_FACTOR x that speed
+# the model still answers (a warning is returned), beyond it the speed is refused: at
+# 1e12 rpm the losses would print 1.9e18 W as a result.
+SPEED_FACTOR = 2.0
+
+
+def check_speed(field: str, value, output_speed: float, design, where: str = "") -> str | None:
+    """Check an output speed [rad/s] (either sign) against `design.allowable_output_speed`.
+
+    `value` is what the user gave under `field` (shown in the message, in its own unit);
+    `output_speed` is the output speed it stands for.  Raises InputError beyond
+    SPEED_FACTOR x the allowable speed; returns a warning text above it, else None.
+    """
+    from .units import RPM
+
+    output_speed = finite_number(field, output_speed, where)
+    allowed = design.allowable_output_speed
+    ratio = abs(output_speed) / allowed
+    limit_rpm = SPEED_FACTOR * allowed / RPM
+    if ratio > SPEED_FACTOR:
+        raise InputError(field, value, f"is an output speed of {abs(output_speed) / RPM:.4g} rpm: "
+                         f"must be within {SPEED_FACTOR:g} x the allowable output speed "
+                         f"{allowed / RPM:g} rpm of {design.name} ({limit_rpm:g} rpm out, "
+                         f"{limit_rpm * design.ratio:.6g} rpm in)", where)
+    if ratio > 1.0:
+        return (f"{field} = {value!r} is an output speed of {abs(output_speed) / RPM:.4g} rpm, "
+                f"{ratio:.2g} x the allowable output speed {allowed / RPM:g} rpm of "
+                f"{design.name}: no rating covers it; treat the results with care")
+    return None

@@ -26,6 +26,9 @@ ARCSEC = DEG / 3600.0
 GPA = 1e9
 """One gigapascal in pascals."""
 
+RPM = 2.0 * math.pi / 60.0
+"""One revolution per minute in rad/s."""
+
 
 def rad_to_arcsec(value):
     """Radians to arcseconds; works on floats and numpy arrays alike."""
