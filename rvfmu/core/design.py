@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .checks import InputError, finite_number, integer, non_negative, positive
-from .units import ARCSEC, DEG, GPA, MM, RPM
+from .units import ARCMIN, ARCSEC, DEG, GPA, MM, RPM
 
 
 @dataclass(frozen=True)
@@ -143,6 +143,29 @@ DESIGN_FIELDS = (
 )
 
 _BY_KEY = {spec.file_key: spec for spec in DESIGN_FIELDS}
+
+# What stiffness an element of a reducer can have [N/m].  Every element is a steel contact,
+# bearing or mesh; their stiffness grows with size and barely with load.  Stiffest: the main
+# bearings (seed 003 identified 8e10 N/m on the RV-20E; the presets scale it to 1.3e11 on the
+# RV-110E); a line contact gives about E' x its length / 2, 1e10 N/m for 100 mm of steel, so
+# 1e12 is eight times the stiffest element of the presets.  Softest: the input shaft's radial
+# support (the presets 5e6-1.4e7 N/m; a 10 mm shaft overhanging 100 mm gives 3e5), and a
+# mesh gives about 2e7 N/m per mm of face width (ISO 6336-1).  Beyond the range the model
+# is no reducer: pins of 1e15 N/m once printed a rigidity of 289 N*m/arcmin for a frame of 108.
+STIFFNESS_RANGE = (1e5, 1e12)
+STIFFNESS_FIELDS = ("pin_disc_stiffness", "mesh_stiffness", "crank_disc_bearing_stiffness",
+                    "crank_carrier_bearing_stiffness", "main_bearing_stiffness",
+                    "sun_support_stiffness")
+# The elements that hold the solver's reduced unknowns (all but the sun support, which only
+# holds the sun, condensed out exactly) must lie within this factor of each other.  The
+# solver's weak springs are REGULARISATION = 1e-6 x the softest of them (or 30 x the sun
+# support, `solver.weak_stiffness`), so the stiffest over them, the conditioning of the Newton
+# steps, stays below 1e11 (3e11 with the softest sun support), where it converges; at 1e13
+# (pins of 1e5 N/m beside meshes of 1e12) it no longer did.  The presets span 600.
+STIFFNESS_SPREAD = 1e5
+# A series compliance (carrier pillars, the output's) that alone winds the output up by more
+# than this at rated torque is no reducer: catalogue frames wind up 3-4 arcmin there in all.
+SERIES_WINDUP_MAX = 60.0 * ARCMIN
 INTEGER_MINIMUM = {"int": 1, "count": 0}   # the whole-number kinds and their least value
 PRESET_NAMES = ("RV-40E-121", "RV-40E-81", "RV-20E", "RV-110E")
 # A preset by its name is calibrated against its frame's catalogue figures (the [calibration]
@@ -360,6 +383,35 @@ def _check_relations(d: RVDesign) -> None:
     if not 0.0 < d.pressure_angle < math.radians(45):
         raise InputError("pressure_angle_deg", math.degrees(d.pressure_angle),
                          "must be between 0 and 45 deg", where)
+    _check_stiffnesses(d)
+
+
+def _check_stiffnesses(d: RVDesign) -> None:
+    """Every stiffness within STIFFNESS_RANGE, those the solver's reduced unknowns feel within
+    STIFFNESS_SPREAD of each other, each series compliance within SERIES_WINDUP_MAX at rated
+    torque."""
+    where = d.name
+    low, high = STIFFNESS_RANGE
+    for field in STIFFNESS_FIELDS:
+        value = getattr(d, field)
+        if not low <= value <= high:
+            raise InputError(f"{field}_N_per_m", value, f"must be from {low:.0e} to {high:.0e} N/m, "
+                             "the range of steel contacts, bearings and meshes in reducers", where)
+    held = {field: getattr(d, field) for field in STIFFNESS_FIELDS if field != "sun_support_stiffness"}
+    softest, stiffest = min(held, key=held.get), max(held, key=held.get)
+    if held[stiffest] > STIFFNESS_SPREAD * held[softest]:
+        raise InputError(f"{softest}_N_per_m", held[softest],
+                         f"must be from {held[stiffest] / STIFFNESS_SPREAD:.4g} to {high:.0e} N/m: "
+                         f"within {STIFFNESS_SPREAD:.0e} x of the stiffest of the pins, meshes and "
+                         f"bearings ({stiffest}_N_per_m = {held[stiffest]:.4g}), or the "
+                         "equilibrium is too ill-conditioned to solve", where)
+    for field in ("carrier_compliance", "output_compliance"):
+        value, limit = getattr(d, field), SERIES_WINDUP_MAX / d.rated_torque
+        if value > limit:
+            raise InputError(f"{field}_arcsec_per_Nm", value / ARCSEC,
+                             f"must be from 0 to {limit / ARCSEC:.4g} arcsec/(N*m): more winds the "
+                             f"output up by over {SERIES_WINDUP_MAX / ARCMIN:g} arcmin at the rated "
+                             f"torque {d.rated_torque:g} N*m by itself", where)
 
 
 def min_trochoid_curvature_radius(R_p: float, e: float, z_p: int) -> float:

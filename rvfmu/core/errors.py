@@ -8,7 +8,9 @@ multiplication per pose, and a sum of two error sets is their superposition.
 
 Files (TOML) use the names of docs/model.md section 4 with E in um and beta in degrees; a
 missing key means zero.  Unknown names, wrong lengths, NaN, negative
-magnitudes and negative clearances are refused with the field named.
+magnitudes and negative clearances are refused with the field named, and so is
+an error larger than the model can hold (`check_error_sizes`): one rule for every
+error, at most ERROR_FRACTION of the length of the geometry it displaces.
 `error_template_text` writes a complete file of zeros to fill in, and
 `toml_text` is the one writer of such files (and of other flat TOML
 documents of numbers, strings and nested lists).
@@ -26,13 +28,28 @@ import numpy as np
 
 from .checks import InputError, finite_array
 from .design import RVDesign
-from .units import DEG, UM
+from .units import DEG, MM, UM
 
 PHASED = ("sun_eccentricity", "sun_assembly", "planet_eccentricity", "crank_cam_eccentricity",
           "disc_crank_hole", "carrier_crank_hole", "carrier_assembly")
 PER_TOOTH = ("pin_radial", "pin_pitch", "pin_radius", "disc_profile", "disc_pitch")
 CLEARANCES = ("crank_disc_clearance", "crank_carrier_clearance", "main_bearing_clearance")
 ERROR_NAMES = PHASED + PER_TOOTH + CLEARANCES
+
+# Where the equivalent error model holds.  It takes every error as a small displacement
+# about the nominal kinematics (docs/model.md section 4): the gap of every contact moves by
+# the error along the nominal contact normal, the second-order part is left out.  An error
+# delta moves a contact along its profile by about delta, over a tooth whose normal turns
+# through its whole swing within the tooth depth; the part left out is then of relative size
+# about delta / (2 x the length the error displaces).  At a tenth of that length it is 5 %:
+# beyond, the first-order model is no longer the reducer.  The length is the tooth depth's
+# scale of the stage the error displaces: the module m for the stage-1 mesh (tooth depth
+# 2.25 m); the eccentricity e for everything of the cycloid stage (its lobes are 2e deep, and
+# a crank, cam, disc hole, carrier seat or bearing clearance moves a disc centre whose
+# nominal path is a circle of radius e).  A tenth is 90-175 um on the presets; real errors,
+# even of a poor reducer, are a few to a few tens of um (seed 002 tables 2-4: 3-8 um).
+ERROR_FRACTION = 0.1
+STAGE_1_ERRORS = ("sun_eccentricity", "sun_assembly", "planet_eccentricity")
 
 
 def error_shapes(design: RVDesign) -> dict:
@@ -104,7 +121,41 @@ class ErrorSet:
         for name in CLEARANCES:
             if np.any(getattr(self, name) < 0):
                 raise InputError(name, float(np.min(getattr(self, name)) / UM), "must be >= 0 um")
+        check_error_sizes(design, self)
         return self
+
+
+def error_limits(design: RVDesign) -> dict:
+    """{error name: the largest magnitude E, |deviation| or clearance [m] the model takes}:
+    ERROR_FRACTION x the module m (stage-1 errors) or x the eccentricity e (the others)."""
+    return {name: ERROR_FRACTION * (design.m if name in STAGE_1_ERRORS else design.e)
+            for name in ERROR_NAMES}
+
+
+def check_error_sizes(design: RVDesign, errors: ErrorSet, where: str = "") -> None:
+    """Raise InputError at the first error of `errors` larger than `error_limits(design)`,
+    naming it with its index (`crank_cam_eccentricity[1][0]`), its size in um and the limit
+    in um; in a batch of several reducers `where` names the reducer too."""
+    limits = error_limits(design)
+    for name, array in errors.arrays().items():
+        size = np.abs(array)                    # (S, *shape): magnitude E, |deviation|, clearance
+        limit = limits[name]
+        over = np.argwhere(size > limit * (1.0 + 1e-9))  # 1e-9: E at the limit, after exp(i beta)
+        if not over.size:
+            continue
+        sample, *index = (int(i) for i in over[0])
+        field = name + "".join(f"[{i}]" for i in index)
+        what = ("its magnitude E" if name in PHASED else
+                "a clearance" if name in CLEARANCES else "its absolute value")
+        length, symbol = ((design.m, "module m") if name in STAGE_1_ERRORS
+                          else (design.e, "eccentricity e"))
+        place = f"reducer {sample} of {errors.samples}" if errors.samples > 1 else ""
+        raise InputError(field, float(size[(sample, *index)] / UM),
+                         f"{what} must be at most {limit / UM:.4g} um, {ERROR_FRACTION:g} x the "
+                         f"{symbol} = {length / MM:.4g} mm of {design.name}: the equivalent error "
+                         "model linearises about the nominal kinematics and does not hold for "
+                         "an error that large (docs/model.md section 4)",
+                         ", ".join(w for w in (where, place) if w))
 
 
 def zero_errors(design: RVDesign, samples: int = 1) -> ErrorSet:
@@ -144,7 +195,9 @@ def errors_from_file_values(design: RVDesign, values: dict, where: str = "errors
             if name in CLEARANCES and value < 0:
                 raise InputError(name, raw, "a clearance must be >= 0 um", where)
             arrays[name] = (value * UM)[None]
-    return ErrorSet(**arrays)
+    errors = ErrorSet(**arrays)
+    check_error_sizes(design, errors, where)
+    return errors
 
 
 def error_file_values(errors: ErrorSet, sample: int = 0) -> dict:

@@ -41,7 +41,18 @@ from .newton import GAP_TOLERANCE, Work, chain_links, map_chunks, newton, pin_de
 from .pin_law import contact_forces, contacts
 
 CHUNK = 4096             # pairs per chunk: ~40 MB of work arrays
-REGULARISATION = 1e-6    # relative to the pin stiffness: keeps floating parts determinate
+REGULARISATION = 1e-6    # relative to the softest element (`weak_stiffness`): keeps floating
+                         # parts determinate
+# The sun support holds the sun, always condensed out; the reduced unknowns feel it only where
+# a crank floats in its bearing clearance (the cranks' turn against each other is then held by
+# the sun support through the meshes), and there as about its own stiffness: the weak springs'
+# share is about 0.65 x theirs over it (1.1e-3 with a sun support of 1e5 N/m, 100 um
+# clearances, weak springs 164 N/m).  Counted 30 times it bounds that share near 3e-5 and
+# leaves the presets' weak springs at (RV-40E-81: 4 % below) their meshes', 18-31 x stiffer
+# than their sun supports; counted once, the springs get so weak (5.5 N/m on the RV-40E-121)
+# that, with bearing clearance, the floating parts' no-load equilibrium is determinate to a
+# few 1e-7 arcsec only.
+SUN_SUPPORT_WEIGHT = 30.0
 MODE_DIRECTION_STIFFNESS = 1e-9  # relative to the pin stiffness, Hessian only: see ReducedSystem
 CONTINUATION = (1e1, 1.0)  # no load with bearing clearance: probe multiples, large to small
 LAW_PROBE = 1e-3         # no load, no clearance, the roller law: one solve at this x probe, from the
@@ -58,6 +69,24 @@ ZERO_RESIDUAL = 1e-3     # without: along the tangent where it lands in equilibr
                          # force below this share of the probe's load vector) ...
 REFINEMENTS = 3          # ... elsewhere from probes 10x smaller, at most this many times, then the chord
 CANDIDATE_MARGIN = 1     # pins per disc iterated on beyond the half that the load closes
+
+
+def weak_stiffness(model: EquivalentModel) -> float:
+    """Stiffness [N/m] of the weak spring on every reduced unknown: REGULARISATION x the
+    softest elastic element that holds a reduced unknown (pins, meshes, bearings, and the
+    sun support counted SUN_SUPPORT_WEIGHT times).
+
+    The weak springs act in parallel with those elements, so their share of any deflection
+    is about their stiffness over that of the elements carrying it: scaled with the softest
+    of them it stays near REGULARISATION whatever the design.  (Scaled with the pin stiffness
+    alone, pins of 1e15 N/m made them 1e9 N/m, stiffer than the crank bearings: they carried
+    a third of the windup and nearly tripled the rigidity.)
+    """
+    d = model.design
+    return REGULARISATION * min(d.pin_disc_stiffness, d.mesh_stiffness,
+                                d.crank_disc_bearing_stiffness, d.crank_carrier_bearing_stiffness,
+                                d.main_bearing_stiffness,
+                                SUN_SUPPORT_WEIGHT * d.sun_support_stiffness)
 
 
 @dataclass(frozen=True)
@@ -131,7 +160,7 @@ class ReducedSystem:
         self.brg_k = model.bearing_k[self.nl_bearings]
         self.brg_law_a = model.bearing_law_a[self.nl_bearings] * float(rollers)
         self.brg_law_compliance = model.bearing_law_compliance[self.nl_bearings]
-        self.reg = REGULARISATION * model.pin_k
+        self.reg = weak_stiffness(model)
 
         # Mechanism mode: the carrier turning with the input held, all but the pins
         # unstrained (carrier rotation unknown = 1).  It is the null vector of K_red.

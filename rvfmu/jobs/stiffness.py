@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..core.budget import ComplianceBudget, compliance_budget
+from ..core.budget import WEAK_SHARE_VISIBLE, ComplianceBudget, compliance_budget
 from ..core.quasistatic import Windup, windup
 from ..outputs import figure_file
 
@@ -44,6 +44,10 @@ class StiffnessReport:
         lines.append(f"  {'sum':<36} {'':>5} {'':>16}  {100 * b.share_sum:>5.1f} %")
         if not b.converged or not self.windup.converged.all():
             lines.append("warning            the equilibrium did not converge at some positions")
+        weak = b.elements[-1].share
+        if abs(weak) > WEAK_SHARE_VISIBLE:
+            lines.append(f"warning            the solver's weak springs carry {100 * weak:.1f} % of "
+                         "the windup: these figures are the solver's, not the reducer's")
         return "\n".join(lines)
 
     def to_json(self) -> dict:
