@@ -254,7 +254,8 @@ __all__ = ["figure_te", "marker_orders", "plot_te", "plot_windup", "plot_catalog
 
 def plot_simulation(sim, path: str | Path) -> Path:
     """TE against time (top, the start ramp shaded) and its spectrum in Hz after the ramp
-    (bottom) with the crank, pin-passing and stage-1 mesh frequencies marked."""
+    (bottom) with the crank, pin-passing and stage-1 mesh frequencies marked (not where the
+    input reverses)."""
     from .core.excitations import Excitations
 
     plt = _pyplot()
@@ -277,7 +278,8 @@ def plot_simulation(sim, path: str | Path) -> Path:
     ax_sp.set_xlabel("frequency [Hz]")
     ax_sp.set_ylabel("amplitude [arcsec]")
     ax_sp.set_xlim(f[1], top)
-    for name, hz in ex.items():
+    # an input that reverses has no single speed: no excitation frequency to mark
+    for name, hz in () if sim.input_reverses else ex.items():
         if hz <= top:
             ax_sp.axvline(hz, color="0.6", lw=0.6, ls=":")
             ax_sp.annotate(f"{name} {hz:.1f} Hz", (hz, ax_sp.get_ylim()[1] * 0.95), fontsize=7,

@@ -198,7 +198,9 @@ def test_rvte_simulate_prints_writes_and_speaks_json(tmp_path, capsys):
                      "--csv", str(csv_path), "--plot", str(plot)]) == 0
     out = capsys.readouterr().out
     assert "at constant speed (after the start ramp)" in out and "te_pp" in out
-    assert re.search(r"\n  stage-1 mesh +317\.36 +\d+\.\d{4}\n", out) and plot.stat().st_size > 0
+    # 0.05 s at speed is too short to resolve the mesh from pin passing, 26 Hz away (0.114 s)
+    assert re.search(r"\n  stage-1 mesh +317\.36   not resolved: needs \u2265 0\.114 s of record\n",
+                     out) and plot.stat().st_size > 0
     rows = np.loadtxt(csv_path, delimiter=",", skiprows=1)
     header = csv_path.read_text().splitlines()[0]
     assert header == "time_s,theta_in_rad,theta_out_rad,te_arcsec,tau_in_Nm"

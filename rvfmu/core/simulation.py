@@ -19,13 +19,14 @@ from .checks import InputError, finite_number, fits_in_memory, positive
 from .design import RVDesign
 from .dynamic import MESH_MODELS, DynamicModel, Motion, contact_law, ramp_motion
 from .errors import ErrorSet, zero_errors
-from .limits import check_load
+from .limits import check_load, check_speed
 from .metrics import NOISE_FLOOR_ARCSEC
-from .excitations import HARMONICS, Excitations, amplitude_at  # noqa: F401 (this module's face)
+from .excitations import (HARMONICS, Excitations, amplitude_at,  # noqa: F401 (this module's face)
+                          read_amplitudes)
 from .modes import modes
 from .newmark import NewmarkStepper, _quasi_static_start, static_start  # noqa: F401 (as above)
 from .reducer_model import step_efficiency
-from .units import rad_to_arcsec
+from .units import RPM, rad_to_arcsec
 
 STEPS_PER_PERIOD = 20      # default step: 20 per period of the fastest excitation (mesh or pin passing)
 MIN_STEPS_PER_PERIOD = 8   # coarser than this misses the excitation: refused
@@ -33,6 +34,12 @@ NATURAL_STEPS_PER_PERIOD = 15  # and 15 per period of a natural frequency the ex
                                # average-acceleration rule's period error (pi^2/12)(h/T)^2 < 0.4 %
 METHODS = ("newmark", "Radau", "BDF")
 DEFAULT_RAMP_OUTPUT_TURNS = 0.02   # start ramp: 2 % of an output revolution's time at speed, >= 0.05 s
+# The longest run `simulate` starts: a million steps are 20 output revolutions of the RV-40E-121
+# at 1600 rpm, and 22-40 s of stepping at the 25,000-45,000 steps/s measured on one core of a
+# 2-core Xeon (seed 002's errors, 1600 and 16,900 rpm); beyond, a run is minutes to hours with
+# nothing to show (1e7 rpm: 2.2 million steps, the rate falling to 2,000 steps/s at speed).
+MAX_STEPS = 1_000_000
+PROGRESS_STEPS = 50_000   # runs of more steps report progress: they take more than a second or two
 
 
 @dataclass(frozen=True)
@@ -44,7 +51,8 @@ class Simulation:
     steady: index of the first step after the start ramp; step [s]; omega_in [rad/s],
     friction_power, damper_power [W]: (T,), the power the contacts' friction and the
     elements' dashpots dissipate; drive: "ramp" (constant speed after a start ramp) or
-    "sampled" (sampled input angles).
+    "sampled" (sampled input angles); warnings: texts of the inputs beyond their rated
+    class (`limits.check_load`, `limits.check_speed`), for the reports to print.
     """
 
     design: RVDesign
@@ -65,6 +73,14 @@ class Simulation:
     friction_power: np.ndarray
     damper_power: np.ndarray
     drive: str = "ramp"
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def input_reverses(self) -> bool:
+        """Whether the input angle goes back anywhere after the start ramp (a sampled input
+        that reverses, or whose spline does between samples): the record then has no single
+        speed, so no excitation frequency."""
+        return bool(np.any(np.diff(self.theta_in[self.steady:]) < 0.0))
 
     @property
     def input_power(self) -> np.ndarray:
@@ -118,14 +134,21 @@ class Simulation:
         amplitude = 2.0 * np.abs(np.fft.rfft(te * window)) / window.sum()
         return np.fft.rfftfreq(te.size, self.step), amplitude
 
+    def excitation_rows(self) -> list[tuple[str, float, float | None, str | None]]:
+        """[(name, frequency [Hz], TE amplitude [arcsec] or None, why it is None or None)] of
+        every excitation and its 2nd harmonic at the run's speed (`Excitations`), after the
+        start ramp (`read_amplitudes`): None where the record is too short to resolve it
+        ("needs >= X s of record"), above the step's Nyquist frequency, and everywhere when
+        the input reverses ("the input reverses": no single speed, no frequency)."""
+        listed = Excitations.at(self.design, self.speed_rpm).with_harmonics()
+        if self.input_reverses:
+            return [(name, hz, None, "the input reverses") for name, hz in listed]
+        return read_amplitudes(self.steady_te_arcsec(), self.step, listed)
+
     def excitation_amplitudes(self) -> list[tuple[str, float, float | None]]:
-        """[(name, frequency [Hz], TE amplitude [arcsec])] of every excitation and its 2nd
-        harmonic at the run's speed (`Excitations`), after the start ramp (`amplitude_at`);
-        None above the Nyquist frequency of the step."""
-        te = self.steady_te_arcsec()
-        nyquist = 0.5 / self.step
-        return [(name, hz, amplitude_at(te, self.step, hz) if hz < nyquist else None)
-                for name, hz in Excitations.at(self.design, self.speed_rpm).with_harmonics()]
+        """[(name, frequency [Hz], TE amplitude [arcsec] or None)]: `excitation_rows`
+        without the reasons."""
+        return [(name, hz, amplitude) for name, hz, amplitude, _ in self.excitation_rows()]
 
     def peaks_hz(self, count: int = 5, floor: float = NOISE_FLOOR_ARCSEC):
         """Up to `count` largest local maxima of the spectrum above `floor` arcsec: [(Hz, arcsec)]."""
@@ -155,11 +178,13 @@ class Sampled:
     """A signal given at sample times [s]: linear between samples, held beyond them.
 
     `checked` gives one with finite values at strictly increasing times, or an
-    InputError naming the field and the first bad sample.
+    InputError naming the field and the first bad sample.  name: the input it came from
+    (the field later errors name), "load_step" for `step`.
     """
 
     time: np.ndarray
     values: np.ndarray
+    name: str = ""
 
     @classmethod
     def checked(cls, name: str, time, values, at_least: int = 2) -> "Sampled":
@@ -176,13 +201,13 @@ class Sampled:
         if back.size:
             raise InputError(name, f"time {t[back[0] + 1]:g} s at sample {back[0] + 2}",
                              "times must increase strictly")
-        return cls(t, x)
+        return cls(t, x, name)
 
     @classmethod
     def step(cls, before: float, at: float, after: float) -> "Sampled":
         """`before` until time `at` [s], `after` from then on (a step with a 1 ns rise)."""
         at = finite_number("load step time", at)
-        return cls(np.array([at - 1e-9, at]), np.array([before, after]))
+        return cls(np.array([at - 1e-9, at]), np.array([before, after]), "load_step")
 
     def at(self, time) -> np.ndarray:
         return np.interp(time, self.time, self.values)
@@ -215,7 +240,14 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     samples and must not be given).  method: "newmark" (fixed step, the default)
     or "Radau" / "BDF" (scipy's adaptive solve_ivp, the slow reference).  friction:
     False simulates the reducer without its contacts' friction and drag.
-    progress(total, done): optional.
+    progress(total, done): optional, called on runs of more than PROGRESS_STEPS steps,
+    first with done = 0 before the first step.
+
+    Refused (InputError): an input speed beyond `limits.SPEED_FACTOR` x the design's
+    allowable output speed times the ratio (the sampled input's fastest between two
+    samples), a load beyond the emergency-stop class, a load step (`Sampled.step`) outside
+    the run, and a run of more than MAX_STEPS steps.  Speeds and loads above their rated
+    class are run and carried in `Simulation.warnings`.
     """
     errors = zero_errors(design) if errors is None else errors.check(design)
     if errors.samples != 1:
@@ -229,10 +261,13 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
         raise InputError("duration", duration, "give a duration or a number of revolutions, not both")
     if not isinstance(load, Sampled):
         load = finite_number("load", load)
-    for value in np.atleast_1d(load.values if isinstance(load, Sampled) else load):
+    loads = np.atleast_1d(load.values if isinstance(load, Sampled) else load)
+    for value in loads:
         check_load("load", value, design.rated_torque)
+    warnings = [check_load("load", loads[np.argmax(np.abs(loads))], design.rated_torque)]
     if input_angle is None:
         speed_rpm = positive("speed_rpm", speed_rpm)
+        warnings.append(check_speed("speed_rpm", speed_rpm, speed_rpm * RPM / design.ratio, design))
         speed = speed_rpm * 2.0 * math.pi / 60.0
         out_period = 2.0 * math.pi * design.ratio / speed
         ramp = max(0.05, DEFAULT_RAMP_OUTPUT_TURNS * out_period) if ramp is None else \
@@ -252,10 +287,13 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
         start, end = float(input_angle.time[0]), float(input_angle.time[-1])
         mean = (input_angle.values[-1] - input_angle.values[0]) / (end - start)
         if not mean > 0.0:
-            raise InputError("input", f"mean speed {mean:.4g} rad/s",
+            raise InputError(input_angle.name or "input", f"mean speed {mean:.4g} rad/s",
                              "the input must turn forward (positive mean speed)")
         speed_rpm, ramp = mean * 60.0 / (2.0 * math.pi), 0.0
+        warnings.append(_sampled_speed_warning(design, input_angle))
+    _check_load_step(load, start, end, ramp, input_angle is not None)
     finest = default_step(design, speed_rpm)
+    step_given = step is not None
     if step is None:
         mean_load = float(np.mean(load.values)) if isinstance(load, Sampled) else load
         step = default_step(design, speed_rpm, modes(design, errors, mean_load).frequencies_hz)
@@ -268,6 +306,9 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
                          f"stage-1 mesh ({ex.mesh:.0f} Hz) and pin passing ({ex.pin_passing:.0f} Hz) "
                          f"need at least {MIN_STEPS_PER_PERIOD} steps per period")
     count = int(math.ceil((end - start) / step - 1e-9)) + 1
+    if count > MAX_STEPS:
+        _refuse_size(count, step, step_given, start, end, ramp, speed_rpm, duration, revolutions,
+                     input_angle)
     if input_angle is not None:
         step = (end - start) / (count - 1)     # the grid ends with the samples
     unknowns = 3 * (2 + design.n_c + 2)
@@ -282,27 +323,79 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     else:
         motion = sampled_motion(time, input_angle, tau_load)
     drive = "ramp" if input_angle is None else "sampled"
+    warnings = tuple(text for text in warnings if text)
     model = DynamicModel(design, errors, contact, mesh, 1 if np.mean(tau_load) <= 0 else -1,
                          friction)
     model.prepare(motion)
     q0 = static_start(model, tau_load[0], float(motion.theta_in[0]), model.external(0))
     model.set_modal_damping(q0)
     if method != "newmark":
-        return _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive)
+        return _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive,
+                          warnings)
     stepper = NewmarkStepper.starting_at(model, q0)
     q, v, power = np.empty((count, model.n)), np.empty((count, model.n)), np.empty((count, 2))
     q[0], v[0] = q0, stepper.state.v
     power[0] = model.forces_and_powers(0, q0, v[0])[3]
     report = max(1, count // 200)
+    if count <= PROGRESS_STEPS:
+        progress = None
+    if progress is not None:
+        progress(count - 1, 0)     # the bar and its total at once, before the first chunk
     while stepper.k < count - 1:
         stepper.advance(min(stepper.k + report, count - 1), q, v, power)
         if progress is not None:
             progress(count - 1, stepper.k)
     return _record(model, design, speed_rpm, motion, q, v, power, ramp, step,
-                   stepper.failed_steps, drive)
+                   stepper.failed_steps, drive, warnings)
 
 
-def _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive):
+def _sampled_speed_warning(design: RVDesign, angle: Sampled) -> str | None:
+    """`limits.check_speed` of the fastest input speed between two samples of `angle` (input
+    angles [rad] at times [s]; either sense): its warning text or None, InputError naming the
+    samples beyond the limit."""
+    rates = np.diff(angle.values) / np.diff(angle.time)
+    k = int(np.argmax(np.abs(rates) >= (1.0 - 1e-9) * np.abs(rates).max()))  # the first fastest
+    return check_speed(angle.name or "input", f"input speed {rates[k] / RPM:.4g} rpm (its fastest, "
+                       f"samples {k + 1} to {k + 2})", rates[k] / design.ratio, design)
+
+
+def _check_load_step(load, start: float, end: float, ramp: float, sampled: bool) -> None:
+    """Refuse a load step (`Sampled.step`) whose time [s] lies outside the run, start..end
+    [s]: it would never be applied."""
+    if not (isinstance(load, Sampled) and load.name == "load_step"):
+        return
+    at = float(load.time[-1])
+    if not start < at < end:
+        span = ("the sampled input's times" if sampled else
+                f"t = 0 at the start of the ramp, {ramp:.4g} s of ramp and {end - ramp:.4g} s at "
+                "speed")
+        raise InputError("load_step", f"{at:g}:{load.values[-1]:g}",
+                         f"the load would change at {at:g} s, outside the run ({start:g} to "
+                         f"{end:.4g} s, {span}): give a time inside it or a longer run")
+
+
+def _refuse_size(count, step, step_given, start, end, ramp, speed_rpm, duration, revolutions,
+                 input_angle) -> None:
+    """InputError for a run of `count` > MAX_STEPS time steps, naming the input that sets
+    its length and how to shorten it."""
+    if input_angle is not None:
+        field, value = input_angle.name or "input", f"{end - start:g} s of samples"
+        shorten = "give a shorter record of input angles"
+    else:
+        field, value = (("duration", duration) if duration is not None else
+                        ("revolutions", revolutions) if revolutions is not None else
+                        ("speed_rpm", speed_rpm))
+        shorten = ("shorten --duration (or --revolutions, default one output revolution) or "
+                   "lower --speed-rpm")
+    if step_given:
+        shorten += ", or give a larger --step"
+    ramp_text = f" (the start ramp's {ramp:.3g} s included)" if ramp else ""
+    raise InputError(field, value, f"the run of {end - start:.4g} s{ramp_text} at "
+                     f"{speed_rpm:.6g} rpm takes {count} time steps of {step:.3g} s, more than the "
+                     f"limit of {MAX_STEPS} (MAX_STEPS, about a minute of computing): {shorten}")
+
+
+def _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive, warnings):
     """The same run by scipy's adaptive implicit `solve_ivp` (Radau or BDF), reported at the
     Newmark steps' times: the reference the fixed-step integrator is checked against.
 
@@ -337,11 +430,11 @@ def _reference(model, motion, q0, method, speed_rpm, design, ramp, step, drive):
     q, v = solution.y[:n].T, solution.y[n:].T
     model.prepare(motion)
     power = np.array([model.forces_and_powers(k, q[k], v[k])[3] for k in range(time.size)])
-    return _record(model, design, speed_rpm, motion, q, v, power, ramp, step, 0, drive)
+    return _record(model, design, speed_rpm, motion, q, v, power, ramp, step, 0, drive, warnings)
 
 
 def _record(model, design, speed_rpm, motion, q, v, power, ramp, step, failed,
-            drive: str) -> Simulation:
+            drive: str, warnings: tuple[str, ...] = ()) -> Simulation:
     """The run's record from the unknowns q and their rates v, (T, n), and the dissipated
     powers (T, 2) (friction, dampers), at the motion's times."""
     # the output flange: the carrier plus the windup of the massless series compliance
@@ -353,4 +446,4 @@ def _record(model, design, speed_rpm, motion, q, v, power, ramp, step, failed,
                       motion.theta_in / design.ratio + te, te, omega_out,
                       model.input_torque(q.T, v.T), motion.tau_load, q, tuple(model.names),
                       int(np.searchsorted(motion.time, motion.time[0] + ramp)), step, failed,
-                      motion.omega_in, power[:, 0], power[:, 1], drive)
+                      motion.omega_in, power[:, 0], power[:, 1], drive, warnings)

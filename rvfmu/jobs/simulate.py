@@ -19,7 +19,9 @@ FORMATS = {"time_s": ".9g", "theta_in_rad": ".12g", "theta_out_rad": ".12g",
 
 @dataclass(frozen=True)
 class SimulationReport:
-    """A dynamic run with the figures an engineer reads first (after the start ramp)."""
+    """A dynamic run with the figures an engineer reads first (after the start ramp): an
+    excitation the record does not resolve shows why instead of an amplitude
+    (`Simulation.excitation_rows`), and the inputs beyond their rated class a warning."""
 
     simulation: object
     peaks: tuple
@@ -38,7 +40,8 @@ class SimulationReport:
         lines = [
             f"design            {d.name} (ratio {d.ratio:g}), dynamic model",
             f"input             {'sampled angles, mean speed' if sampled else 'speed'} "
-            f"{sim.speed_rpm:g} rpm; {load_text}",
+            f"{sim.speed_rpm:g} rpm" + (" (the input reverses)" if sim.input_reverses else "")
+            + f"; {load_text}",
             f"interval          {start:.4g} s to {stop:.4g} s "
             + ("(the whole sampled input)" if sampled else "at constant speed (after the start ramp)")
             + f", step {sim.step * 1e6:.4g} us, {sim.time.size} steps",
@@ -49,8 +52,8 @@ class SimulationReport:
             f"{'excitation':<24} {'frequency [Hz]':>14} {'TE amplitude [arcsec]':>22}",
         ]
         lines += [f"  {name:<22} {hz:>14.2f} " + (f"{amp:>22.4f}" if amp is not None else
-                                                  f"{'above Nyquist':>22}")
-                  for name, hz, amp in sim.excitation_amplitudes()]
+                                                  f"  not resolved: {why}")
+                  for name, hz, amp, why in sim.excitation_rows()]
         power = sim.mean_powers()
         eta = power["efficiency"]
         lines.append(
@@ -59,6 +62,7 @@ class SimulationReport:
             + (f"; efficiency {100 * eta:.1f} %" if eta is not None else ""))
         if sim.failed_steps:
             lines.append(f"warning           {sim.failed_steps} steps did not converge")
+        lines += [f"warning           {text}" for text in sim.warnings]
         return "\n".join(lines)
 
     def to_json(self) -> dict:
@@ -72,10 +76,12 @@ class SimulationReport:
                 "step_s": sim.step, "te_range_arcsec": [float(te.min()), float(te.max())],
                 "te_pp_arcsec": float(te.max() - te.min()),
                 "peaks": [[f, a] for f, a in self.peaks], "failed_steps": sim.failed_steps,
-                "excitations": [{"name": name, "frequency_hz": hz, "amplitude_arcsec": amp}
-                                for name, hz, amp in sim.excitation_amplitudes()],
+                "input_reverses": sim.input_reverses,
+                "excitations": [{"name": name, "frequency_hz": hz, "amplitude_arcsec": amp,
+                                 "not_resolved": why}
+                                for name, hz, amp, why in sim.excitation_rows()],
                 "power_W": {k[:-2]: v for k, v in sim.mean_powers().items() if k.endswith("_W")},
-                "efficiency": sim.mean_powers()["efficiency"]}
+                "efficiency": sim.mean_powers()["efficiency"], "warnings": list(sim.warnings)}
 
     def to_df(self):
         """The run in time as a pandas DataFrame (one row per step), the columns of its CSV:
@@ -101,7 +107,9 @@ def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
     changes to that value at that time of the run; load_csv: a file of columns
     time_s, load_Nm (linear between rows, held beyond).  input_csv: a file of
     columns time_s, theta_in_rad, used instead of speed_rpm and the ramp.  friction: False
-    leaves out the contacts' friction and drag (docs/model.md section 9).
+    leaves out the contacts' friction and drag (docs/model.md section 9).  Speeds, loads,
+    a load step outside the run and runs too long to compute are refused as
+    `rvfmu.core.simulation.simulate` says.
     """
     from ..core.simulation import Sampled, simulate as run
 
