@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from importlib import metadata
 
@@ -194,7 +195,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--speed-rpm", type=float, default=1600.0, help="input speed after the start "
                    "ramp [rpm] (default 1600, as seeds 000/001)")
     length = p.add_mutually_exclusive_group()
-    length.add_argument("--duration", type=float, help="seconds at constant speed after the ramp")
+    length.add_argument("--duration", type=float, help="seconds at constant speed after the ramp "
+                        "(an excitation's amplitude needs 4 of its periods and more: the table "
+                        "says how long; at most 1e6 time steps in all)")
     length.add_argument("--revolutions", type=float,
                         help="output revolutions at constant speed (default 1)")
     p.add_argument("--contact", choices=("linear", "hertz", "impact"),
@@ -207,7 +210,7 @@ def build_parser() -> argparse.ArgumentParser:
     load = p.add_mutually_exclusive_group()
     load.add_argument("--load-step", type=_time_and_load, metavar="TIME_S:NM",
                       help="the load changes from --load to NM at TIME_S seconds of the run "
-                      "(t = 0 at the start of the ramp)")
+                      "(t = 0 at the start of the ramp; a time outside the run is refused)")
     load.add_argument("--load-csv", metavar="FILE", help="load in time: columns time_s,load_Nm "
                       "(linear between rows, held beyond)")
     p.add_argument("--input-csv", metavar="FILE", help="input angles in time instead of the ramp "
@@ -308,9 +311,46 @@ def add_plugin_commands(subparsers) -> None:
                   f"{type(exc).__name__}: {exc}", file=sys.stderr)
 
 
+# A value that starts like a negative number: -5, -.5, -5,10, -1e3, -0.1:400.  argparse
+# takes only -5 and -.5 (its _negative_number_matcher) for values; anything else after an
+# option it takes for another option ("expected one argument").
+NEGATIVE_VALUE = re.compile(r"-\.?\d")
+
+
+def negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """`argv` with every option that takes one value and is followed by a value starting
+    like a negative number (`--speeds -5,10`) joined to it (`--speeds=-5,10`), which argparse
+    always reads as the option's value; the sub-command's own options are looked up, so
+    nothing else changes."""
+    out, current, k = [], parser, 0
+    while k < len(argv):
+        token = argv[k]
+        out.append(token)
+        k += 1
+        if token == "--":
+            out += argv[k:]
+            break
+        chosen = next((a.choices[token] for a in current._actions
+                       if isinstance(a, argparse._SubParsersAction) and token in a.choices), None)
+        if chosen is not None:
+            current = chosen
+            continue
+        action = current._option_string_actions.get(token)
+        if action is None and token.startswith("--") and current.allow_abbrev:
+            # an abbreviation argparse would accept (--speed for --speeds): its one action
+            found = {id(a): a for o, a in current._option_string_actions.items()
+                     if o.startswith(token)}
+            action = next(iter(found.values())) if len(found) == 1 else None
+        if (action is not None and action.nargs is None and k < len(argv)
+                and NEGATIVE_VALUE.match(argv[k])):
+            out[-1] = f"{token}={argv[k]}"
+            k += 1
+    return out
+
+
 def main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(negative_values(parser, sys.argv[1:] if argv is None else list(argv)))
     try:
         args.run(args)
     except BrokenPipeError:

@@ -55,6 +55,31 @@ How it is answered, and why so:
   the crank's diameter and span from the design's [sources] table (or its
   preset's): the bearings are what seed 003 identifies, the crank is geometry.
   The crank's tilt in its bearings takes the pair at the start of the fit.
+- Figures out of reach.  A fit that ends on a default bound is no calibration
+  (`out_of_reach`): the default
+  bounds (start / and x DEFAULT_BOUND_FACTOR, OUTPUT_STIFFNESS_BOUND_FACTOR,
+  MODIFICATION_SCALE_BOUNDS) are a search window around an estimate, not a property of
+  the reducer, so a value pressed against one (the misfit still falls beyond it) means a
+  figure the design cannot reach: a catalogue rigidity of 1e9 N*m/arcmin or a lost motion
+  of 1e-9 arcmin ended at the bounds and was written as a calibrated design.  Its error
+  names the figure that presses hardest, its value, the value at its bound and the model's
+  figure there (the nearest the window reaches); `rvfmu.api.calibrate` raises it instead of
+  writing the design, and a report without a file to write carries it as a warning (a
+  study may fit only to read the start values, as studies/seed003_calibration does).
+  Bounds the user gives (--bounds) are a statement about the reducer: a value may end on
+  them, reported "at bound" (seed 003's own bounds, studies/seed003_calibration, end so).
+  A figure far beyond the window may also leave the misfit flat (a rigidity of 1e9 moves
+  the relative residual by 1e-7 over the whole window, a TE peak of 1000 arcsec at no
+  error hardly moves with the pins' stiffness) and the fit anywhere inside it: so every
+  figure (a catalogue figure, a peak, a curve's te_pp) is first held against what the
+  design gives at the corners of the default bounds (`beyond_reach`, before the fit):
+  each figure rises or falls with each value, the rigidity with every stiffness, the lost
+  motion with the clearance, a peak with the compliances, so its extremes over the bounds
+  are at corners; REACH_MARGIN covers the values' interplay.  Not with bounds given: seed
+  003's peaks on the coarse grid of a quick run lie 10 % above what its bounds reach.
+- Speeds of catalogue friction points are checked against the design's allowable output
+  speed as every speed is (`rvfmu.core.limits.check_speed`): refused beyond SPEED_FACTOR x
+  it, a warning of the problem above it.
 - Cheap evaluations: a data set's model costs its grid, `points` per output
   revolution, not its rows (`rvfmu.bench.compare`); data sets at the same load are
   solved as one batch.  The default for peaks and curves, POINTS_PER_CRANK_TURN
@@ -83,12 +108,13 @@ import numpy as np
 
 from .compare import as_bench_sees, model_grid, periodic
 from ..core.checks import InputError, finite_number, integer, non_negative, positive
+from ..core.limits import check_speed
 from ..core.design import DESIGN_FIELDS, ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, preset_file
 from ..core.errors import ErrorSet, load_errors, stack, toml_text, zero_errors
 from ..core.quasistatic import windup
 from ..core import compliance
 from ..core.stiffness import cam_positions, series
-from ..core.units import ARCMIN, ARCSEC, MM
+from ..core.units import ARCMIN, ARCSEC, MM, RPM
 from .measured import MeasuredTE
 
 TARGETS = ("peaks", "curve", "catalogue")
@@ -141,6 +167,13 @@ SINGULAR_RELATIVE = 1e-6
 SENSITIVITY_FLOOR = 1e-6
 # A misfit that is not a number (a pose that did not solve) counts as this, in arcsec.
 FAILED_RESIDUAL = 1e6
+# A figure more than this share beyond the range the design gives at the corners
+# of the fitted values' bounds is out of reach (`beyond_reach`); the share covers the
+# values' interplay, which may put a figure's extreme a little inside the bounds.
+REACH_MARGIN = 0.1
+# Corners evaluated for it at most: 2^p models of p values (8: 256, against the 10 p x 31
+# of the fit's differential evolution, 2480).
+REACH_MAX_VALUES = 8
 
 
 # Values that are not a stiffness field (module docstring): name -> (design fields, unit, doc).
@@ -167,7 +200,9 @@ class Parameter:
     modification_scale); field: the design field(s) it sets; value: the starting value
     (of the bearing itself for R_pd and R_b); lower, upper: bounds; series_with: for R_pd
     and R_b, the crankshaft's stiffness [N/m] in series (`crank_parts`); unit: of value and
-    bounds; base: for modification_scale, the design's (d_rp, d_rrp) [m] that it scales.
+    bounds; base: for modification_scale, the design's (d_rp, d_rrp) [m] that it scales;
+    bounds_given: the bounds are the user's (else the default search window, which a fit
+    must not end on: `out_of_reach`).
     """
 
     name: str
@@ -178,6 +213,7 @@ class Parameter:
     series_with: float | None = None
     unit: str = "N/m"
     base: tuple[float, float] | None = None
+    bounds_given: bool = False
 
     def field_values(self, value: float) -> dict:
         """The design fields (SI) that the fitted `value` sets."""
@@ -250,13 +286,15 @@ class DataSet:
 @dataclass(frozen=True)
 class Problem:
     """A calibration problem as plain data: the design, the values to fit, the data sets,
-    the target (peaks, curve or catalogue) and the model's points per output revolution."""
+    the target (peaks, curve or catalogue) and the model's points per output revolution;
+    warnings: texts for the report (catalogue speeds above the allowable output speed)."""
 
     design: RVDesign
     parameters: tuple[Parameter, ...]
     datasets: tuple[DataSet, ...]
     target: str
     points: int
+    warnings: tuple[str, ...] = ()
 
     @property
     def start(self) -> np.ndarray:
@@ -363,7 +401,8 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
                                  f"{_FRICTION_BY_NAME[name].file_key} is {current:g}: give it a "
                                  "starting value > 0")
             lower, upper = given.get(name, (current / factor, current * factor))
-            out.append(Parameter(name, field, current, lower, upper, unit=FRICTION_UNITS[name]))
+            out.append(Parameter(name, field, current, lower, upper, unit=FRICTION_UNITS[name],
+                                 bounds_given=name in given))
             continue
         law = {"crank_disc_bearing_stiffness": ("crank_disc", "needle_rollers"),
                "crank_carrier_bearing_stiffness": ("crank_carrier", "tapered_rollers")}.get(field)
@@ -382,7 +421,7 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
                                  f"bearing ({name})")
             current = 1.0 / (1.0 / current - 1.0 / crank)
         lower, upper = given.get(name, (current / factor, current * factor))
-        out.append(Parameter(name, field, current, lower, upper, crank))
+        out.append(Parameter(name, field, current, lower, upper, crank, bounds_given=name in given))
     return tuple(out)
 
 
@@ -395,14 +434,16 @@ def _other_parameter(design: RVDesign, name: str, bounds) -> Parameter:
         else:
             start, factor = design.rated_torque, OUTPUT_STIFFNESS_BOUND_FACTOR
         lower, upper = bounds or (start / factor, start * factor)
-        return Parameter(name, field, start, lower, upper, unit=unit)
+        return Parameter(name, field, start, lower, upper, unit=unit,
+                         bounds_given=bounds is not None)
     base = (design.d_rp, design.d_rrp)
     if design.tip_root_clearance <= 0.0:
         raise InputError("fit", name, f"scales the modification pair, which leaves no tip and root "
                          f"clearance here (d_rrp - d_rp = {design.tip_root_clearance / MM:.4g} mm): "
                          "give the design a clearance to scale first")
     lower, upper = bounds or MODIFICATION_SCALE_BOUNDS
-    return Parameter(name, field, 1.0, lower, upper, unit=unit, base=base)
+    return Parameter(name, field, 1.0, lower, upper, unit=unit, base=base,
+                     bounds_given=bounds is not None)
 
 
 def _bound_pair(name, pair):
@@ -504,7 +545,10 @@ def peaks_datasets(path, values: dict, design: RVDesign, load: float = 0.0,
                          + ", ".join(DATASETS_KEYS), where)
     entries = values.get("dataset")
     if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
-        raise InputError("dataset", str(path), "needs one or more [[dataset]] tables", where)
+        raise InputError("data", str(path), "is neither a catalogue TOML (it has none of "
+                         "torsional_rigidity_Nm_per_arcmin, lost_motion_arcmin, [[efficiency]], "
+                         "[[running_torque]]) nor a data-set TOML (one or more [[dataset]] "
+                         "tables)", where)
     top = {"load_Nm": load, "errors": errors, "error_scale": 1.0}
     for key in ("load_Nm", "error_scale"):
         if key in values:
@@ -603,7 +647,25 @@ def problem(design: RVDesign, datasets, fit, target: str | None = None, bounds=N
         raise InputError("data", [], "give one or more data files")
     target = check_target(datasets, target)
     points = default_points(design) if points is None else integer("points", points, 8)
-    return Problem(design, parameters(design, fit, bounds, sources), datasets, target, points)
+    return Problem(design, parameters(design, fit, bounds, sources), datasets, target, points,
+                   _speed_warnings(design, datasets))
+
+
+def _speed_warnings(design: RVDesign, datasets) -> tuple[str, ...]:
+    """The warnings of the catalogue friction points' output speeds [rpm]; an InputError
+    naming the file and table for one beyond SPEED_FACTOR x the allowable output speed."""
+    notes = []
+    for d in datasets:
+        c = d.catalogue
+        if c is None:
+            continue
+        for key, rows in (("efficiency", c.efficiency), ("running_torque", c.running_torque)):
+            for k, row in enumerate(rows):
+                note = check_speed("output_speed_rpm", row[0], row[0] * RPM, design,
+                                   f"{d.name} {key} {k + 1}")
+                if note:
+                    notes.append(f"{d.name} {key} {k + 1}: {note}")
+    return tuple(notes)
 
 
 # -- the model and the residuals -------------------------------------------------------------
@@ -716,7 +778,10 @@ class Calibration:
     residual variance left); at_bound: (p,) bool; before, after: the model's quantity of
     each data set at the start and at the fit (as `evaluate`); jacobian: (n, p)
     d residual / d ln(value) at the fit; dof: n - p; evaluations: model evaluations;
-    design: the calibrated design; messages: the optimisers' ends.
+    design: the calibrated design; messages: the optimisers' ends; reach_error: the
+    InputError of a figure out of the bounds' reach (`beyond_reach`) or of a fit pressed
+    against a default bound (`out_of_reach`), None if neither: such a fit is no
+    calibration, and `rvfmu.api.calibrate` writes nothing for it.
     """
 
     problem: Problem
@@ -731,6 +796,7 @@ class Calibration:
     design: RVDesign
     converged: bool
     messages: tuple[str, ...]
+    reach_error: InputError | None = None
 
     @property
     def residuals_before(self) -> np.ndarray:
@@ -779,11 +845,14 @@ class Calibration:
 
 
 def calibrate(problem: Problem, maxiter: int = DE_MAXITER, popsize: int = DE_POPSIZE,
-              seed: int = DE_SEED, progress=None) -> Calibration:
+              seed: int = DE_SEED, progress=None, refuse: bool = False) -> Calibration:
     """Fit the problem's values: differential evolution on ln(value) within the bounds, then
     least squares from its best member; the uncertainty from the Jacobian at the optimum.
 
-    progress(evaluations done): optional, called after each model evaluation.
+    progress(evaluations done): optional, called after each model evaluation.  refuse: raise
+    the InputError of a figure out of reach (`beyond_reach`, before the fit) or of a fit
+    pressed against a default bound (`out_of_reach`), as a job that writes the design
+    does; else the calibration carries it as `reach_error`.
     """
     from scipy.optimize import differential_evolution, least_squares
 
@@ -799,6 +868,9 @@ def calibrate(problem: Problem, maxiter: int = DE_MAXITER, popsize: int = DE_POP
         return residuals(problem, x)
 
     lower, upper = problem.log_bounds
+    unreachable = beyond_reach(problem)
+    if refuse and unreachable is not None:
+        raise unreachable
     before, ok_before = evaluate(problem, problem.design)
     messages = []
     start = np.clip(np.zeros(lower.size), lower, upper)
@@ -826,9 +898,108 @@ def calibrate(problem: Problem, maxiter: int = DE_MAXITER, popsize: int = DE_POP
     dof = res.size - x.size
     sigma = values * _sigma_log(jac, res, dof)
     span = upper - lower
-    at_bound = (x - lower < 1e-6 * np.maximum(span, 1)) | (upper - x < 1e-6 * np.maximum(span, 1))
-    return Calibration(problem, values, sigma, at_bound, before, after, jac, dof, count[0],
-                       design, ok_before and ok_after, tuple(messages))
+    at_lower = x - lower < 1e-6 * np.maximum(span, 1)
+    at_upper = upper - x < 1e-6 * np.maximum(span, 1)
+    error = unreachable or out_of_reach(problem, at_lower, at_upper, jac, res, after)
+    if refuse and error is not None:
+        raise error
+    return Calibration(problem, values, sigma, at_lower | at_upper, before, after, jac, dof,
+                       count[0], design, ok_before and ok_after, tuple(messages), error)
+
+
+def _figures(problem: Problem, model: list[np.ndarray]) -> list[tuple[str, float, float, slice]]:
+    """(name, measured, modelled, its rows of the residuals) of every figure the fit matches:
+    each catalogue figure, each data set's peak, each bench curve (its te_pp)."""
+    out, row = [], 0
+    for d, measured, modelled in zip(problem.datasets, problem.measured(), model):
+        if problem.target == "catalogue":
+            for name, m, v in zip(d.catalogue.labels(), measured, modelled):
+                out.append((name, float(m), float(v), slice(row, row + 1)))
+                row += 1
+            continue
+        if problem.target == "curve":
+            out.append((f"te_pp_arcsec of the curve {d.name}", float(np.ptp(measured)),
+                        float(np.ptp(modelled)), slice(row, row + measured.size)))
+        else:
+            out.append((f"te_pp_arcsec of {d.name}", float(measured[0]), float(modelled[0]),
+                        slice(row, row + 1)))
+        row += measured.size
+    return out
+
+
+def beyond_reach(problem: Problem) -> InputError | None:
+    """The InputError of a figure (`_figures`) that the design cannot reach within the
+    default bounds (module docstring), else None: it names the figure, its value, the range
+    the design gives over the bounds' corners (2^p models) and the values with their
+    bounds.  Only when no bounds were given (a window the user states may be ended on) and
+    for p <= REACH_MAX_VALUES."""
+    params = problem.parameters
+    if any(p.bounds_given for p in params) or len(params) > REACH_MAX_VALUES:
+        return None
+    corners = np.array(np.meshgrid(*[(p.lower, p.upper) for p in params],
+                                   indexing="ij")).reshape(len(params), -1).T    # (2^p, p)
+    reached = [[f[2] for f in _figures(problem, evaluate(problem, problem.design_at(c))[0])]
+               for c in corners]
+    reached = np.array(reached, dtype=float)                                     # (2^p, F)
+    for f, (name, measured, _, _) in enumerate(_figures(problem, problem.measured())):
+        column = reached[:, f][np.isfinite(reached[:, f])]
+        if column.size == 0:
+            continue
+        low, high = float(column.min()), float(column.max())
+        if not low * (1.0 - REACH_MARGIN) <= measured <= high * (1.0 + REACH_MARGIN):
+            window = ", ".join(f"{p.name} {p.lower:.4g} to {p.upper:.4g} {p.unit}"
+                               for p in params)
+            return InputError(name, measured, f"out of the fit's reach: within the default "
+                              f"bounds ({window}) the design gives {low:.4g} to {high:.4g}; nothing "
+                              "written; check the figure, or give --bounds NAME=LOWER:UPPER "
+                              "if the value truly lies beyond")
+    return None
+
+
+def out_of_reach(problem: Problem, at_lower, at_upper, jac, res, after) -> InputError | None:
+    """The InputError of a fit that ends on a default bound which the misfit presses against
+    (module docstring), else None.  at_lower, at_upper (p,) bool: the fitted values on a bound; jac
+    (n, p): d residual / d ln(value) at the fit; res (n,): the residuals there; after: the
+    model's quantities there (as `evaluate`).  It names the figure that presses hardest on
+    a bound, its value, each value on its bound with the bound, and the model's figure
+    there: the nearest the search window reaches."""
+    figures = _figures(problem, after)
+    pressed = []
+    for k, p in enumerate(problem.parameters):
+        if p.bounds_given or not (at_lower[k] or at_upper[k]):
+            continue
+        outward = 1.0 if at_upper[k] else -1.0
+        best = None
+        for f, (_, measured, modelled, rows) in enumerate(figures):
+            # minus the figure's share of the misfit's slope along ln(value), outward: > 0
+            # where its misfit still falls beyond the bound
+            if -outward * float(jac[rows, k] @ res[rows]) <= 0.0:
+                continue
+            # of the figures that press, the one the value moves most, relative to itself (a
+            # relative residual's slope is d(model)/d ln(value) / measured)
+            slope = np.linalg.norm(jac[rows, k]) * (abs(measured) if problem.target == "catalogue"
+                                                    else 1.0)
+            moves = slope / max(abs(modelled), 1e-300)
+            if best is None or moves > best[0]:
+                best = (moves, k, f)
+        if best is not None:
+            pressed.append(best)
+    if not pressed:
+        return None
+    pressed.sort(key=lambda item: -item[0])
+    name, measured, _, _ = figures[pressed[0][2]]
+    parts = []
+    for _, k, f in pressed:
+        p = problem.parameters[k]
+        side, bound = ("upper", p.upper) if at_upper[k] else ("lower", p.lower)
+        figure = figures[f]
+        parts.append(f"{p.name} ends at its {side} bound {bound:.4g} {p.unit} (the default "
+                     f"search range {p.lower:.4g} to {p.upper:.4g}), where the model gives "
+                     f"{figure[0]} = {figure[2]:.4g}" + ("" if f == pressed[0][2] else
+                                                          f" against {figure[1]:.4g}"))
+    return InputError(name, measured, "out of the fit's reach: " + "; ".join(parts)
+                      + ": nothing written; check the figure, or give --bounds NAME=LOWER:UPPER "
+                      "if the value truly lies beyond")
 
 
 def _half_ss(r):

@@ -32,7 +32,7 @@ efficiency the same way).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -41,7 +41,7 @@ from .checks import InputError, finite_number, integer
 from .design import RVDesign
 from .equivalent import EquivalentModel, dof_names
 from .errors import ErrorSet
-from .limits import check_load
+from .limits import check_load, check_speed
 from .quasistatic import NO_LOAD_PROBE, _checked_errors
 from .solver import solve_pairs
 from .units import MM, RPM
@@ -276,15 +276,37 @@ def contact_losses(design: RVDesign, loads: ContactLoads, output_speed_rpm) -> d
     return out
 
 
+def output_speeds(field: str, output_speed_rpm, design: RVDesign,
+                  where: str = "") -> tuple[np.ndarray, tuple[str, ...]]:
+    """(speeds (V,) [rpm], warnings) of output speeds [rpm] given under `field`: at least one,
+    each finite and > 0 and within `limits.SPEED_FACTOR` x the design's allowable output
+    speed (an InputError naming `field` otherwise); a warning text for each above the
+    allowable speed, where the friction coefficients have no rating behind them."""
+    speeds = np.atleast_1d(np.asarray(output_speed_rpm, dtype=float))
+    if speeds.size == 0:
+        raise InputError(field, "", "must list at least one value", where)
+    warnings = []
+    for v in speeds:
+        if not finite_number(field, float(v), where) > 0.0:
+            raise InputError(field, float(v), "must be positive (output speeds in rpm)", where)
+        note = check_speed(field, float(v), float(v) * RPM, design, where)
+        if note:
+            warnings.append(note)
+    return speeds, tuple(warnings)
+
+
 def operating_losses(design: RVDesign, errors: ErrorSet | None, load_Nm: float,
                      output_speed_rpm: float, points: int = AVERAGE_POINTS):
     """(efficiency (S,), no-load running torque at the input (S,) [N*m]) of every reducer of
     `errors` at one operating point: a resisting load [N*m] > 0 at an output speed [rpm]
-    > 0, forward (the motor drives); the tolerance studies' metrics."""
+    > 0, forward (the motor drives); the tolerance studies' metrics.  A speed beyond
+    `limits.SPEED_FACTOR` x the allowable output speed raises InputError; the warning above
+    1 x is the caller's to give (`limits.check_speed`)."""
     load = finite_number("load_Nm", load_Nm)
     speed = finite_number("output_speed_rpm", output_speed_rpm)
     if not speed > 0.0:
         raise InputError("output_speed_rpm", speed, "must be a positive output speed [rpm]")
+    check_speed("output_speed_rpm", speed, speed * RPM, design)
     loads = contact_loads(design, errors, [0.0, -load], crank_turn_angles(design, points))
     lost = sum(contact_losses(design, loads, [speed]).values())[0]                 # (S, 2)
     w = speed * RPM
@@ -302,6 +324,8 @@ class EfficiencyMap:
     starting_torque_input_Nm: its limit at standstill; backdriving_torque_output_Nm: the
     output torque that starts the unloaded reducer turning the motor.  A backdriving
     efficiency <= 0 means the load cannot drive the motor there (it is reported as 0).
+    warnings: texts for the report (speeds above the allowable output speed, loads above
+    the momentary maximum class: `rvfmu.core.limits`).
     """
 
     design: RVDesign
@@ -316,6 +340,7 @@ class EfficiencyMap:
     starting_torque_input_Nm: float
     backdriving_torque_output_Nm: float
     converged: bool
+    warnings: tuple[str, ...] = ()
 
 
 STANDSTILL_RPM = 1e-9    # a speed at which every loss is its limit at standstill
@@ -325,36 +350,40 @@ def efficiency_map(design: RVDesign, errors: ErrorSet | None = None, output_spee
                    load_Nm=None, points: int = AVERAGE_POINTS, sample: int = 0,
                    progress=None) -> EfficiencyMap:
     """Forward and backdriving efficiency, input torque and losses at every output speed
-    [rpm] and resisting load [N*m] (defaults: 5 to 60 rpm; 25 % to 100 % of rated torque),
+    [rpm] and resisting load [N*m] (defaults: those of 5 to 60 rpm within the design's
+    allowable output speed; 25 % to 100 % of rated torque),
     the no-load running torque over the speeds and the starting and backdriving torques,
     each loss averaged over `points` angles of one crank turn.  progress(count): optional,
     called as the (1 + 2 loads) x points equilibria are solved."""
-    speeds = np.atleast_1d(np.asarray(
-        DEFAULT_SPEEDS_RPM if output_speed_rpm is None else output_speed_rpm, dtype=float))
+    if output_speed_rpm is None:     # the chart's speeds the design is rated for
+        output_speed_rpm = [v for v in DEFAULT_SPEEDS_RPM
+                            if v * RPM <= design.allowable_output_speed * (1.0 + 1e-12)]
+    speeds = output_speeds("speeds", output_speed_rpm, design)[0]
     loads = np.atleast_1d(np.asarray(
         design.rated_torque * np.array(DEFAULT_LOAD_FRACTIONS) if load_Nm is None else load_Nm,
         dtype=float))
-    for field, values in (("speeds", speeds), ("loads", loads)):
-        if values.size == 0:
-            raise InputError(field, "", "must list at least one value")
-        for v in values:
-            if not finite_number(field, float(v)) > 0.0:
-                raise InputError(field, float(v), "must be positive (output speeds in rpm, "
-                                 "resisting output torques in N*m)")
-    check_load("loads", float(loads.max()), design.rated_torque)
+    if loads.size == 0:
+        raise InputError("loads", "", "must list at least one value")
+    for v in loads:
+        if not finite_number("loads", float(v)) > 0.0:
+            raise InputError("loads", float(v), "must be positive (resisting output torques "
+                             "in N*m)")
+    note = check_load("loads", float(loads.max()), design.rated_torque)
     theta_in = crank_turn_angles(design, points)
     forward = contact_loads(design, errors, np.concatenate([[0.0], -loads]), theta_in, [sample],
                             progress=progress)
     backward = contact_loads(design, errors, loads, theta_in, [sample], progress=progress)
-    return efficiency_from_loads(design, forward, speeds, loads, backward)
+    result = efficiency_from_loads(design, forward, speeds, loads, backward)
+    return replace(result, warnings=result.warnings + ((note,) if note else ()))
 
 
 def efficiency_from_loads(design: RVDesign, forward: ContactLoads, output_speed_rpm, load_Nm,
                           backward: ContactLoads | None = None) -> EfficiencyMap:
     """`efficiency_map` from its contact loads: `forward` (one reducer) at the torques
     [0, -load_Nm...], `backward` at +load_Nm (None: the backdriving efficiency is nan).  The
-    loads do not depend on the friction fields, so a calibration of those solves them once."""
-    speeds = np.atleast_1d(np.asarray(output_speed_rpm, dtype=float))
+    loads do not depend on the friction fields, so a calibration of those solves them once.
+    The speeds are checked as `output_speeds` checks them (field "speeds")."""
+    speeds, warnings = output_speeds("speeds", output_speed_rpm, design)
     loads = np.atleast_1d(np.asarray(load_Nm, dtype=float))
     lost = {k: v[:, 0] for k, v in contact_losses(design, forward, speeds).items()}
     total = sum(lost.values())                                                     # (V, 1 + L)
@@ -379,4 +408,5 @@ def efficiency_from_loads(design: RVDesign, forward: ContactLoads, output_speed_
         starting_torque_input_Nm=float(start),
         backdriving_torque_output_Nm=float(design.ratio * start),
         converged=bool(forward.converged.all()
-                       and (backward is None or backward.converged.all())))
+                       and (backward is None or backward.converged.all())),
+        warnings=warnings)

@@ -20,6 +20,18 @@ sweep turns).  So the loop's area is the friction work of a full cycle, and its 
 the frictionless windup: lost motion and rigidity read off the loop are those of
 `quasistatic.windup`, the hysteresis loss is what friction adds.  First order in the
 coefficients, as the efficiency (docs/model.md section 9).
+
+What is refused rather than printed: a sweep below MIN_SWEEP_FRACTION of rated torque, the
+catalogue's lost-motion test torque (3 %: the smallest torque the catalogue reads its loop
+at; below it none of its figures is on the loop, and the sweep is of the size of the
+bearings' load-free drag, ~0.1 N*m at the output of the presets, which the loop's shifted
+branches cannot represent: at +-1e-9 N*m they printed a friction torque of 0.54 N*m, 5e8
+times the sweep, from equilibria that did not converge); and any loop that breaks what the
+construction needs (`check_loop`): every equilibrium converged, a friction torque no larger
+than the swept torque (else the applied torque never overcomes it and the output does not
+move), and an area equal to the friction work within AREA_TOLERANCE (they are equal by
+construction wherever the mean output angle advances between neighbouring torques; a gap
+means it went back, and the shifted path is no loop).
 """
 
 from __future__ import annotations
@@ -41,6 +53,13 @@ from .units import ARCMIN
 LEVELS = 40            # evenly spaced torques on each side of zero, up to the largest
 NEAR_ZERO = NO_LOAD_PROBE  # the smallest torque of the sweep, x the largest: the clearance's edge
 SMALL_LEVELS = 12      # and these, spaced evenly in log from it to 3 % of the largest
+# The smallest sweep, x rated: the catalogue's lost-motion test torque (module docstring).
+MIN_SWEEP_FRACTION = LOST_MOTION_FRACTION
+# The loop's area against the friction work of the cycle: equal by construction, so only
+# round-off may part them (below 1e-12 of the work on RV-40E-121, tests/test_friction.py);
+# relative to the work or to the box the loop spans (torque span x angle span), whichever is
+# larger, since the shoelace sum's round-off scales with the box (a frictionless loop: 7e-15 J).
+AREA_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -51,7 +70,8 @@ class HysteresisLoop:
     output angle; friction_torque (T-1,) [N*m]: the friction torque of each interval;
     friction_work_J: {contact kind: J} of one full cycle (both sweeps); loop (2(T-1)*2, 2):
     the loop's corners (torque [N*m], angle [rad]), up the loading branch and back down
-    the unloading one; the catalogue figures of the loop.
+    the unloading one; the catalogue figures of the loop; warnings: texts for the report
+    (a sweep above the momentary maximum torque class, `limits.check_load`).
     """
 
     design: RVDesign
@@ -64,6 +84,7 @@ class HysteresisLoop:
     torsional_rigidity_Nm_per_arcmin: float
     hysteresis_loss_arcmin: float
     converged: bool
+    warnings: tuple[str, ...] = ()
 
     @property
     def area_J(self) -> float:
@@ -121,7 +142,14 @@ def hysteresis(design: RVDesign, errors: ErrorSet | None = None, max_load: float
     if not max_load > 0.0:
         raise InputError("max_load", max_load, "must be a positive torque [N*m]: the loop is "
                          "swept to +-max_load")
-    check_load("max_load", max_load, d.rated_torque)
+    smallest = MIN_SWEEP_FRACTION * d.rated_torque
+    if max_load < smallest:
+        raise InputError("max_load", max_load, f"must be at least {smallest:.4g} N*m, "
+                         f"{100 * MIN_SWEEP_FRACTION:g} % of the rated torque {d.rated_torque:g} "
+                         "N*m (the catalogue's lost-motion test torque): a smaller sweep reaches "
+                         "none of the loop's figures and is of the size of the bearings' "
+                         "load-free friction, which it cannot measure")
+    note = check_load("max_load", max_load, d.rated_torque)
     positions, levels = integer("positions", positions, 1), integer("levels", levels, 2)
     tau = sweep_torques(d, max_load, levels)
     theta_in = windup_positions(d, positions)
@@ -161,12 +189,39 @@ def hysteresis(design: RVDesign, errors: ErrorSet | None = None, max_load: float
     if hi <= max_load:
         compliance = 0.5 * ((at(hi) - at(lo)) + (at(-lo) - at(-hi))) / (hi - lo)
         rigidity = 1.0 / (compliance / ARCMIN)
-    return HysteresisLoop(
+    result = HysteresisLoop(
         design=d, tau_load=tau, windup=theta, friction_torque=t_f,
         friction_work_J={k: 2.0 * float(v.mean(axis=-1).sum()) for k, v in work.items()},
         loop=loop, lost_motion_arcmin=float(lost), torsional_rigidity_Nm_per_arcmin=rigidity,
         hysteresis_loss_arcmin=_width_at_zero(tau, theta, t_f) / ARCMIN,
-        converged=bool(loads.converged.all()))
+        converged=bool(loads.converged.all()), warnings=(note,) if note else ())
+    check_loop(result, max_load)
+    return result
+
+
+def check_loop(loop: HysteresisLoop, max_load: float) -> None:
+    """Raise an InputError naming max_load [N*m] unless `loop` is one the construction gives
+    (module docstring): its friction torque (T-1,) at most max_load, its area the friction
+    work of the cycle within AREA_TOLERANCE (of the work or of the loop's box), every
+    equilibrium converged."""
+    if not loop.converged:
+        raise InputError("max_load", max_load, "the sweep's equilibria did not converge at some "
+                         "(torque, position) pairs: no loop is read off them (the design or "
+                         "errors leave a pose the solver cannot settle)")
+    top = float(loop.friction_torque.max())
+    if top > max_load:
+        raise InputError("max_load", max_load, f"must be above the loop's friction torque "
+                         f"{top:.4g} N*m: a smaller sweep never overcomes the friction and the "
+                         "output does not turn")
+    work, area = sum(loop.friction_work_J.values()), loop.area_J
+    box = float(np.ptp(loop.loop[:, 0]) * np.ptp(loop.loop[:, 1]))
+    if abs(area - work) > AREA_TOLERANCE * max(abs(work), box):
+        back = int(np.sum(np.diff(loop.windup) <= 0.0))
+        raise InputError("max_load", max_load, f"gives a loop of area {area:.6g} J against a "
+                         f"friction work of {work:.6g} J a cycle (they must agree within "
+                         f"{AREA_TOLERANCE:g} of the work or of the loop's box, "
+                         f"{max(abs(work), box):.4g} J): the mean output angle goes back over {back} "
+                         "intervals of the sweep, so the loop is not a result")
 
 
 def _width_at_zero(tau: np.ndarray, theta: np.ndarray, t_f: np.ndarray) -> float:

@@ -87,6 +87,9 @@ class CalibrateReport:
         lines += [f"optimiser         {m}" for m in cal.messages]
         if not cal.converged:
             lines.append("warning           the model's equilibrium did not converge at some poses")
+        lines += [f"warning           {text}" for text in prob.warnings]
+        if cal.reach_error is not None:
+            lines.append(f"warning           NOT A CALIBRATION: {cal.reach_error}")
         if self.output:
             lines.append(f"wrote design      {self.output} (for rvte te, rvte fmu build and the "
                          "studies)")
@@ -107,6 +110,8 @@ class CalibrateReport:
                                                     cal.at_bound, cal.sensitivity())],
                 "misfit": cal.misfit(), "v_index": {"before": v0, "after": v1},
                 "dof": cal.dof, "messages": list(cal.messages), "converged": cal.converged,
+                "warnings": list(prob.warnings),
+                "out_of_reach": None if cal.reach_error is None else str(cal.reach_error),
                 "output": self.output})
 
 
@@ -127,7 +132,10 @@ def calibrate(design, data, fit, target: str | None = None, errors=None, load: f
     modification_scale, friction fields); target: peaks, curve or catalogue (default: what
     the data bring); bounds: {name: (lower, upper)} in each value's unit.  maxiter, popsize, seed: differential_evolution's
     budget and seed.  output: the calibrated design TOML to write.  Everything is checked
-    before the first model evaluation.  progress(total, done): optional.
+    before the first model evaluation.  progress(total, done): optional.  A figure out of
+    the bounds' reach or a fit pressed against a default bound raises InputError instead of
+    writing `output` (the first before the fit); without `output` the report carries it as
+    a warning (`rvfmu.bench.calibration.beyond_reach`, `out_of_reach`).
     """
     from ..bench import calibration as calib
 
@@ -170,8 +178,10 @@ def calibrate(design, data, fit, target: str | None = None, errors=None, load: f
               if v is not None}
     total = ((budget.get("maxiter", calib.DE_MAXITER) + 1) * budget.get("popsize", calib.DE_POPSIZE)
              * len(prob.parameters))
+    # a fit that is no calibration writes nothing (`bench.calibration.out_of_reach`)
     result = calib.calibrate(prob, progress=None if progress is None else
-                             (lambda done: progress(max(total, done), done)), **budget)
+                             (lambda done: progress(max(total, done), done)),
+                             refuse=output is not None, **budget)
     if output is not None:
         output.write_text(calib.design_text(result, [str(p) for p in paths], sources,
                                             str(design) if isinstance(design, (str, Path)) else ""))

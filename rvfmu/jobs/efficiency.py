@@ -45,6 +45,7 @@ class EfficiencyReport:
                      f"backdriving torque {m.backdriving_torque_output_Nm:.4g} N*m at the output")
         if not m.converged:
             lines.append("warning            the equilibrium did not converge at some angles")
+        lines += [f"warning            {text}" for text in m.warnings]
         return "\n".join(lines)
 
     def to_json(self) -> dict:
@@ -63,6 +64,7 @@ class EfficiencyReport:
             "starting_torque_input_Nm": m.starting_torque_input_Nm,
             "backdriving_torque_output_Nm": m.backdriving_torque_output_Nm,
             "converged": m.converged,
+            "warnings": list(m.warnings),
         }
 
 
@@ -71,9 +73,11 @@ def efficiency(design, errors=None, speeds=None, loads=None,
     """Efficiency map, running, starting and backdriving torque of one reducer.
 
     design: preset name, design file or RVDesign; errors: error file or ErrorSet (default
-    none); speeds: output speeds [rpm] (default 5 to 60); loads: resisting output torques
-    [N*m] (default 25 % to 100 % of rated); plot_path: the catalogue's chart (checked before
-    any work); progress(total, done): optional, called as the equilibria are solved.
+    none); speeds: output speeds [rpm] (default 5 to 60; beyond 2 x the design's allowable
+    output speed refused, above 1 x warned, `rvfmu.core.limits.check_speed`); loads:
+    resisting output torques [N*m] (default 25 % to 100 % of rated); plot_path: the
+    catalogue's chart (checked before any work); progress(total, done): optional, called as
+    the equilibria are solved.
     """
     from .common import resolve_design, resolve_errors
 

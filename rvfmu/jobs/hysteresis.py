@@ -46,8 +46,8 @@ class HysteresisReport:
         for name in LOSS_NAMES:
             share = h.friction_work_J[name] / total if total > 0 else 0.0
             lines.append(f"  {name:<30} {h.friction_work_J[name]:>10.4g} J  {100 * share:>5.1f} %")
-        if not h.converged:
-            lines.append("warning            the equilibrium did not converge at some positions")
+        # a loop that did not converge is refused (`core.hysteresis.check_loop`): no line here
+        lines += [f"warning            {text}" for text in h.warnings]
         return "\n".join(lines)
 
     def to_json(self) -> dict:
@@ -60,6 +60,7 @@ class HysteresisReport:
             "friction_work_J": h.friction_work_J,
             "loop": [{"torque_Nm": float(t), "angle_arcmin": float(a / ARCMIN)} for t, a in h.loop],
             "converged": h.converged,
+            "warnings": list(h.warnings),
         }
 
 
@@ -77,9 +78,11 @@ def hysteresis(design, errors=None, max_load: float | None = None,
     """The windup test's hysteresis loop of one reducer.
 
     design: preset name, design file or RVDesign; errors: error file or ErrorSet (default
-    none); max_load [N*m]: the sweep's end (default the rated torque); plot_path: the loop
-    as a figure (checked before any work); progress(total, done): optional, called as the
-    equilibria are solved.
+    none); max_load [N*m]: the sweep's end (default the rated torque; at least 3 % of it,
+    the catalogue's lost-motion test torque); plot_path: the loop as a figure (checked before
+    any work); progress(total, done): optional, called as the equilibria are solved.  A loop
+    that did not converge, or whose friction torque exceeds the sweep or whose area is not
+    its friction work, raises InputError (`rvfmu.core.hysteresis.check_loop`).
     """
     from .common import resolve_design, resolve_errors
 
