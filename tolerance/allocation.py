@@ -196,7 +196,9 @@ def allocate(study_path, yield_target: float = 0.9973, output=None, progress: bo
     """
     from .run import _load, _warn_load
     from .store import open_output
+    from .study import flag
 
+    progress, yes = flag("progress", progress, none=True), flag("yes", yes)
     study = _load(study_path, output)
     target = finite_number("yield", yield_target)
     if not 0.0 < target < 1.0:
@@ -319,16 +321,19 @@ class _StudyWiring:
             return
         from concurrent.futures.process import BrokenProcessPool
 
-        from .backends import _DIED, ONE_THREAD, _environment, local_pool
+        from .backends import _DIED, local_pool, spawning, stop_pool
 
         pool = local_pool(self.processes)     # as the Processes backend's
+        finished = False
         try:
-            with _environment(ONE_THREAD):    # workers start at the first tasks
-                yield from pool.map(_train_group, *zip(*studies), chunksize=4)
+            with spawning():                  # workers start at the first tasks, all sent here
+                results = pool.map(_train_group, *zip(*studies), chunksize=4)
+            yield from results
+            finished = True
         except BrokenProcessPool as exc:
             raise RuntimeError(_DIED.format(exc=exc)) from None
         finally:
-            pool.shutdown(wait=True, cancel_futures=True)
+            stop_pool(pool, abort=not finished)   # Ctrl-C or an error: end the workers at once
 
     def verify(self, scales, n: int, draw: int = 0):
         """The Monte Carlo of n reducers of the study file with these tolerances, on draws

@@ -16,7 +16,10 @@ the batch it is solved in; the boundaries are therefore never changed).
 Each backend is a context manager with `map(study, tasks)`: tasks are
 ((start, stop), X) pairs, consumed lazily with a bounded number in flight, and
 results come back as they complete, so that the caller writes each batch the
-moment it is done.
+moment it is done.  Leaving it on an error or on Ctrl-C ends the workers at
+once (the batches in flight are dropped; their workers ignore Ctrl-C, so that
+only this process reacts to it, `spawning`).  A scheduler address is checked
+when the backend is made, before any work (`scheduler_address`).
 """
 
 from __future__ import annotations
@@ -88,14 +91,20 @@ def _warm_up():
 
 
 def _follow_parent(parent: int) -> None:
-    """Run in each new worker: exit when the process that started the pool is gone.
+    """Run in each new worker: leave Ctrl-C to the parent, exit when the parent is gone.
 
-    A pool's workers wait on their queue for ever if the main process is killed
-    (SIGTERM, SIGKILL: no clean-up runs), each holding a core's worth of memory;
-    this thread ends them within a second of their parent.
+    Ctrl-C in a terminal interrupts every process of the foreground group: a
+    worker would die printing its own traceback in the middle of a batch, while
+    the parent, which keeps the finished batches, ends its workers anyway
+    (`stop_pool`).  A pool's workers wait on their queue for ever if the main
+    process is killed (SIGTERM, SIGKILL: no clean-up runs), each holding a
+    core's worth of memory; this thread ends them within a second of their parent.
     """
+    import signal
     import threading
     import time
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     def watch():
         while os.getppid() == parent:
@@ -106,11 +115,75 @@ def _follow_parent(parent: int) -> None:
 
 
 def local_pool(workers: int) -> ProcessPoolExecutor:
-    """Spawned worker processes, one BLAS thread each, that end with the process that made them."""
+    """Spawned worker processes, one BLAS thread each, that end with the process that made them.
+
+    The workers start at the first tasks submitted: submit those under `spawning()`.
+    """
     # Spawned children inherit the environment at their start, before numpy loads.
     with _environment(ONE_THREAD):
         return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
                                    initializer=_follow_parent, initargs=(os.getpid(),))
+
+
+@contextlib.contextmanager
+def spawning():
+    """Start worker processes in here: one BLAS thread each, and deaf to Ctrl-C.
+
+    Ctrl-C in a terminal interrupts every process of the foreground group; a
+    worker would die printing its own traceback in the middle of a batch, while
+    this process, which keeps the finished batches, ends its workers anyway
+    (`stop_pool`, `DaskBackend.__exit__`).  A signal mask is inherited through
+    fork and exec, so a worker started while SIGINT is blocked never receives
+    it, from its first instruction on; here the interrupt is held until the
+    block ends (or taken by another thread of this process at once).
+    """
+    with _environment(ONE_THREAD), _sigint_blocked():
+        yield
+
+
+@contextlib.contextmanager
+def _sigint_blocked():
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() or \
+            not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def stop_pool(pool: ProcessPoolExecutor, abort: bool) -> None:
+    """Shut a local pool down: after its running tasks, or with `abort` (an error or Ctrl-C
+    in this process) at once, its workers ended without finishing their batch (it is not
+    kept: only whole batches are written)."""
+    with _no_interrupts():
+        if abort:
+            for process in list((getattr(pool, "_processes", None) or {}).values()):
+                with contextlib.suppress(Exception):
+                    process.terminate()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _no_interrupts():
+    """Ctrl-C ignored while workers are being ended: a second one must not leave them running."""
+    import signal
+    import threading
+
+    previous = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or previous is None:
+        yield            # None: no handler set from Python (the interpreter is shutting down)
+        return
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 class Processes:
@@ -126,20 +199,23 @@ class Processes:
     def __enter__(self):
         # start them all now, with one BLAS thread each
         self._pool = local_pool(self.workers)
-        with _environment(ONE_THREAD):
+        with spawning():
             starts = [self._pool.submit(_warm_up) for _ in range(self.workers)]
             try:
                 for start in starts:
                     start.result()
             except BrokenProcessPool as exc:
-                self.__exit__()
+                self.__exit__(type(exc))
                 raise RuntimeError(_DIED.format(exc=exc)) from None
+            except BaseException as exc:     # Ctrl-C while they start: end them too
+                self.__exit__(type(exc))
+                raise
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, exc_type=None, *exc):
         if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None
+            pool, self._pool = self._pool, None
+            stop_pool(pool, abort=exc_type is not None)
         return False
 
     def map(self, study, tasks):
@@ -164,7 +240,7 @@ class DaskBackend:
             raise InputError("dask", {"workers": workers, "scheduler": scheduler},
                              "give either a number of local workers or a scheduler address")
         self.n_local = None if workers is None else integer("workers", workers, 1, 256)
-        self.scheduler = scheduler
+        self.scheduler = None if scheduler is None else scheduler_address(scheduler)
         self.client = self.cluster = None
         self.workers = self.n_local or 1
 
@@ -184,7 +260,11 @@ class DaskBackend:
             else:
                 # BLAS threads: Dask's nanny sets OMP/OPENBLAS/MKL_NUM_THREADS=1 in its
                 # workers (distributed.nanny.pre-spawn-environ); they are set here too.
-                with dask.config.set(DASK_LOCAL_CONFIG):
+                # Deaf to Ctrl-C as `spawning` makes a pool's workers; the nannies start
+                # theirs from Dask's own threads, which no signal mask of this thread
+                # reaches, so SIGINT is ignored (inherited by every child) while the
+                # cluster starts: a Ctrl-C in those seconds is lost, press it again.
+                with dask.config.set(DASK_LOCAL_CONFIG), _no_interrupts():
                     self.cluster = LocalCluster(n_workers=self.n_local, threads_per_worker=1,
                                                 processes=True, dashboard_address=None,
                                                 silence_logs=logging.ERROR, env=dict(ONE_THREAD))
@@ -193,13 +273,17 @@ class DaskBackend:
             self.__exit__()
             where = self.scheduler or "a LocalCluster"
             raise RuntimeError(f"could not reach the Dask scheduler at {where}: {exc}") from None
+        except BaseException:                # Ctrl-C while the cluster starts: close it too
+            self.__exit__()
+            raise
         return self
 
     def __exit__(self, *exc):
-        for thing in (self.client, self.cluster):
-            if thing is not None:
-                with contextlib.suppress(Exception):
-                    thing.close()
+        with _no_interrupts():
+            for thing in (self.client, self.cluster):
+                if thing is not None:
+                    with contextlib.suppress(Exception):
+                        thing.close()
         self.client = self.cluster = None
         return False
 
@@ -217,6 +301,36 @@ class DaskBackend:
             return done
 
         yield from _windowed(tasks, self.workers, submit, wait_any)
+
+
+# The address forms of a Dask scheduler that `dask.distributed.Client` connects to
+# (distributed.comm.addressing.parse_address: a scheme of distributed.comm.registry,
+# default tcp, then host:port; "inproc://" reaches a scheduler in this very process).
+NETWORK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+SCHEDULER_FORMS = ("tcp://HOST:PORT, HOST:PORT (tcp), tls://HOST:PORT, ws://HOST:PORT, "
+                   "wss://HOST:PORT or ucx://HOST:PORT, PORT from 1 to 65535 (IPv6 hosts in "
+                   "brackets: tcp://[::1]:8786), or inproc://... of a scheduler in this process")
+
+
+def scheduler_address(value, field: str = "--scheduler") -> str:
+    """`value` as a Dask scheduler address, checked before anything starts; InputError naming
+    `field`, the value and SCHEDULER_FORMS otherwise (Dask's own error, "missing port
+    number", names neither the option nor what it accepts)."""
+    text = value.strip() if isinstance(value, str) else None
+    if not text:
+        raise InputError(field, value, f"must be a Dask scheduler address: {SCHEDULER_FORMS}")
+    scheme, _, location = text.rpartition("://")
+    scheme = scheme.lower() or "tcp"
+    if scheme == "inproc" and location:
+        return text
+    host, _, port = location.rpartition(":")
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    fine = (scheme in NETWORK_SCHEMES and host and not any(c in host for c in "/[] ")
+            and port.isdigit() and 1 <= int(port) <= 65535)
+    if not fine:
+        raise InputError(field, value, f"is not a Dask scheduler address: {SCHEDULER_FORMS}")
+    return text
 
 
 def _wait_futures(futures):

@@ -6,19 +6,96 @@ Each sub-command is a few lines over `tolerance.run_mc` / `tolerance.run_sobol` 
 `tolerance.report`.
 The table goes to stdout, or with --json one JSON document (for scripts);
 the progress bar, the load warning, the cost estimate and the one-line run
-summary go to stderr.
+summary go to stderr.  Ctrl-C ends a run with one line on stderr, the number
+of batches its output folder keeps for the next run, and exit code 130
+(128 + SIGINT, the shell's convention); the backends end their workers.
 """
 
 from __future__ import annotations
 
+import functools
 import json
+import signal
 import sys
+import threading
+
+INTERRUPTED = 128 + signal.SIGINT     # the exit code of a command ended by Ctrl-C
 
 
 def _log(text):
     print(text, file=sys.stderr)
 
 
+def _resumable(job_of):
+    """A sub-command that ends on Ctrl-C with one line (not a traceback) and INTERRUPTED.
+
+    job_of(args) -> the job whose batches the line counts (None: every batch of the
+    output folder).  By the time the interrupt arrives here the backend has ended its
+    workers; a second Ctrl-C is ignored while the batches are counted.
+    """
+    def wrap(command):
+        @functools.wraps(command)
+        def run(args):
+            from .run import STOP
+
+            if threading.current_thread() is not threading.main_thread():
+                return command(args)        # signals reach the main thread only
+            STOP.clear()
+            handler, hook = signal.signal(signal.SIGINT, _interrupt), sys.unraisablehook
+            sys.unraisablehook = _unraisable
+            try:
+                command(args)
+            except KeyboardInterrupt:
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+                print(f"interrupted: {_kept(args, job_of)} batches kept, run the same command "
+                      "to resume", file=sys.stderr)
+                raise SystemExit(INTERRUPTED) from None
+            finally:
+                sys.unraisablehook = hook
+            if handler is not None:        # None: a handler not set from Python, left as it is
+                signal.signal(signal.SIGINT, handler)
+        return run
+    return wrap
+
+
+def _interrupt(signum, frame):
+    """Ctrl-C: a KeyboardInterrupt, and `run.STOP` in case Python swallows it."""
+    from .run import STOP
+
+    STOP.set()
+    raise KeyboardInterrupt
+
+
+def _unraisable(unraisable):
+    """An interrupt that Python swallowed (in a __del__ or a garbage-collector callback) is
+    not printed as a traceback: `run.STOP` stops the run at its next batch instead."""
+    if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+        return
+    sys.__unraisablehook__(unraisable)
+
+
+def _kept(args, job_of) -> int:
+    """Batch files kept in the output folder of the interrupted run (0 if none can be)."""
+    from rvfmu.core.checks import InputError
+
+    from .run import stored_batches
+
+    try:
+        return stored_batches(args.study, args.output, job_of(args))
+    except (InputError, OSError):   # the study or its folder never got far enough to hold any
+        return 0
+
+
+def _sobol_job(args) -> str:
+    from .run import _load, sobol_job
+    from .study import sobol_base_samples
+
+    study = _load(args.study, args.output)
+    n = study.sobol_n if args.n is None else sobol_base_samples("n", args.n)
+    return sobol_job(n, bool(args.second_order) or study.second_order)
+
+
+@_resumable(lambda args: "mc")
 def _mc(args):
     from .run import run_mc
 
@@ -28,6 +105,7 @@ def _mc(args):
     _show(result, args.json)
 
 
+@_resumable(_sobol_job)
 def _sobol(args):
     from .run import run_sobol
 
@@ -47,6 +125,7 @@ def _report(args):
     print(json.dumps(result.to_json(), indent=1) if args.json else result.text())
 
 
+@_resumable(lambda args: None)
 def _allocate(args):
     from .allocation import allocate
 

@@ -49,7 +49,7 @@ from rvfmu.core.units import UM
 from . import montecarlo
 from .sampling import _index, factor_values
 from .store import JobStore, check_manifest, read_manifest, study_output_folder
-from .study import Study, sobol_base_samples, study_from_store
+from .study import Study, flag, sobol_base_samples, study_from_store
 
 MC_JOB = "mc"
 SOBOL_JOB = re.compile(r"sobol-n([0-9]+)(-second-order)?$")
@@ -116,6 +116,7 @@ def results_frame(study: Study, rows, X: np.ndarray, Y: np.ndarray, converged: n
     with a spec, passed_<column> per spec line and passed (all lines), nullable
     booleans, NA where a metric is not finite (a failed solve, left out of the yield).
     """
+    errors = flag("errors", errors)
     X = np.asarray(X, dtype=float)
     Y = np.asarray(Y, dtype=float).reshape(len(rows), len(study.metrics))
     shapes = error_shapes(study.design)
@@ -150,6 +151,7 @@ def _passed(study: Study, Y: np.ndarray) -> dict:
 def mc_frame(study: Study, Y: np.ndarray, converged: np.ndarray,
              errors: bool = False) -> pd.DataFrame:
     """`results_frame` of the study's first n Monte Carlo reducers, Y (n, M), converged (n,)."""
+    errors = flag("errors", errors)       # before drawing the rows
     n = np.asarray(Y).shape[0]
     return results_frame(study, np.arange(n), montecarlo.rows(study, 0, n), Y, converged, errors)
 
@@ -177,6 +179,7 @@ def load_results(output_folder, job: str | None = None, *, errors: bool = False)
     without a manifest or without batches of the job, or one written by another model
     version.
     """
+    errors = flag("errors", errors)
     folder = study_output_folder(output_folder)
     manifest = read_manifest(folder)
     study = _stored_study(folder, manifest)
@@ -200,13 +203,27 @@ def load_results(output_folder, job: str | None = None, *, errors: bool = False)
 def _stored_study(folder: Path, manifest: dict) -> Study:
     """The study of the folder (`study_from_store`) from its inputs.json and study.toml."""
     try:
-        inputs = json.loads((folder / "inputs.json").read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError("inputs.json", str(folder / "inputs.json"), f"cannot be read ({exc}): "
-                         "it is not a complete study output folder") from None
+        inputs = json.loads((folder / "inputs.json").read_bytes().decode("utf-8"))
+    except (OSError, ValueError) as exc:   # UnicodeDecodeError is a ValueError
+        raise InputError("inputs.json", str(folder / "inputs.json"), "cannot be read: it is not "
+                         f"a readable UTF-8 JSON file ({_reason(exc)}), so the folder is not a "
+                         "complete study output folder") from None
     copy = folder / "study.toml"
-    text = copy.read_text() if copy.is_file() else ""
+    text = ""
+    if copy.is_file():
+        try:
+            text = copy.read_bytes().decode("utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError("study.toml", str(copy), "is not a readable UTF-8 TOML study file "
+                             f"({_reason(exc)}): restore it, or run the study again to rewrite "
+                             "it") from None
     return study_from_store(folder, str(manifest.get("study", folder.name)), inputs, text)
+
+
+def _reason(exc: Exception) -> str:
+    """The first line of an exception's message, at most 120 characters (a one-line error)."""
+    text = (str(exc).splitlines() or [type(exc).__name__])[0]
+    return text if len(text) <= 120 else text[:117] + "..."
 
 
 def _job_rows(study: Study, job: str, folder: Path):

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import shutil
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +33,7 @@ from . import aliasing, frames, montecarlo, sobol, summaries
 from .backends import make_backend
 from .sampling import errors_from_unit
 from .store import BatchResult, JobStore, open_output
-from .study import Study, load_study, sobol_base_samples
+from .study import Study, flag, load_study, sobol_base_samples
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,12 @@ class Computed:
                 f"{self.batch_size} ({self.reused} reused, {self.computed} computed) "
                 f"in {self.seconds:.1f} s{rate} on {self.backend}")
 
+
+# Set by the command line's Ctrl-C handler (tolerance/cli.py) beside the KeyboardInterrupt it
+# raises: Python only prints an interrupt that lands in a garbage-collector callback or a
+# __del__ (Dask's scheduler runs one on every collection), so `compute` also stops at the
+# next finished batch when this is set.
+STOP = threading.Event()
 
 DAY_SECONDS = 86400.0      # a run estimated above a day needs --yes
 DISK_MARGIN = 1.1          # store size + 10 % must fit in the free space without --yes
@@ -165,6 +172,7 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
             for (s, e), X, Y, conv in backend.map(study, iter([(first, rows(*first))])):
                 written = store.write(s, e, X, Y, conv)
                 done[(s, e)] = BatchResult(s, e, Y, conv)
+            _stop_if_asked()
             plan = RunPlan(job, n_rows, n_batches, missing, B, backend.workers, backend.describe(),
                            time.perf_counter() - clock, written.stat().st_size,
                            shutil.disk_usage(folder).free)
@@ -184,6 +192,7 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
                     done[(s, e)] = BatchResult(s, e, Y, conv)
                     if bar is not None:
                         bar.update(e - s)
+                    _stop_if_asked()
             finally:
                 if bar is not None:
                     bar.close()
@@ -198,6 +207,12 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
     if log is not None:
         log(result.summary(job))
     return result
+
+
+def _stop_if_asked() -> None:
+    """Raise the KeyboardInterrupt of a Ctrl-C that Python swallowed (`STOP`)."""
+    if STOP.is_set():
+        raise KeyboardInterrupt
 
 
 def _copy_prefix(source: JobStore, target: JobStore, n_rows: int, rows, done: dict) -> None:
@@ -292,14 +307,15 @@ def run_mc(study_path, n: int | None = None, *, output=None, processes: int | No
     the cost estimate and the one-line run summary; a run estimated above a day
     or above the free disk stops after its first batch unless `yes` (see `compute`).
     """
+    progress, plots, yes = _flags(progress, plots, yes)
     study = _load(study_path, output)
     n = study.mc_n if n is None else integer("n", n, 1)
+    backend = make_backend(processes, workers, scheduler)   # its options checked before any work
     _warn_load(study, log)
     # Whole batches are computed so that a later, larger n reuses every batch as it is.
     n_rows = math.ceil(n / study.batch_size) * study.batch_size
     computed = compute(study, "mc", n_rows, lambda s, e: montecarlo.rows(study, s, e),
-                       make_backend(processes, workers, scheduler), progress, log, yes=yes,
-                       size_field=("n", n))
+                       backend, progress, log, yes=yes, size_field=("n", n))
     Y, converged = computed.Y[:n], computed.converged[:n]
     analysis = montecarlo.analyze(study, Y, converged)
     check_rows = min(n, aliasing.CHECK_ROWS)
@@ -369,7 +385,7 @@ class SobolResult:
         ST_reported, not_converged, ci_wide, S1_above_ST, notes, ranking_converged
         (`frames.sobol_frame`).  second_order: the S2 of every pair instead (metric,
         factor_a, factor_b, S2, S2_conf), for a run that computed them."""
-        if not second_order:
+        if not flag("second_order", second_order):
             return frames.sobol_frame(self.analyses)
         if not self.second_order:
             raise InputError("second_order", True, "this Sobol run computed no second-order "
@@ -422,17 +438,20 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     sobol_indices.json and sobol_ranking.txt, and with `plots` sobol_bars.png and
     sobol_convergence.png, to the output folder.
     """
+    progress, plots, yes = _flags(progress, plots, yes)
+    second_order = flag("second_order", second_order, none=True)
     study = _load(study_path, output)
     n = study.sobol_n if n is None else sobol_base_samples("n", n)
-    second_order = study.second_order if second_order is None else bool(second_order)
+    second_order = study.second_order if second_order is None else second_order
+    backend = make_backend(processes, workers, scheduler)   # its options checked before any work
     _warn_load(study, log)
     problem = study.problem()
     _check_sample_memory(problem, n, second_order)
     X = sobol.sample(problem, n, second_order, seed=study.seed)
     job = sobol_job(n, second_order)
-    computed = compute(study, job, X.shape[0], lambda s, e: X[s:e],
-                       make_backend(processes, workers, scheduler), progress, log, yes=yes,
-                       size_field=("n", n), prefix_jobs=other_sobol_jobs(problem, n, second_order))
+    computed = compute(study, job, X.shape[0], lambda s, e: X[s:e], backend, progress, log,
+                       yes=yes, size_field=("n", n),
+                       prefix_jobs=other_sobol_jobs(problem, n, second_order))
     bad = np.flatnonzero(~np.all(np.isfinite(computed.Y), axis=1))
     if bad.size:
         raise RuntimeError(f"the model failed on {bad.size} of {X.shape[0]} Sobol rows (first: row "
@@ -454,6 +473,18 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     return result
 
 
+def stored_batches(study_path, output=None, job: str | None = None) -> int:
+    """Batch files the output folder of a study holds: those of `job` ("mc", "sobol-n1024",
+    ...), or with None every batch under the folder (an allocation's Monte Carlo runs and
+    training groups too).  What a run interrupted by Ctrl-C keeps for the next one, which
+    reads them instead of computing them again; 0 if the folder does not exist yet."""
+    folder = Path(_load(study_path, output).output)
+    where = folder / job if job is not None else folder
+    if not where.is_dir():
+        return 0
+    return sum(1 for _ in where.rglob("batch-*-*-*.parquet"))
+
+
 def _check_sample_memory(problem: dict, n: int, second_order: bool) -> None:
     """Refuse a Sobol n whose sample matrix alone would not fit in memory (no --yes helps)."""
     rows = n * sobol.rows_per_base_sample(problem, second_order)
@@ -461,9 +492,13 @@ def _check_sample_memory(problem: dict, n: int, second_order: bool) -> None:
                    f"gives {rows} Sobol rows whose sample matrix alone")
 
 
+def _flags(progress, plots, yes) -> tuple:
+    """The boolean keywords of run_mc and run_sobol, checked (progress may be None: automatic)."""
+    return flag("progress", progress, none=True), flag("plots", plots), flag("yes", yes)
+
+
 def _warn_load(study: Study, log) -> None:
-    warning = study.load_warning
-    if warning and log is not None:
+    for warning in study.operating_warnings if log is not None else ():
         log(f"warning: {warning}")
 
 

@@ -33,11 +33,21 @@ Reading the estimates:
   (`Indices.order`); neighbouring ranks whose order is not settled form one
   group (`Indices.order_groups`), within which the ranking says nothing.
 - Convergence.  The indices are computed again from the first N/4 and N/2
-  base samples (each base sample owns a block of D+2, or 2D+2, consecutive
-  rows of the Saltelli matrix, and the first N/4 points of a Sobol' sequence
-  are themselves balanced); the largest change of ST from N/2 to N is
-  reported, and the study is called converged if it is below
+  base samples (each base sample owns a block of G+2, or 2G+2, consecutive
+  rows of the Saltelli matrix, G the groups, and the first N/4 points of a
+  Sobol' sequence are themselves balanced); the largest change of ST from N/2
+  to N is reported, and the study is called converged if it is below
   CONVERGED_CHANGE.
+- One group.  A problem whose variables form a single group (one tolerance
+  spanning several columns, or every factor in one `group`) has S1 = ST = 1
+  by definition: the group is the whole input, so it explains the whole
+  variance, alone.  They are reported exactly, with zero-width intervals and
+  a note (`Indices.whole_input`), not estimated.  SALib treats a single group
+  as no groups at all (`SALib.util._check_groups`) and would sample D+2 rows
+  per base sample over the D variables; the sample here is the grouped
+  design's own, G+2 = 3 rows (A, AB = B, B), or 2G+2 = 4 with second order,
+  built from the same scrambled Sobol' base sequence SALib draws, so that
+  sampling, analysis and `rows_per_base_sample` agree for every G.
 """
 
 from __future__ import annotations
@@ -48,12 +58,14 @@ from dataclasses import dataclass
 import numpy as np
 from SALib.analyze import sobol as salib_analyze
 from SALib.sample import sobol as salib_sample
-from SALib.util import extract_group_names
-from scipy.stats import norm
+from SALib.util import extract_group_names, scale_samples
+from scipy.stats import norm, qmc
 
 WIDE_CI = 0.1            # half-width of an index's interval above which its rank is uncertain
 CONVERGED_CHANGE = 0.05  # largest |ST(N) - ST(N/2)| of a converged study (5 % of the variance)
 CONVERGENCE_FRACTIONS = (4, 2, 1)
+WHOLE_INPUT_NOTE = ("the only group holds every factor: S1 = ST = 1 by definition (it is the "
+                    "whole input), exact, no interval")
 
 
 def group_names(problem: dict) -> list[str]:
@@ -61,18 +73,37 @@ def group_names(problem: dict) -> list[str]:
     return list(extract_group_names(problem)[0])
 
 
-def rows_per_base_sample(problem: dict, second_order: bool) -> int:
-    """Rows of the Saltelli matrix per base sample: D+2, or 2D+2 with second order (D groups)."""
-    D = len(group_names(problem))
-    return 2 * D + 2 if second_order else D + 2
+def rows_per_base_sample(problem: dict, second_order: bool = False) -> int:
+    """Rows of the Saltelli matrix per base sample: G+2, or 2G+2 with second order (G groups)."""
+    G = len(group_names(problem))
+    return 2 * G + 2 if second_order else G + 2
 
 
 def sample(problem: dict, n: int, second_order: bool = False, seed: int = 0) -> np.ndarray:
     """Saltelli sample matrix (n * rows_per_base_sample, num_vars) on the problem's bounds."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)   # n is checked to be a power of 2 upstream
+        if len(group_names(problem)) == 1:
+            return _one_group_sample(problem, n, second_order, seed)
         return salib_sample.sample(problem, n, calc_second_order=second_order, scramble=True,
                                    seed=seed)
+
+
+def _one_group_sample(problem: dict, n: int, second_order: bool, seed: int) -> np.ndarray:
+    """The grouped Saltelli design of a single group: (n * (4 or 3), D) rows A, AB, [BA,] B.
+
+    The group holds every variable, so AB (A with the group's columns from B)
+    is B and BA is A.  The base sequence is SALib's (a scrambled Sobol' sequence
+    of 2D dimensions, A its first D columns, B the others), and so are the
+    scaling to the bounds and the row order: for one variable this is exactly
+    what `SALib.sample.sobol.sample` returns.
+    """
+    D = problem["num_vars"]
+    base = qmc.Sobol(d=2 * D, scramble=True, seed=seed).random(n)
+    A, B = base[:, :D], base[:, D:]
+    blocks = (A, B, A, B) if second_order else (A, B, B)
+    rows = np.stack(blocks, axis=1).reshape(-1, D)     # base sample by base sample
+    return scale_samples(rows, problem)
 
 
 @dataclass(frozen=True)
@@ -84,6 +115,7 @@ class Indices:
     (NaN elsewhere) or None.  constant: the output did not vary (all zero).
     ST_resamples: (R, G) ST over each of SALib's R bootstrap resamples, the same
     base samples for every group, or None (indices read back from a file).
+    whole_input: the only group holds every variable: S1 = ST = 1 exactly (G = 1).
     """
 
     names: tuple
@@ -97,6 +129,7 @@ class Indices:
     confidence: float
     constant: bool = False
     ST_resamples: np.ndarray | None = None
+    whole_input: bool = False
 
     @property
     def S1_reported(self) -> np.ndarray:
@@ -111,7 +144,7 @@ class Indices:
         """Per group, the notes a reader needs: clipped, not converged, S1 > ST, wide interval."""
         out = []
         for g in range(len(self.names)):
-            notes = []
+            notes = [WHOLE_INPUT_NOTE] if self.whole_input else []
             for label, value, conf in (("S1", self.S1[g], self.S1_conf[g]),
                                        ("ST", self.ST[g], self.ST_conf[g])):
                 if value < 0:
@@ -217,10 +250,16 @@ def indices(problem: dict, y: np.ndarray, second_order: bool = False, resamples:
     n = y.size // per
     if not np.all(np.isfinite(y)):
         raise ValueError("y has NaN or inf values: Sobol indices need every row's output")
+    square = np.full((G, G), np.nan) if second_order else None
     if np.ptp(y) == 0.0:
         zero = np.zeros(G)
-        square = np.full((G, G), np.nan) if second_order else None
         return Indices(names, n, zero, zero, zero, zero, square, square, confidence, constant=True)
+    if G == 1:
+        # The group is the whole input: V_1 = V, so S1 = ST = 1 whatever the sample; SALib's
+        # estimators would only add noise around it.  Every resample gives 1 too.
+        one, zero = np.ones(1), np.zeros(1)
+        return Indices(names, n, one, zero, one, zero, square, square, confidence,
+                       ST_resamples=np.ones((resamples, 1)), whole_input=True)
     # SALib seeds its bootstrap only for a truthy seed: 0 would give different CIs each run.
     si = salib_analyze.analyze(problem, y, calc_second_order=second_order, num_resamples=resamples,
                                conf_level=confidence, seed=int(seed) + 1, keep_resamples=True)

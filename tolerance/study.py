@@ -57,14 +57,17 @@ from functools import cache, cached_property
 from importlib import metadata
 from pathlib import Path
 
+import numpy as np
+
 from rvfmu.core.checks import InputError, finite_number, integer
 from rvfmu.core.design import (ESTIMATE_NAMES, PRESET_NAMES, RVDesign, design_from_file_values,
                                load_design)
 from rvfmu.core.equivalent import check_angles
-from rvfmu.core.errors import (ERROR_NAMES, ErrorSet, error_file_values, errors_from_file_values,
-                              load_errors)
-from rvfmu.core.limits import check_load
+from rvfmu.core.errors import (ERROR_FRACTION, ERROR_NAMES, ErrorSet, error_file_values,
+                              error_limits, errors_from_file_values, load_errors)
+from rvfmu.core.limits import check_load, check_speed
 from rvfmu.core.quasistatic import default_points
+from rvfmu.core.units import RPM, UM
 
 from . import sampling
 from .cost import CostModel, check_bounds, cost_model
@@ -108,6 +111,15 @@ class Factor:
     min_um: float = 0.0
     max_um: float = 0.0
     cost: CostModel | None = None
+
+    @property
+    def largest_um(self) -> tuple[str, float, float]:
+        """(key, its value, the largest error size [um] the tolerance draws): half the zone's
+        diameter, the cumulative pitch span, half the band, the largest clearance."""
+        key, factor = {"zone": ("position_um", 0.5), "pitch": ("cumulative_um", 1.0),
+                       "band": ("band_um", 0.5), "clearance": ("max_um", 1.0)}[self.kind]
+        value = getattr(self, key)
+        return key, value, factor * value
 
     def __post_init__(self):
         here = f"tolerances.{self.name}"
@@ -215,6 +227,8 @@ class Study:
         if not finite_number("operating.output_speed_rpm", self.output_speed_rpm, where) > 0.0:
             raise InputError("operating.output_speed_rpm", self.output_speed_rpm,
                              "must be a positive output speed [rpm]", where)
+        check_speed("operating.output_speed_rpm", self.output_speed_rpm,
+                    self.output_speed_rpm * RPM, self.design, where)
         if "efficiency" in self.metrics and not self.load_Nm > 0.0:
             raise InputError("operating.load_Nm", self.load_Nm, "must be a resisting torque > 0 "
                              "for the metric efficiency (the output's power over the input's)", where)
@@ -233,12 +247,31 @@ class Study:
                 raise InputError(key, value, "must be between 0 and 1 (e.g. 0.95)", where)
         if self.base_errors is not None:
             self.base_errors.check(self.design)
+        limits = error_limits(self.design)
+        for factor in self.factors:
+            key, value, largest = factor.largest_um
+            if largest * UM > limits[factor.name] * (1.0 + 1e-9):
+                raise InputError(f"tolerances.{factor.name}.{key}", value,
+                                 f"allows errors of up to {largest:g} um, where the model takes "
+                                 f"at most {limits[factor.name] / UM:.4g} um for "
+                                 f"{factor.name} on {self.design.name} (ERROR_FRACTION = "
+                                 f"{ERROR_FRACTION:g} x the length it displaces, docs/model.md "
+                                 "section 4)", where)
 
     @property
     def load_warning(self) -> str | None:
         """A warning when the load is above the momentary maximum class (rvfmu.core.limits)."""
         where = self.path.name if self.path else self.name
         return check_load("operating.load_Nm", self.load_Nm, self.design.rated_torque, where)
+
+    @property
+    def operating_warnings(self) -> list[str]:
+        """The warnings of the [operating] table: the load above the momentary maximum class,
+        the output speed above the design's allowable speed (rvfmu.core.limits)."""
+        where = self.path.name if self.path else self.name
+        speed = check_speed("operating.output_speed_rpm", self.output_speed_rpm,
+                            self.output_speed_rpm * RPM, self.design, where)
+        return [w for w in (self.load_warning, speed) if w]
 
     # -- the problem definition ----------------------------------------------------------
     @cached_property
@@ -337,9 +370,13 @@ def load_study(path: str | Path, output: str | Path | None = None) -> Study:
     if not path.is_file():
         raise InputError("study", str(path), "must be a readable study TOML file")
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError("study", str(path), f"is not a readable UTF-8 TOML study file ({exc})") \
+            from None
+    try:
         values = tomllib.loads(text)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+    except tomllib.TOMLDecodeError as exc:
         raise InputError("study", str(path), f"is not valid TOML ({exc})") from None
     return study_from_values(values, path, text, output)
 
@@ -427,6 +464,11 @@ def study_from_store(folder: Path, name: str, inputs: dict, study_text: str = ""
     except tomllib.TOMLDecodeError as exc:
         raise InputError("study.toml", str(folder / "study.toml"), f"is not valid TOML ({exc})") \
             from None
+    for section in ("study", "spec", "montecarlo", "sobol"):
+        if not isinstance(values.get(section, {}), dict):
+            raise InputError("study.toml", str(folder / "study.toml"), f"has {section} = "
+                             f"{values[section]!r} where a [{section}] table belongs: it is not "
+                             "the study file rvte copies there; restore it or run the study again")
     head, sections = values.get("study", {}), {k: values.get(k, {}) for k in ("montecarlo", "sobol")}
     try:
         design = design_from_file_values(inputs["design"], where="inputs.json")
@@ -517,10 +559,21 @@ def _bool(name, value, where) -> bool:
     return value
 
 
+def flag(name: str, value, none: bool = False) -> bool | None:
+    """A boolean keyword of the Python API: True or False (numpy's too), with `none` also None.
+
+    Anything else is refused: a text such as "no" is truthy and would silently mean yes."""
+    if value is None and none:
+        return None
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise InputError(name, value, "must be True or False" + (" (or None)" if none else ""))
+
+
 def _beside(study_path: Path, name: str) -> Path:
     given = Path(name)
     return given if given.is_absolute() else study_path.resolve().parent / given
 
 
 __all__ = ["Factor", "SpecLimit", "Study", "load_study", "study_from_values", "study_from_store",
-           "model_fingerprint", "sobol_base_samples"]
+           "model_fingerprint", "sobol_base_samples", "flag"]
