@@ -7,12 +7,14 @@
  *
  * Each cycle (`one_cycle`): fmi3InstantiateCoSimulation, fmi3SetDebugLogging (an unknown
  * category too), initial inputs, the initial unknowns in initialisation mode, exit; STEPS
- * steps of 1 ms with inputs that take every path of fmi3DoStep (a NaN, an infinite load, a
- * zero step size and a load beyond the emergency-stop class are discarded, a load beyond the
- * momentary class warns); the FMU state got, serialised, read back, set and freed, with a
- * re-step that must repeat the step taken from it; calls the FMU refuses; fmi3Terminate,
- * fmi3Reset and a second start that must repeat the first outputs, bad initial inputs,
- * fmi3FreeInstance.  Every cycle must give the same outputs, to the bit.  Then
+ * steps of 1 ms with inputs that take every warning path of fmi3DoStep (a load beyond the
+ * momentary class, an input speed above the allowable one); the FMU state got, serialised,
+ * read back, set and freed, with a re-step that must repeat the step taken from it; calls the
+ * FMU refuses; fmi3Terminate, fmi3Reset and a second start that must repeat the first
+ * outputs; then (`refusals`) from a fresh start each input no retry can make valid (a NaN, an
+ * infinite load, a zero step size, a load beyond the emergency-stop class, an input speed
+ * beyond the limit) and bad initial inputs: each must end the simulation with fmi3Error and
+ * terminateSimulation, the outputs unchanged, every later step refused; fmi3FreeInstance.  Every cycle must give the same outputs, to the bit.  Then
  * (`refused_instances`) instantiation on BAD_RESOURCES_DIR (a corrupted table), without a
  * resource path, with event mode and for model exchange: each must return NULL.
  *
@@ -38,7 +40,7 @@ enum { OUT_TE = 2, NOUT = 7 };
 
 static int messages[fmi3Fatal + 1];   /* log messages by status */
 static int echo = 1;                  /* print them (the first cycle, the refused instances) */
-static int discarded = 0;             /* steps discarded, over all cycles */
+static int refused = 0;               /* steps refused (fmi3Error), over all cycles */
 
 /* fmi3LogMessageCallback: counts the messages by status, prints them while `echo` is set. */
 static void log_message(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category,
@@ -114,28 +116,18 @@ static int roll_back_and_re_step(const Fmi *fmi, fmi3Instance c, fmi3FMUState *s
 static int steps_with_every_path(const Fmi *fmi, fmi3Instance c, int steps,
                                  fmi3Float64 last[NOUT], fmi3Float64 *sum) {
     fmi3FMUState state = NULL;
-    fmi3Float64 t = 0.0, value[NOUT], before[NOUT];
+    fmi3Float64 t = 0.0, value[NOUT];
     fmi3Boolean terminate;
     int k, failed;
     *sum = 0.0;
     for (k = 0; k < steps; k++, t += 1e-3) {
-        fmi3Float64 u[2] = {0.37 * k - 20.0, 300.0 * (k % 7 - 3)}, h = 1e-3;   /* both branches */
-        fmi3Status expected = fmi3OK;
-        if (k == steps / 3) u[0] = NAN, expected = fmi3Discard;
-        if (k == steps / 3 + 1) u[1] = INFINITY, expected = fmi3Discard;
-        if (k == steps / 3 + 2) h = 0.0, expected = fmi3Discard;
-        if (k == steps / 3 + 3) u[1] = -1e6, expected = fmi3Discard;   /* > the emergency stop */
-        if (k == steps / 2) u[1] = -1300.0;                             /* > momentary: warns */
+        fmi3Float64 u[2] = {0.37 * k - 20.0, 300.0 * (k % 7 - 3)};   /* both branches */
+        if (k == steps / 2) u[1] = -1300.0;                   /* > momentary: warns */
+        if (k == steps / 2 + 1) u[0] += 1.2;                  /* 124 rpm out > 70: warns */
         EXPECT(fmi->SetFloat64(c, IN, 2, u, 2), fmi3OK);
-        EXPECT(fmi->GetFloat64(c, OUT, NOUT, before, NOUT), fmi3OK);
-        EXPECT(step(fmi, c, t, h, &terminate), expected);
-        CHECK(terminate == fmi3False);                     /* a refused input: still usable */
+        EXPECT(step(fmi, c, t, 1e-3, &terminate), fmi3OK);
+        CHECK(terminate == fmi3False);
         EXPECT(fmi->GetFloat64(c, OUT, NOUT, value, NOUT), fmi3OK);
-        if (expected == fmi3Discard) {
-            discarded++;
-            CHECK(memcmp(value, before, sizeof value) == 0);   /* the step changed nothing */
-            continue;
-        }
         *sum += value[OUT_TE];
         if (k == steps / 4) {
             EXPECT(fmi->GetFMUState(c, &state), fmi3OK);
@@ -148,10 +140,58 @@ static int steps_with_every_path(const Fmi *fmi, fmi3Instance c, int steps,
     return 0;
 }
 
+/* From a fresh start, one good step and then each input no retry can make valid: fmi3Error,
+ * terminateSimulation, the outputs unchanged, and the next step (good inputs) refused too; then
+ * bad initial inputs: fmi3ExitInitializationMode and every step after it refused. */
+static int refusals(const Fmi *fmi, fmi3Instance c) {
+    const fmi3Float64 start[2] = {-20.0, -50.0};
+    fmi3Float64 before[NOUT], after[NOUT], bad_start[2] = {NAN, -50.0};
+    fmi3Boolean terminate;
+    int kind;
+    for (kind = 0; kind < 5; kind++) {
+        fmi3Float64 u[2] = {-19.63, -100.0}, h = 1e-3;
+        EXPECT(fmi->Reset(c), fmi3OK);
+        EXPECT(fmi->SetFloat64(c, IN, 2, start, 2), fmi3OK);
+        EXPECT(fmi->EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3False, 0.0), fmi3OK);
+        EXPECT(fmi->ExitInitializationMode(c), fmi3OK);
+        EXPECT(fmi->SetFloat64(c, IN, 2, u, 2), fmi3OK);
+        EXPECT(step(fmi, c, 0.0, h, &terminate), fmi3OK);
+        EXPECT(fmi->GetFloat64(c, OUT, NOUT, before, NOUT), fmi3OK);
+        if (kind == 0) u[0] = NAN;
+        if (kind == 1) u[1] = INFINITY;
+        if (kind == 2) h = 0.0;
+        if (kind == 3) u[1] = -1e6;           /* > the emergency stop */
+        if (kind == 4) u[0] += 1e6;           /* 1e6 rad in 1 ms: 7.9e7 rpm out */
+        EXPECT(fmi->SetFloat64(c, IN, 2, u, 2), fmi3OK);
+        terminate = fmi3False;
+        EXPECT(step(fmi, c, 1e-3, h, &terminate), fmi3Error);
+        CHECK(terminate == fmi3True);
+        refused++;
+        EXPECT(fmi->GetFloat64(c, OUT, NOUT, after, NOUT), fmi3OK);
+        CHECK(memcmp(after, before, sizeof after) == 0);   /* the step changed nothing */
+        u[0] = -19.26, u[1] = -100.0;         /* good inputs: the simulation has ended all the same */
+        EXPECT(fmi->SetFloat64(c, IN, 2, u, 2), fmi3OK);
+        terminate = fmi3False;
+        EXPECT(step(fmi, c, 1e-3, 1e-3, &terminate), fmi3Error);
+        CHECK(terminate == fmi3True);
+        refused++;
+    }
+    EXPECT(fmi->Reset(c), fmi3OK);
+    EXPECT(fmi->SetFloat64(c, IN, 2, bad_start, 2), fmi3OK);
+    EXPECT(fmi->EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3False, 0.0), fmi3OK);
+    EXPECT(fmi->ExitInitializationMode(c), fmi3Error);
+    EXPECT(fmi->SetFloat64(c, IN, 2, start, 2), fmi3OK);
+    terminate = fmi3False;
+    EXPECT(step(fmi, c, 0.0, 1e-3, &terminate), fmi3Error);
+    CHECK(terminate == fmi3True);
+    refused++;
+    return 0;
+}
+
 static int one_cycle(const Fmi *fmi, const char *resources, const char *token, int steps,
                      int logging, fmi3Float64 last[NOUT], fmi3Float64 *sum) {
     const fmi3String categories[2] = {"logStatusWarning", "logNothing"};
-    fmi3Float64 start[2] = {3.0, -50.0}, initial[NOUT], value[NOUT], time;
+    fmi3Float64 start[2] = {-20.0, -50.0}, initial[NOUT], value[NOUT], time;
     fmi3ValueReference time_vr = TIME;
     fmi3Boolean terminate;
     fmi3Int32 ignored;
@@ -184,14 +224,7 @@ static int one_cycle(const Fmi *fmi, const char *resources, const char *token, i
     EXPECT(fmi->GetFloat64(c, OUT, NOUT, value, NOUT), fmi3OK);
     CHECK(memcmp(value, initial, sizeof value) == 0);
 
-    /* bad initial inputs: every step discarded until the next reset */
-    EXPECT(fmi->Reset(c), fmi3OK);
-    start[0] = NAN;
-    EXPECT(fmi->SetFloat64(c, IN, 2, start, 2), fmi3OK);
-    EXPECT(fmi->EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3False, 0.0), fmi3OK);
-    EXPECT(fmi->ExitInitializationMode(c), fmi3OK);
-    EXPECT(step(fmi, c, 0.0, 1e-3, &terminate), fmi3Discard);
-    CHECK(terminate == fmi3True);
+    if ((failed = refusals(fmi, c))) return failed;
     fmi->FreeInstance(c);
     return 0;
 }
@@ -239,7 +272,7 @@ int main(int argc, char **argv) {
     echo = 1;
     if ((failed = refused_instances(&fmi, argv[2], argv[3], argv[4]))) return failed;
     CHECK(dlclose(lib) == 0);
-    printf("cycles %d steps %d discarded %d warnings %d errors %d sum %a last te %a\n", cycles,
-           steps, discarded, messages[fmi3Warning], messages[fmi3Error], first_sum, first[OUT_TE]);
+    printf("cycles %d steps %d refused %d warnings %d errors %d sum %a last te %a\n", cycles,
+           steps, refused, messages[fmi3Warning], messages[fmi3Error], first_sum, first[OUT_TE]);
     return 0;
 }

@@ -27,6 +27,7 @@ from test_fmu import free_instances  # noqa: F401 - frees every instance after a
 
 MAP_POINTS = 4 * 40 * 39         # as tests/test_fmu_dynamic.py
 STEP = 1e-3
+LONG = 1e4                       # [s] a step over which any jump of an angle is a slow turn
 OUTPUTS = ("theta_out", "omega_out", "te", "te_arcsec", "tau_in", "P_loss", "efficiency")
 FMI2_COSIMULATION_FUNCTIONS = (
     "GetTypesPlatform GetVersion SetDebugLogging Instantiate FreeInstance SetupExperiment "
@@ -83,12 +84,15 @@ def drive(inst, theta_in, tau_load):
 
 
 def varying_run(rated_torque, steps=6000):
-    """Input speed swinging 200..1800 rpm, held still for a while, a load swinging +-2.7 x
-    rated (both branches, past the momentary class where the map is extrapolated)."""
+    """Input speed swinging 200..1800 rpm, backwards for the first 0.1 s (from the start
+    angle 0: negative angles too, and no jump the speed limit would refuse), held still for a
+    while, a load swinging +-2.7 x rated (both branches, past the momentary class where the
+    map is extrapolated)."""
     t = np.arange(steps) * STEP
     speed = (1000 + 800 * np.sin(2 * np.pi * 1.5 * t)) * 2 * np.pi / 60
     speed[(t > 1.0) & (t < 1.3)] = 0.0
-    theta_in = np.cumsum(speed) * STEP - 40.0                    # negative angles too
+    speed[t < 0.1] *= -1.0
+    theta_in = np.cumsum(speed) * STEP                           # negative angles too
     tau_load = 2.7 * rated_torque * np.sin(2 * np.pi * 2.2 * t + 0.3)
     tau_load[::97] = 0.0                                         # exactly no load, both signs
     tau_load[::89] = -0.0
@@ -161,17 +165,19 @@ def test_interpolation_is_te_map_evaluate_one_to_the_bit(native, unzipped, rv40)
                                                      -te_map.torque_magnitude]), 10)])
     load = np.resize(load, theta.size)
     inst = Instance(path, md)
+    # steps of LONG: the angles jump by up to 6000 rad, at a speed the limit lets through
     for k, (a, b) in enumerate(zip(theta, load)):
         inst.set(theta_in=a, tau_load=b)
-        inst.step(k * STEP, STEP)
+        inst.step(k * LONG, LONG)
         te = inst.get("te")[0]
         assert te == te_map.evaluate_one(float(a), float(b))[0], (a, b)
     # the friction table and the load-free friction, to the bit: tau_in and P_loss at input
-    # speeds across the friction law's scale and the drag table, both senses of power flow
+    # speeds across the friction law's scale and the drag table (up to 11 rad/s at the output,
+    # within the speed limit), both senses of power flow
     for k, (a, b) in enumerate(zip(theta[:300], load[:300])):
-        omega_in = (k % 23 - 11) * 10.0 ** (k % 7 - 4) * te_map.ratio
+        omega_in = (k % 23 - 11) * 10.0 ** (k % 7 - 6) * te_map.ratio
         inst.set(theta_in=a, tau_load=b)
-        inst.step(0.0, STEP)                       # the angle of the step's start
+        inst.step(0.0, LONG)                       # the angle of the step's start
         inst.set(theta_in=a + omega_in * STEP, tau_load=b)
         inst.step(STEP, STEP)
         tau_in, p_loss, efficiency = inst.get("tau_in", "P_loss", "efficiency")
@@ -231,6 +237,7 @@ int main(int argc, char **argv) {   /* library, resources URI, GUID */
     void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
     fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
     fmi2ValueReference inputs[2] = {0, 1}, te = 4;
+    fmi2Real start[2] = {-20.0, 0.0};
     fmi2Component c;
     int k;
     if (!lib) { fprintf(stderr, "%s\n", dlerror()); return 1; }
@@ -241,6 +248,7 @@ int main(int argc, char **argv) {   /* library, resources URI, GUID */
     if (!c) return 2;
     fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0);
     fmi2EnterInitializationMode(c);
+    fmi2SetReal(c, inputs, 2, start);   /* the first step's angle: no jump to refuse */
     fmi2ExitInitializationMode(c);
     for (k = 0; k < 500; k++) {
         fmi2Real values[2] = {0.37 * k - 20.0, 300.0 * (k % 7 - 3)}, out;
@@ -306,7 +314,7 @@ def corrupt(data: bytearray, how: str) -> bytes:
     elif how == "magic":
         data[:8] = b"RVTEMAQ\0"
     elif how == "version":
-        data[8:12] = struct.pack("<I", 3)
+        data[8:12] = struct.pack("<I", 2)                 # a table from before the speed limit
     elif how == "truncated":
         del data[-8:]
     elif how == "levels":
@@ -319,7 +327,7 @@ def corrupt(data: bytearray, how: str) -> bytes:
 @pytest.mark.parametrize("how, reason", [
     ("nan", "non-finite values in the torque levels, te, tau_in or the friction"),
     ("magic", "not a TE map table (no RVTEMAP magic)"),
-    ("version", "format version 3, this FMU reads version 2"),
+    ("version", "format version 2, this FMU reads version 3"),
     ("truncated", "6240 angle points x 16 torque levels and 67 speeds do not fit its"),
     ("levels", "the torque levels must be strictly ascending"),
     ("empty", "not a TE map table"),
@@ -385,23 +393,42 @@ BAD_STEPS = [({"theta_in": float("nan"), "tau_load": -100.0}, STEP, "input theta
              ({"theta_in": 1.0, "tau_load": 1e6}, STEP, "input tau_load = 1000000.0: must be within")]
 
 
-def test_bad_inputs_are_discarded_with_the_python_fmus_message(native, python_fmu, capfd):
+def restart(inst, **inputs):
+    """fmi2Reset and a new start of `inst`, with these initial inputs."""
+    inst.fmu.reset()
+    inst.fmu.setupExperiment(startTime=0.0)
+    inst.fmu.enterInitializationMode()
+    if inputs:
+        inst.set(**inputs)
+    inst.fmu.exitInitializationMode()
+
+
+def test_bad_inputs_are_refused_with_the_python_fmus_message(native, python_fmu, capfd):
+    """Both end the simulation (fmi2Error, fmi2Terminated, every later step refused:
+    docs/model.md section 8; the pythonfmu FMU through its guard, rvfmu/fmu/build.py), with the
+    same message, the outputs unchanged."""
     for fmu in (native, python_fmu):
+        status = r"status 3 \(error\)"
         inst = Instance(*fmu)
-        inst.set(theta_in=1.0, tau_load=-100.0)
-        inst.step(0.0, STEP)
-        good = inst.get(*OUTPUTS)
         for values, size, expected in BAD_STEPS:
+            restart(inst)
+            inst.set(theta_in=0.5, tau_load=-100.0)
+            inst.step(0.0, STEP)
+            good = inst.get(*OUTPUTS)
             inst.set(**values)
             capfd.readouterr()
-            with pytest.raises(Exception, match=r"status 2 \(discard\)"):
+            with pytest.raises(Exception, match=status):
                 inst.step(STEP, size)
             assert f"[ERROR] {expected}" in capfd.readouterr().out, (fmu[0], expected)
             assert inst.get(*OUTPUTS) == good                     # the step changed nothing
-        if fmu is native:
-            assert not inst.fmu.getBooleanStatus(fmi2Terminated)  # usable: only the input was bad
-        inst.set(theta_in=1.0, tau_load=-100.0)
-        inst.step(STEP, STEP)
+            assert inst.fmu.getBooleanStatus(fmi2Terminated)
+            inst.set(theta_in=0.6, tau_load=-100.0)               # good inputs: still refused
+            with pytest.raises(Exception, match=status):
+                inst.step(STEP, STEP)
+            assert f"[ERROR] {expected}" in capfd.readouterr().out
+        restart(inst)                                             # usable again after a reset
+        inst.set(theta_in=0.5, tau_load=-100.0)
+        inst.step(0.0, STEP)
         assert inst.get("te") == good[2:3]
 
 
@@ -419,19 +446,24 @@ def test_a_load_above_the_momentary_class_warns_once(native, rv40, capfd):
             "the results with care") in log
 
 
-def test_bad_initial_inputs_fail_every_step_until_reset(native, capfd):
+def test_bad_initial_inputs_fail_initialisation_and_every_step_until_reset(native, capfd):
     path, md = native
-    inst = Instance(path, md, reals={"theta_in": float("nan")})   # logged at exit init, status OK
-    assert "[ERROR] initialisation failed: input theta_in = nan: must be finite" in capfd.readouterr().out
-    inst.set(theta_in=1.0, tau_load=0.0)
-    with pytest.raises(Exception, match=r"status 2"):
-        inst.step(0.0, STEP)
-    assert "initialisation failed: input theta_in = nan" in capfd.readouterr().out
-    assert inst.fmu.getBooleanStatus(fmi2Terminated)
+    inst = Instance(path, md)
     inst.fmu.reset()
     inst.fmu.setupExperiment(startTime=0.0)
     inst.fmu.enterInitializationMode()
-    inst.fmu.exitInitializationMode()
+    inst.set(theta_in=float("nan"))
+    capfd.readouterr()
+    with pytest.raises(Exception, match=r"status 3"):
+        inst.fmu.exitInitializationMode()
+    assert "[ERROR] initialisation failed: input theta_in = nan: must be finite" in capfd.readouterr().out
+    inst.set(theta_in=1.0, tau_load=0.0)
+    with pytest.raises(Exception, match=r"status 3"):
+        inst.step(0.0, STEP)
+    assert "initialisation failed: input theta_in = nan" in capfd.readouterr().out
+    assert inst.fmu.getBooleanStatus(fmi2Terminated)
+    restart(inst, theta_in=1.0)
+    assert not inst.fmu.getBooleanStatus(fmi2Terminated)
     inst.step(0.0, STEP)
 
 
@@ -463,7 +495,7 @@ def test_initial_outputs_in_initialisation_mode_and_log_categories(native, unzip
 # -- states, reset, instances ---------------------------------------------------------------
 
 def test_state_roll_back_and_serialisation_re_step_identically(native):
-    inst = Instance(*native)
+    inst = Instance(*native, reals={"theta_in": 9.9})              # no jump to 10: a slow turn
     inst.set(theta_in=10.0, tau_load=-200.0)
     inst.step(0.0, STEP)
     state = inst.fmu.getFMUstate()
@@ -473,7 +505,7 @@ def test_state_roll_back_and_serialisation_re_step_identically(native):
     first = inst.get(*OUTPUTS)
     assert first[1] != 0.0                                        # omega_out from the last step
     inst.set(theta_in=55.0, tau_load=100.0)
-    inst.step(2 * STEP, STEP)
+    inst.step(2 * STEP, 1.0)                                      # 45 rad in 1 s, not in 1 ms
     inst.fmu.setFMUstate(state)
     assert inst.get("theta_in", "tau_load") == [10.0, -200.0]     # the inputs come back too
     inst.set(theta_in=10.1, tau_load=-300.0)
@@ -499,7 +531,7 @@ def test_reset_returns_to_the_start(native):
     start = inst.get(*OUTPUTS)
     assert start[1] == 0.0 and start[0] != 0.0                    # outputs from the initial inputs
     inst.set(theta_in=20.0, tau_load=-400.0)
-    inst.step(0.0, STEP)
+    inst.step(0.0, 1.0)                                           # 17 rad in 1 s, not in 1 ms
     inst.fmu.reset()
     assert inst.get("theta_in", *OUTPUTS) == [0.0] * (1 + len(OUTPUTS))
     inst.set(theta_in=3.0, tau_load=-50.0)

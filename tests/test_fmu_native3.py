@@ -23,7 +23,7 @@ from unittest import mock
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description
-from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Discard, fmi3Float64, fmi3OK
+from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Error, fmi3Float64, fmi3OK
 from fmpy.validation import validate_fmu
 
 from rvfmu import cli
@@ -130,26 +130,37 @@ def test_outputs_equal_the_fmi2_fmus_over_a_long_varying_run(native, native3, rv
     assert ((efficiency > 0) & (efficiency < 1)).any()
 
 
-def test_bad_inputs_are_discarded_with_the_fmi2_fmus_log_lines(native, native3, capfd):
+def test_bad_inputs_end_the_simulation_with_the_fmi2_fmus_log_lines(native, native3, capfd):
+    """Each input no retry can make valid: status 3 (error), the outputs unchanged, the next step
+    refused with the same line, usable again after a reset; the log lines of both standards."""
     logs = {}
     for fmu, make in ((native, Instance), (native3, Instance3)):
         inst = make(*fmu)
-        inst.set(theta_in=1.0, tau_load=-100.0)
-        inst.step(0.0, STEP)
-        good = inst.get(*OUTPUTS)
         capfd.readouterr()
         for values, size, expected in BAD_STEPS:
+            inst.fmu.reset()
+            if make is Instance:
+                inst.fmu.setupExperiment(startTime=0.0)
+                inst.fmu.enterInitializationMode()
+                inst.fmu.exitInitializationMode()
+            else:
+                inst.start()
+            inst.set(theta_in=0.5, tau_load=-100.0)
+            inst.step(0.0, STEP)
+            good = inst.get(*OUTPUTS)
             inst.set(**values)
-            with pytest.raises(Exception, match=r"status 2 \(discard\)"):
+            with pytest.raises(Exception, match=r"status 3 \(error\)"):
                 inst.step(STEP, size)
             assert inst.get(*OUTPUTS) == good                     # the step changed nothing
-        logs[make] = capfd.readouterr().out.splitlines()
-        inst.set(theta_in=1.0, tau_load=-100.0)
-        inst.step(STEP, STEP)                                     # usable: only the input was bad
-        assert inst.get("te") == good[2:3]
-    assert len(logs[Instance3]) == len(BAD_STEPS)
-    for line, (_, _, expected) in zip(logs[Instance3], BAD_STEPS):
-        assert line.startswith(f"[ERROR] {expected}"), line
+            inst.set(theta_in=0.6, tau_load=-100.0)
+            with pytest.raises(Exception, match=r"status 3 \(error\)"):
+                inst.step(STEP, STEP)                             # ended: good inputs refused too
+        logs[make] = [line for line in capfd.readouterr().out.splitlines()
+                      if not line.startswith("[OK]")]             # the resets, with logging on
+    assert len(logs[Instance3]) == 2 * len(BAD_STEPS)
+    for k, (_, _, expected) in enumerate(BAD_STEPS):
+        assert logs[Instance3][2 * k].startswith(f"[ERROR] {expected}"), logs[Instance3][2 * k]
+        assert logs[Instance3][2 * k + 1] == logs[Instance3][2 * k]
     assert logs[Instance3] == logs[Instance]
 
 
@@ -160,7 +171,7 @@ def test_a_load_above_the_momentary_class_warns_once_as_in_fmi2(native, native3,
         inst = make(*fmu)
         capfd.readouterr()
         for k, load in enumerate((-2.0 * rated, -3.0 * rated, 4.0 * rated, -4.9 * rated)):
-            inst.set(theta_in=1.0 + k, tau_load=load)
+            inst.set(theta_in=0.5 + 0.5 * k, tau_load=load)      # 39 rpm out: no speed warning
             inst.step(k * STEP, STEP)                             # computed: no exception
         logs[make] = capfd.readouterr().out.splitlines()
     assert logs[Instance3] == logs[Instance] == [
@@ -169,28 +180,36 @@ def test_a_load_above_the_momentary_class_warns_once_as_in_fmi2(native, native3,
         "the results with care"]
 
 
-def test_step_results_say_a_refused_input_leaves_it_usable_and_bad_initial_inputs_do_not(
-        native3, capfd):
+def test_step_results_say_a_refused_input_ends_the_simulation(native3, capfd):
     inst = Instance3(*native3)
     do_step = inst.fmu.dll.fmi3DoStep                     # the C function: its status and flags
     flags = [fmi3Boolean(True) for _ in range(3)]         # eventHandlingNeeded, terminate, early
     reached = fmi3Float64()
+    inst.set(theta_in=0.5)
+    status = do_step(inst.fmu.component, 0.5, STEP, True, *map(byref, flags), byref(reached))
+    assert status == fmi3OK and [f.value for f in flags] == [False, False, False]
+    assert reached.value == 0.5 + STEP
     inst.set(theta_in=float("nan"))
-    status = do_step(inst.fmu.component, 0.5, STEP, True, *map(byref, flags), byref(reached))
-    assert status == fmi3Discard and [f.value for f in flags] == [False, False, False]
-    assert reached.value == 0.5                           # it did not get past the start
-    inst.set(theta_in=1.0)
-    status = do_step(inst.fmu.component, 0.5, STEP, True, *map(byref, flags), byref(reached))
-    assert status == fmi3OK and reached.value == 0.5 + STEP
-    # bad initial inputs: logged at exit, every step discarded, terminateSimulation set
+    status = do_step(inst.fmu.component, 0.5 + STEP, STEP, True, *map(byref, flags),
+                     byref(reached))
+    assert status == fmi3Error and [f.value for f in flags] == [False, True, False]
+    assert reached.value == 0.5 + STEP                    # it did not get past the start
+    inst.set(theta_in=0.6)                                # good inputs: the simulation has ended
+    status = do_step(inst.fmu.component, 0.5 + STEP, STEP, True, *map(byref, flags),
+                     byref(reached))
+    assert status == fmi3Error and flags[1].value
+    # bad initial inputs: fmi3ExitInitializationMode refuses, and every step after it
     inst.fmu.reset()
     capfd.readouterr()
-    inst.start({"theta_in": float("nan")})
+    inst.fmu.setFloat64([inst.vr["theta_in"]], [float("nan")])
+    inst.fmu.enterInitializationMode(startTime=0.0)
+    with pytest.raises(Exception, match=r"status 3"):
+        inst.fmu.exitInitializationMode()
     assert "[ERROR] initialisation failed: input theta_in = nan: must be finite" in \
         capfd.readouterr().out
     inst.set(theta_in=1.0, tau_load=0.0)
     status = do_step(inst.fmu.component, 0.0, STEP, True, *map(byref, flags), byref(reached))
-    assert status == fmi3Discard and flags[1].value       # terminateSimulation
+    assert status == fmi3Error and flags[1].value         # terminateSimulation
     inst.fmu.reset()
     inst.start()
     inst.step(0.0, STEP)
@@ -352,7 +371,7 @@ def test_win64_is_a_pe_dll_exporting_every_fmi3_cosimulation_function(native3, u
 # -- states, reset, instances ---------------------------------------------------------------
 
 def test_state_roll_back_serialisation_and_reset(native3):
-    inst = Instance3(*native3, reals={"theta_in": 3.0, "tau_load": -50.0})
+    inst = Instance3(*native3, reals={"theta_in": 9.9, "tau_load": -50.0})
     start = inst.get(*OUTPUTS)
     assert start[1] == 0.0 and start[0] != 0.0                    # from the initial inputs
     inst.set(theta_in=10.0, tau_load=-200.0)
@@ -364,7 +383,7 @@ def test_state_roll_back_serialisation_and_reset(native3):
     first = inst.get(*OUTPUTS)
     assert first[1] != 0.0
     inst.set(theta_in=55.0, tau_load=100.0)
-    inst.step(2 * STEP, STEP)
+    inst.step(2 * STEP, 1.0)                                      # 45 rad in 1 s, not in 1 ms
     inst.fmu.setFMUState(state)
     assert inst.get("theta_in", "tau_load", "time") == [10.0, -200.0, STEP]
     inst.set(theta_in=10.1, tau_load=-300.0)
@@ -384,7 +403,7 @@ def test_state_roll_back_serialisation_and_reset(native3):
     # reset: back to the start values, and a second start repeats the first
     inst.fmu.reset()
     assert inst.get("theta_in", *OUTPUTS) == [0.0] * (1 + len(OUTPUTS))
-    inst.start({"theta_in": 3.0, "tau_load": -50.0})
+    inst.start({"theta_in": 9.9, "tau_load": -50.0})
     assert inst.get(*OUTPUTS) == start
 
 
@@ -547,10 +566,11 @@ def assert_summary(done, unzipped):
     """The host's closing line: its counts, and the TE of its last step from the Python map."""
     assert done.returncode == 0, done.stderr[-4000:]
     last_te = last_step_te(unzipped)
-    # 4 steps discarded per cycle; one load above the momentary class warns; 15 errors logged
-    # per cycle and 4 for the instances that are never made
-    head = (f"cycles {CYCLES} steps {STEPS} discarded {4 * CYCLES} warnings {CYCLES} "
-            f"errors {15 * CYCLES + 4} sum ")
+    # 11 steps refused per cycle (as the FMI 2.0 host); a load above the momentary class and
+    # a speed above the allowable one warn; 21 errors logged per cycle and 4 for the instances
+    # that are never made
+    head = (f"cycles {CYCLES} steps {STEPS} refused {11 * CYCLES} warnings {2 * CYCLES} "
+            f"errors {21 * CYCLES + 4} sum ")
     line = done.stdout.strip()
     assert line.startswith(head) and line.endswith(f" last te {last_te.hex()}"), (line, head)
     assert "[logStatusError] TE map table" in done.stderr

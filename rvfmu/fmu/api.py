@@ -16,8 +16,9 @@ def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress
     """Build the reducer FMU; returns its path.  progress(total, done): optional.
 
     design: a preset name, a design file or an RVDesign; errors: an error file, an
-    ErrorSet or None (no errors).  The output path (given the suffix .fmu) is
-    checked before the TE map is solved; file and preset names are recorded in
+    ErrorSet or None (no errors).  The output path must end in .fmu and be
+    writable (an existing file is replaced, as every output of rvte): both are
+    checked before anything is built; file and preset names are recorded in
     the FMU for `fmu_info`.  native: the FMU of compiled C that needs no Python
     (`rvfmu.fmu.native`: the quasi-static model, no parameters) instead of the
     pythonfmu one.  fmi_version: 2 or 3 (as a number or its text); 3 only with
@@ -36,8 +37,7 @@ def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress
     else:
         from .build import build_fmu
 
-    output = Path(output)
-    output = output_file("output", output if output.suffix == ".fmu" else output.with_suffix(".fmu"))
+    output = fmu_output(output)
     points = default_points(resolve_design(design)) if points is None else points
     total = 2 * len(TORQUE_FRACTIONS) * points
     sources = {"design": design if isinstance(design, (str, Path)) else None,
@@ -48,6 +48,16 @@ def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress
 
 
 FMI_VERSIONS = (2, 3)
+
+
+def fmu_output(output) -> Path:
+    """`output` as a Path if it ends in .fmu and can be written, else InputError naming
+    `output` (`rvte fmu build -o`): an FMU is a zip whose importers look for the .fmu suffix,
+    and writing x.fmu for x.zip would put the file where the user does not look."""
+    if output is None or str(output) == "" or Path(output).suffix.lower() != ".fmu":
+        raise InputError("output", None if output is None else str(output),
+                         "must end in .fmu (the FMU file to write, -o/--output)")
+    return output_file("output", output)
 
 
 def check_fmi_version(fmi_version, native: bool) -> int:

@@ -9,11 +9,23 @@ the dynamic model runs its compiled kernels: their numba cache files are
 bundled too, so a host on the same kind of CPU does not compile them again.
 pythonfmu provides the FMI binary and embeds its own Python package.  pythonfmu writes neither unit definitions nor
 units on the variables, so the model description is completed here.
+
+On Linux the FMU's binaries/linux64/ library is wrapped (`guard_linux_binary`,
+native/pythonfmu_guard.c): pythonfmu's own library moves beside it as
+libpythonfmu-export.so, and a small C library in its place passes every call
+through, except that a refused step returns fmi2Error rather than fmi2Discard
+and the slave's warnings and errors reach the host's logger whatever its
+logging (docs/model.md section 8).  Without a C compiler (or built elsewhere
+than on Linux) the FMU keeps pythonfmu's library as it is; binaries/win64 is
+always pythonfmu's.
 """
 
 from __future__ import annotations
 
+import os
 import shutil
+import subprocess
+import sys
 import tempfile
 import zipfile
 from pathlib import Path
@@ -46,13 +58,15 @@ VARIABLE_UNITS = {
 }
 DEFAULT_STOP_TIME = 1.0
 DEFAULT_STEP = 1e-3
+GUARD_SOURCE = PACKAGE / "fmu" / "native" / "pythonfmu_guard.c"
+PYTHONFMU_LIBRARY = "libpythonfmu-export.so"   # pythonfmu's Linux library, by its soname
 
 
 def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Path = "RVReducer.fmu",
               points: int | None = None, progress=None, sources: dict | None = None) -> Path:
     """Write the reducer FMU for `design` and one reducer's `errors` to `output`.
 
-    output: given the suffix .fmu if it has another; points: TE map points per
+    output: a path ending in .fmu (else ValueError); points: TE map points per
     output revolution (default `default_points`); progress(count): the solver's
     per-chunk counts (`rvfmu.progress.ProgressCounter`), optional.
     sources: {"design": ..., "errors": ...}, where they came from (a preset name,
@@ -83,6 +97,7 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
             canGetAndSetFMUstate=True, canSerializeFMUstate=True,
             canHandleVariableCommunicationStepSize=True, needsExecutionTool=True)
     complete_model_description(Path(built))
+    guard_linux_binary(Path(built))
     # the compiled dynamic-model kernels (numba's cache files, keyed by the source's content;
     # pythonfmu leaves __pycache__ folders out), those its dynamic model runs for this design
     # and these errors: a host with numba loads them instead of compiling on its first dynamic
@@ -93,12 +108,54 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
     return Path(built)
 
 
+def guard_linux_binary(fmu: Path) -> bool:
+    """Wrap the FMU's binaries/linux64/ library in native/pythonfmu_guard.c (module doc); True
+    if it was, False where it cannot be (not Linux, no C compiler: the FMU keeps pythonfmu's
+    library as it is)."""
+    import fmpy
+
+    compiler = os.environ.get("CC", "cc")
+    if not sys.platform.startswith("linux") or not shutil.which(compiler):
+        return False
+    with zipfile.ZipFile(fmu) as archive:
+        entries = {info.filename: archive.read(info.filename) for info in archive.infolist()}
+    binaries = [name for name in entries
+                if name.startswith("binaries/linux64/") and name.endswith(".so")]
+    if len(binaries) != 1:
+        raise RuntimeError(f"{fmu}: expected one library in binaries/linux64/, found {binaries}")
+    library = entries[binaries[0]]
+    # the guard is linked to it by its soname: a pythonfmu that renamed it needs this updated
+    if PYTHONFMU_LIBRARY.encode() + b"\0" not in library:
+        raise RuntimeError(f"pythonfmu's library does not have the soname {PYTHONFMU_LIBRARY}: "
+                           "update rvfmu.fmu.build.PYTHONFMU_LIBRARY")
+    with tempfile.TemporaryDirectory(prefix="rvte_guard_") as tmp:
+        tmp = Path(tmp)
+        (tmp / PYTHONFMU_LIBRARY).write_bytes(library)
+        guard = tmp / "guard.so"
+        command = [compiler, "-std=c99", "-O2", "-shared", "-fPIC",
+                   f"-I{Path(fmpy.__file__).parent / 'c-code'}", str(GUARD_SOURCE), "-o",
+                   str(guard), f"-L{tmp}", "-Wl,--no-as-needed", f"-l:{PYTHONFMU_LIBRARY}",
+                   "-Wl,-rpath,$ORIGIN", "-lpthread"]
+        done = subprocess.run(command, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise RuntimeError(f"compiling the FMU's guard failed: {' '.join(command)}\n"
+                               f"{done.stderr[-3000:]}")
+        entries[f"binaries/linux64/{PYTHONFMU_LIBRARY}"] = library
+        entries[binaries[0]] = guard.read_bytes()
+    with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+    return True
+
+
 def prepare(design: RVDesign, errors: ErrorSet | None, output, points, progress):
-    """(errors, output path with the suffix .fmu, TE map): what every FMU build starts from."""
-    errors = zero_errors(design) if errors is None else errors.check(design)
+    """(errors, output path, TE map): what every FMU build starts from.  The output path
+    must end in .fmu (checked before the map is solved; never renamed behind the caller's
+    back: `rvfmu.fmu.api.fmu_output` says so to the user first)."""
     output = Path(output)
-    if output.suffix != ".fmu":
-        output = output.with_suffix(".fmu")
+    if output.suffix.lower() != ".fmu":
+        raise ValueError(f"output = {str(output)!r}: must end in .fmu")
+    errors = zero_errors(design) if errors is None else errors.check(design)
     return errors, output, build_te_map(design, errors, points=points, progress=progress)
 
 

@@ -12,7 +12,8 @@ def add_fmu_commands(subparsers) -> None:
     p = sub.add_parser("build", help="build an FMU from a design and an error set")
     p.add_argument("design", help="preset name or design TOML file")
     p.add_argument("--errors", help="error TOML file (default: no errors)")
-    p.add_argument("-o", "--output", default="RVReducer.fmu", help="FMU file to write")
+    p.add_argument("-o", "--output", default="RVReducer.fmu",
+                   help="FMU file to write, ending in .fmu (an existing file is replaced)")
     p.add_argument("--points", type=int,
                    help="TE map points per output revolution (default 8*z_p*z_c)")
     p.add_argument("--native", action="store_true",

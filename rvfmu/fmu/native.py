@@ -32,7 +32,7 @@ and carries the same layout in a comment):
 
     offset               type              field
     0                    char[8]           magic b"RVTEMAP\\0"
-    8                    uint32            format version, 2
+    8                    uint32            format version, 3
     12                   uint32            A, angle points over one output revolution (>= 2)
     16                   uint32            T, torque levels (>= 2)
     20                   uint32            K, speeds of the load-free friction (>= 2)
@@ -41,16 +41,21 @@ and carries the same layout in a comment):
     40                   float64           momentary maximum class, x rated (limits.MOMENTARY_FACTOR)
     48                   float64           emergency-stop class, x rated (limits.EMERGENCY_FACTOR)
     56                   float64           the friction law's speed scale [rad/s at the input]
-    64                   float64[T]        torque magnitudes [N*m], ascending, the first 0
-    64 + 8T              float64[2][T][A]  te [rad]: branch 0 resisting loads, 1 driving loads
-    64 + 8T + 16TA       float64[2][T][A]  tau_in [N*m]
-    64 + 8T + 32TA       float64[2][T][A]  the Coulomb friction torque at the output [N*m]
-    64 + 8T + 48TA       float64[K]        output speeds [rad/s], ascending, the first 0
-    64 + 8T + 48TA + 8K  float64[K]        the load-free friction torque at the output [N*m]
-    64 + 8T + 48TA + 16K                   end of file: the length is checked against A, T, K
+    64                   float64           allowable output speed [rad/s] (the design's)
+    72                   float64           speed factor, x allowable (limits.SPEED_FACTOR)
+    80                   char[64]          the design's name, UTF-8, NUL-padded (cut to 63 bytes)
+    144                  float64[T]        torque magnitudes [N*m], ascending, the first 0
+    144 + 8T             float64[2][T][A]  te [rad]: branch 0 resisting loads, 1 driving loads
+    144 + 8T + 16TA      float64[2][T][A]  tau_in [N*m]
+    144 + 8T + 32TA      float64[2][T][A]  the Coulomb friction torque at the output [N*m]
+    144 + 8T + 48TA      float64[K]        output speeds [rad/s], ascending, the first 0
+    144 + 8T + 48TA + 8K float64[K]        the load-free friction torque at the output [N*m]
+    144 + 8T + 48TA + 16K                  end of file: the length is checked against A, T, K
 
-The load classes travel in the table rather than in the C code so that
-`rvfmu.core.limits` stays their only source.  A table that fails a check
+The load classes and the speed limit travel in the table rather than in the C
+code so that `rvfmu.core.limits` and the design stay their only source (the
+design's name only goes into the messages).  Version 3 added the speed limit; a
+version 2 table is refused, as a table of any other version.  A table that fails a check
 (magic, version, sizes against the file length, finite values, ascending
 levels from 0) makes fmi2Instantiate log the reason and return NULL.
 """
@@ -74,7 +79,7 @@ import numpy as np
 
 from ..core.design import RVDesign
 from ..core.errors import ErrorSet, error_file_values, toml_text
-from ..core.limits import EMERGENCY_FACTOR, MOMENTARY_FACTOR
+from ..core.limits import EMERGENCY_FACTOR, MOMENTARY_FACTOR, SPEED_FACTOR
 from ..core.reducer_model import FRICTION_SPEED_SCALE
 from ..core.te_map import TEMap
 from .build import complete_model_description, prepare, source_line
@@ -88,14 +93,19 @@ FMI_VERSIONS = (2, 3)                              # the standards a native FMU 
 MODEL_IDENTIFIER = "RVReducer"
 TABLE_NAME = "te_map.bin"
 TABLE_MAGIC = b"RVTEMAP\0"
-TABLE_VERSION = 2
-TABLE_HEADER = struct.Struct("<8s4I5d")   # magic, version, A, T, K, ratio, rated, classes, scale
+TABLE_VERSION = 3
+# magic, version, A, T, K, ratio, rated, load classes, speed scale, allowable speed, speed
+# factor, design name
+TABLE_HEADER = struct.Struct("<8s4I7d64s")
+NAME_BYTES = 63                           # of the design's name: a NUL always ends it
 # The inputs and outputs in the order of their value references in fmi2Functions.c.
 VARIABLES = ("theta_in", "tau_load", "theta_out", "omega_out", "te", "te_arcsec", "tau_in",
              "P_loss", "efficiency")
 LOG_CATEGORIES = {"logEvents": "the table read, resets (with debug logging on)",
-                  "logStatusWarning": "loads above the momentary maximum class",
-                  "logStatusError": "inputs refused, tables that cannot be read"}
+                  "logStatusWarning": "loads above the momentary maximum class, input speeds "
+                                      "above the allowable one",
+                  "logStatusError": "inputs refused (the simulation ends), tables that cannot "
+                                    "be read"}
 # Bit-for-bit agreement with the Python interpolation wants no fused multiply-adds.
 C_FLAGS = "-O2 -ffp-contract=off"
 WIN64_COMPILER = "x86_64-w64-mingw32-gcc"          # Debian's mingw-w64
@@ -120,7 +130,7 @@ def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
         resources, source_dir = unzipped / "resources", unzipped / "sources"
         resources.mkdir(parents=True)
         source_dir.mkdir()
-        write_table(te_map, design.rated_torque, resources / TABLE_NAME)
+        write_table(te_map, design, resources / TABLE_NAME)
         sources = sources or {}
         (resources / BUNDLED_DESIGN).write_text(source_line(sources.get("design"))
                                                 + toml_text(design.file_values()))
@@ -153,12 +163,15 @@ def binary_folder(platform: str, fmi_version: int = 2) -> str:
     return PLATFORM_TUPLES[platform] if fmi_version == 3 else platform
 
 
-def write_table(te_map: TEMap, rated_torque: float, path: Path) -> None:
-    """Write `te_map` and the load classes of `rated_torque` [N*m] as the table (module doc)."""
+def write_table(te_map: TEMap, design: RVDesign, path: Path) -> None:
+    """Write `te_map` and the limits of `design` (its load classes from the rated torque [N*m],
+    its allowable output speed [rad/s]) as the table (module doc)."""
     points, levels = te_map.theta_in.size, te_map.torque_magnitude.size
+    name = design.name.encode("utf-8")[:NAME_BYTES].decode("utf-8", "ignore").encode("utf-8")
     header = TABLE_HEADER.pack(TABLE_MAGIC, TABLE_VERSION, points, levels, te_map.drag_speed.size,
-                               te_map.ratio, rated_torque, MOMENTARY_FACTOR, EMERGENCY_FACTOR,
-                               FRICTION_SPEED_SCALE)
+                               te_map.ratio, design.rated_torque, MOMENTARY_FACTOR,
+                               EMERGENCY_FACTOR, FRICTION_SPEED_SCALE,
+                               design.allowable_output_speed, SPEED_FACTOR, name)
     body = [np.ascontiguousarray(a, dtype="<f8").tobytes()
             for a in (te_map.torque_magnitude, te_map.te, te_map.tau_in, te_map.friction,
                       te_map.drag_speed, te_map.drag)]
@@ -172,7 +185,7 @@ def read_table(path: str | Path) -> tuple[TEMap, float]:
     interpolation needs only their count): the map's theta_in is rebuilt.
     """
     data = Path(path).read_bytes()
-    magic, version, points, levels, speeds, ratio, rated, _, _, _ = TABLE_HEADER.unpack_from(data)
+    magic, version, points, levels, speeds, ratio, rated, *_ = TABLE_HEADER.unpack_from(data)
     if magic != TABLE_MAGIC or version != TABLE_VERSION:
         raise ValueError(f"{path}: not a version {TABLE_VERSION} TE map table")
     values = np.frombuffer(data, "<f8", offset=TABLE_HEADER.size).astype(float)
@@ -183,6 +196,13 @@ def read_table(path: str | Path) -> tuple[TEMap, float]:
     shape = (2, levels, points)
     return (TEMap(ratio, angles, magnitude, te.reshape(shape), tau_in.reshape(shape),
                   friction.reshape(shape), drag_speed, drag), rated)
+
+
+def table_limits(path: str | Path) -> dict:
+    """The limits a table carries: allowable_output_speed [rad/s], speed_factor, design name."""
+    fields = TABLE_HEADER.unpack_from(Path(path).read_bytes())
+    return {"allowable_output_speed": fields[10], "speed_factor": fields[11],
+            "design": fields[12].rstrip(b"\0").decode("utf-8")}
 
 
 def declared_variables() -> list[ET.Element]:

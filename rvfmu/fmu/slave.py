@@ -8,10 +8,20 @@ logged (fmi2ExitInitializationMode itself returns fmi2OK) and every step
 after it returns fmi2Discard (do_step returns False) with the reason logged
 again; a step with a bad input (not finite, a step size that is not > 0, or tau_load
 beyond the emergency-stop class, 5x the rated torque, `rvfmu.core.limits`)
-returns fmi2Discard the same way (after which pythonfmu also answers
-fmi2GetBooleanStatus(fmi2Terminated) with true).  Above the momentary maximum
-class, 2.5x rated, the step is computed and a warning is logged once per
-instance.
+returns fmi2Discard the same way, and so does a step whose input angle moved
+faster than SPEED_FACTOR x the design's allowable output speed allows
+(`rvfmu.core.limits.check_speed`, on (theta_in - the last step's theta_in) /
+step size / ratio).  After a discarded step pythonfmu (0.7.0) answers
+fmi2GetBooleanStatus(fmi2Terminated) with true.  pythonfmu offers a Python
+slave nothing between fmi2Discard and fmi2Fatal (any exception, after which its
+instance must not even be freed) and forwards log messages only with logging
+on, so on Linux the FMU's binary wraps pythonfmu's (native/pythonfmu_guard.c,
+`rvfmu.fmu.build.guard_linux_binary`): a discarded step becomes fmi2Error and
+ends the simulation, as docs/model.md section 8 wants of an input no retry can
+make valid, and the errors and warnings logged here reach the host's logger
+whatever its logging.  Above the momentary maximum class, 2.5x rated, or above
+the allowable output speed, the step is computed and a warning is logged once
+per instance.
 
 The design, the error set and the quasi-static TE map are bundled in the
 FMU's resources at build time; the parameters `design_file` (a preset name or
@@ -36,7 +46,7 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from rvfmu.core.checks import InputError
 from rvfmu.core.design import load_design
 from rvfmu.core.errors import load_errors, zero_errors
-from rvfmu.core.limits import MOMENTARY_FACTOR, check_load
+from rvfmu.core.limits import MOMENTARY_FACTOR, check_load, check_speed
 from rvfmu.core.dynamic_reducer import DEFAULT_INTERNAL_STEP
 from rvfmu.core.reducers import MODELS
 from rvfmu.core.te_map import TEMap, build_te_map
@@ -85,6 +95,10 @@ class RVReducer(Fmi2Slave):
         self._failed = None
         self._rated_torque = self._momentary_torque = math.inf
         self._load_warned = False
+        self._design = None
+        self._last_theta_in = 0.0    # theta_in of the last step taken [rad]
+        self._allowed_angle_rate = math.inf   # input speed [rad/s] without a speed warning
+        self._speed_warned = False
 
         cont, par = Fmi2Variability.continuous, Fmi2Variability.fixed
         for name, text in (("theta_in", "input shaft (sun) angle [rad]"),
@@ -154,6 +168,7 @@ class RVReducer(Fmi2Slave):
             if message:
                 raise FmuInputError(message)
             self._show(self._reducer.initialize(0.0, self.theta_in, self.tau_load))
+            self._last_theta_in = self.theta_in
         except Exception as exc:  # noqa: BLE001
             # pythonfmu turns any exception into fmi2Fatal (the instance is then unusable),
             # so a failure is logged here and every step then returns fmi2Discard with it.
@@ -166,9 +181,13 @@ class RVReducer(Fmi2Slave):
             return False
         theta_in, tau_load = self.theta_in, self.tau_load
         if not (isfinite(theta_in) and step_size > 0.0
-                and abs(tau_load) <= self._momentary_torque):  # False for NaN: checked in full
+                and abs(tau_load) <= self._momentary_torque
+                and abs(theta_in - self._last_theta_in) <= self._allowed_angle_rate * step_size):
+            # False for NaN: checked in full
             message = (self._bad_inputs(theta_in, tau_load) if step_size > 0.0
                        else f"communication step size = {step_size}: must be a number > 0")
+            if not message:
+                message = self._bad_speed(theta_in, step_size)
             if message:
                 self._fail(message)
                 return False
@@ -178,17 +197,20 @@ class RVReducer(Fmi2Slave):
             self._fail(_describe(exc))
             return False
         self._show(out)
+        self._last_theta_in = theta_in
         return True
 
     # -- state ----------------------------------------------------------------------------
     def _get_fmu_state(self):
         state = super()._get_fmu_state()
         state["_reducer"] = None if self._reducer is None else self._reducer.get_state()
+        state["_last_theta_in"] = self._last_theta_in
         return state
 
     def _set_fmu_state(self, state):
         state = dict(state)
         reducer_state = state.pop("_reducer", None)
+        self._last_theta_in = state.pop("_last_theta_in", self._last_theta_in)
         super()._set_fmu_state(state)
         if reducer_state is not None and self._reducer is not None:
             self._reducer.set_state(reducer_state)
@@ -209,6 +231,20 @@ class RVReducer(Fmi2Slave):
             return f"input {exc}"
         if warning and not self._load_warned:
             self._load_warned = True
+            self.log(f"input {warning}", Fmi2Status.warning)
+        return None
+
+    def _bad_speed(self, theta_in, step_size):
+        """The message if the output speed the step implies is beyond the design's limit, or
+        None (a warning is logged once per instance above the allowable speed)."""
+        design = self._design
+        output_speed = (theta_in - self._last_theta_in) / step_size / design.ratio
+        try:
+            warning = check_speed("theta_in", theta_in, output_speed, design)
+        except InputError as exc:
+            return f"input {exc}"
+        if warning and not self._speed_warned:
+            self._speed_warned = True
             self.log(f"input {warning}", Fmi2Status.warning)
         return None
 
@@ -238,16 +274,19 @@ class RVReducer(Fmi2Slave):
                    and all(v == 1.0 for v in scales.values()) and (resources / BUNDLED_MAP).is_file())
         self._rated_torque = design.rated_torque
         self._momentary_torque = MOMENTARY_FACTOR * design.rated_torque
+        self._design = design
+        self._allowed_angle_rate = design.allowable_output_speed * design.ratio
+        scaled_design = _scaled(design, scales)
+        # the scaled errors are checked again: error_scale may carry them past the model's limits
+        scaled_errors = errors.scaled(scales["error_scale"]).check(scaled_design)
         if self.model == "dynamic":
-            return MODELS["dynamic"](_scaled(design, scales), errors.scaled(scales["error_scale"]),
-                                     internal_step=self.dynamic_step)
+            return MODELS["dynamic"](scaled_design, scaled_errors, internal_step=self.dynamic_step)
         if bundled:
             with np.load(resources / BUNDLED_MAP) as arrays:
                 te_map = TEMap.from_arrays(arrays)
         else:
             self.log("solving the quasi-static TE map for the changed parameters", Fmi2Status.ok)
-            te_map = build_te_map(_scaled(design, scales), errors.scaled(scales["error_scale"]),
-                                  points=self.map_points or None)
+            te_map = build_te_map(scaled_design, scaled_errors, points=self.map_points or None)
         return MODELS[self.model](te_map)
 
     def _show(self, outputs):

@@ -4,15 +4,20 @@
  * FMI 3.0 one (fmi3Functions.c) in instance.c: the variables, the inputs check,
  * the state and its bytes.
  *
- * Behaviour as the pythonfmu FMU's (rvfmu/fmu/slave.py, docs/model.md section 8):
- * nothing here aborts the host.  A table that cannot be read is fmi2Instantiate
- * returning NULL after logging why.  A step with an input that is not finite, a
- * step size that is not > 0 or a load beyond the emergency-stop class returns
- * fmi2Discard with the reason logged (status fmi2Error) and leaves the instance
- * as it was; beyond the momentary maximum class the step is computed and a
- * warning logged once per instance.  Initial inputs the model cannot take are
- * logged at fmi2ExitInitializationMode (which returns fmi2OK) and every later
- * step is discarded with the same message, until fmi2Reset.
+ * Behaviour (docs/model.md section 8): nothing here aborts or hangs the host.  A
+ * table that cannot be read is fmi2Instantiate returning NULL after logging why.
+ * A step with an input that is not finite, a step size that is not > 0, a load
+ * beyond the emergency-stop class or an input angle that moved faster than the
+ * speed limit allows returns fmi2Error with the reason logged, leaves the outputs
+ * as they were and ends the simulation: every later step returns fmi2Error with
+ * the same reason and fmi2GetBooleanStatus(fmi2Terminated) says true, until
+ * fmi2Reset.  Not fmi2Discard: no retry of the step can make such an input valid,
+ * and fmpy (0.3.32, simulation.py) retries a discarded step for ever unless
+ * fmi2Terminated is true, and then ends without raising (the host would not learn
+ * of it); on fmi2Error fmpy and libcosim stop with an error.  Above the momentary
+ * maximum class, or above the allowable output speed, the step is computed and a
+ * warning logged once per instance.  Initial inputs the model cannot take make
+ * fmi2ExitInitializationMode return fmi2Error, the same way.
  *
  * Logging: errors and warnings always reach the host's logger (it must learn why
  * a step was refused), unless the host switches their category off with
@@ -60,6 +65,13 @@ static void log_message(const Instance *instance, fmi2Status status, int categor
 }
 
 #define LOG_ERROR_(instance, ...) log_message(instance, fmi2Error, LOG_ERROR, __VA_ARGS__)
+
+/* The warnings of the last step or initialisation (a load, a speed), at status fmi2Warning. */
+static void log_warnings(Instance *instance) {
+    const char *warning;
+    while ((warning = core_next_warning(&instance->core)) != NULL)
+        log_message(instance, fmi2Warning, LOG_WARNING, "%s", warning);
+}
 
 /* -- the resource location ------------------------------------------------------------ */
 
@@ -196,13 +208,13 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Instance *instance = c;
-    char message[RV_MESSAGE_SIZE];
     InputCheck check;
     if (in_mode(instance, INITIALIZATION, "fmi2ExitInitializationMode") != fmi2OK) return fmi2Error;
-    check = core_exit_initialization(&instance->core, message, sizeof message);
-    if (check == INPUT_WARNING) log_message(instance, fmi2Warning, LOG_WARNING, "%s", message);
-    if (check == INPUT_REFUSED) LOG_ERROR_(instance, "%s", instance->core.failed);
-    return fmi2OK;   /* as the pythonfmu FMU: every later step is discarded with the reason */
+    check = core_exit_initialization(&instance->core);
+    log_warnings(instance);
+    if (check != INPUT_REFUSED) return fmi2OK;
+    LOG_ERROR_(instance, "%s", instance->core.failed);
+    return fmi2Error;   /* and every later step, with the same reason */
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
@@ -367,16 +379,14 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     Instance *instance = c;
-    char message[RV_MESSAGE_SIZE];
     InputCheck check;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (in_mode(instance, STEPPING, "fmi2DoStep") != fmi2OK) return fmi2Error;
-    check = core_step(&instance->core, currentCommunicationPoint, communicationStepSize, message,
-                      sizeof message);
-    if (check == INPUT_WARNING) log_message(instance, fmi2Warning, LOG_WARNING, "%s", message);
+    check = core_step(&instance->core, currentCommunicationPoint, communicationStepSize);
+    log_warnings(instance);
     if (check != INPUT_REFUSED) return fmi2OK;
-    LOG_ERROR_(instance, "%s", message);
-    return fmi2Discard;
+    LOG_ERROR_(instance, "%s", instance->core.failed);
+    return fmi2Error;   /* the simulation has ended (core_step): not a step to retry */
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {
@@ -420,8 +430,8 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
     Instance *instance = c;
     if (!instance) return fmi2Error;
     if (s == fmi2Terminated) {
-        /* a refused input leaves the instance usable; a failed initialisation does not */
-        *value = instance->core.failed[0] ? fmi2True : fmi2False;
+        /* a refused input, at initialisation or in a step, ends the simulation */
+        *value = core_terminated(&instance->core) ? fmi2True : fmi2False;
         return fmi2OK;
     }
     LOG_ERROR_(instance, "fmi2GetBooleanStatus: status kind %d not provided", (int)s);

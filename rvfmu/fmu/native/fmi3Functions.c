@@ -5,13 +5,15 @@
  * bytes), so that this FMU behaves as the FMI 2.0 one: the same outputs, the
  * same refusals with the same log text.  A table that cannot be read is
  * fmi3InstantiateCoSimulation returning NULL after logging why.  A step with an
- * input that is not finite, a step size that is not > 0 or a load beyond the
- * emergency-stop class returns fmi3Discard with the reason logged (status
- * fmi3Error) and leaves the instance as it was; beyond the momentary maximum
- * class the step is computed and a warning logged once per instance.  Initial
- * inputs the model cannot take are logged at fmi3ExitInitializationMode (which
- * returns fmi3OK) and every later step is discarded with the same message (and
- * terminateSimulation set), until fmi3Reset.
+ * input that is not finite, a step size that is not > 0, a load beyond the
+ * emergency-stop class or an input angle that moved faster than the speed limit
+ * allows returns fmi3Error with the reason logged and terminateSimulation set,
+ * leaves the outputs as they were and ends the simulation: every later step
+ * returns fmi3Error with the same reason, until fmi3Reset (no retry could make
+ * such an input valid: fmi3Discard would invite one).  Above the momentary maximum
+ * class, or above the allowable output speed, the step is computed and a warning
+ * logged once per instance.  Initial inputs the model cannot take make
+ * fmi3ExitInitializationMode return fmi3Error, the same way.
  *
  * Co-simulation only, without event mode, clocks, early return, intermediate
  * updates or derivatives: the functions of those return fmi3Error and say so
@@ -53,6 +55,13 @@ static void log_message(const Instance *instance, fmi3Status status, int categor
 }
 
 #define LOG_ERROR_(instance, ...) log_message(instance, fmi3Error, LOG_ERROR, __VA_ARGS__)
+
+/* The warnings of the last step or initialisation (a load, a speed), at status fmi3Warning. */
+static void log_warnings(Instance *instance) {
+    const char *warning;
+    while ((warning = core_next_warning(&instance->core)) != NULL)
+        log_message(instance, fmi3Warning, LOG_WARNING, "%s", warning);
+}
 
 /* The table's path: FMI 3.0 gives the resources folder as a native path ending in a separator
  * (one is added where a host leaves it out).  0 on success. */
@@ -183,13 +192,13 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefi
 
 fmi3Status fmi3ExitInitializationMode(fmi3Instance c) {
     Instance *instance = c;
-    char message[RV_MESSAGE_SIZE];
     InputCheck check;
     if (in_mode(instance, INITIALIZATION, "fmi3ExitInitializationMode") != fmi3OK) return fmi3Error;
-    check = core_exit_initialization(&instance->core, message, sizeof message);
-    if (check == INPUT_WARNING) log_message(instance, fmi3Warning, LOG_WARNING, "%s", message);
-    if (check == INPUT_REFUSED) LOG_ERROR_(instance, "%s", instance->core.failed);
-    return fmi3OK;   /* as the FMI 2.0 FMU: every later step is discarded with the reason */
+    check = core_exit_initialization(&instance->core);
+    log_warnings(instance);
+    if (check != INPUT_REFUSED) return fmi3OK;
+    LOG_ERROR_(instance, "%s", instance->core.failed);
+    return fmi3Error;   /* as the FMI 2.0 FMU: and every later step, with the same reason */
 }
 
 fmi3Status fmi3Terminate(fmi3Instance c) {
@@ -402,23 +411,22 @@ fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 currentCommunicationPoint,
                       fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation,
                       fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
     Instance *instance = c;
-    char message[RV_MESSAGE_SIZE];
     InputCheck check;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (in_mode(instance, STEPPING, "fmi3DoStep") != fmi3OK) return fmi3Error;
-    check = core_step(&instance->core, currentCommunicationPoint, communicationStepSize, message,
-                      sizeof message);
+    check = core_step(&instance->core, currentCommunicationPoint, communicationStepSize);
     if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
     if (earlyReturn) *earlyReturn = fmi3False;
-    /* a refused input leaves the instance usable; a failed initialisation does not */
-    if (terminateSimulation) *terminateSimulation = instance->core.failed[0] ? fmi3True : fmi3False;
+    /* a refused input, at initialisation or in a step, ends the simulation */
+    if (terminateSimulation)
+        *terminateSimulation = core_terminated(&instance->core) ? fmi3True : fmi3False;
     if (lastSuccessfulTime)
         *lastSuccessfulTime = check == INPUT_REFUSED ? currentCommunicationPoint
                                                      : instance->core.state.reducer.time;
-    if (check == INPUT_WARNING) log_message(instance, fmi3Warning, LOG_WARNING, "%s", message);
+    log_warnings(instance);
     if (check != INPUT_REFUSED) return fmi3OK;
-    LOG_ERROR_(instance, "%s", message);
-    return fmi3Discard;
+    LOG_ERROR_(instance, "%s", instance->core.failed);
+    return fmi3Error;   /* not fmi3Discard: no retry can make the input valid */
 }
 
 /* -- not provided (modelDescription.xml declares none of these capabilities) ---------- */

@@ -16,7 +16,7 @@ typedef struct {
 void core_reset(Core *core) {
     memset(&core->state, 0, sizeof core->state);
     core->state.mode = INSTANTIATED;
-    core->load_warned = 0;
+    core->load_warned = core->speed_warned = core->warnings = core->logged = 0;
     core->failed[0] = '\0';
 }
 
@@ -47,44 +47,58 @@ State *core_copy_state(const State *state, void *into) {
     return copy;
 }
 
-/* The inputs (and the step size if check_step) checked; a load above the momentary class is
- * INPUT_WARNING the first time only: the host hears of it once per instance. */
-static InputCheck check_inputs(Core *core, int check_step, double step_size, char *message,
-                               size_t size) {
-    State *s = &core->state;
-    InputCheck check = reducer_check_inputs(&core->map, s->theta_in, s->tau_load, check_step,
-                                            step_size, message, size);
-    if (check == INPUT_WARNING) {
-        if (core->load_warned) return INPUT_OK;
-        core->load_warned = 1;
-    }
-    return check;
+/* Keep a warning for the layer to log, if this instance has not logged its kind before. */
+static void warn(Core *core, int *warned, const char *message) {
+    if (*warned || core->warnings >= WARNINGS) return;
+    *warned = 1;
+    snprintf(core->warning[core->warnings++], RV_MESSAGE_SIZE, "%s", message);
 }
 
-InputCheck core_exit_initialization(Core *core, char *message, size_t size) {
+/* The inputs (and, if check_step, the step size and the speed it implies) checked: INPUT_REFUSED
+ * with the reason in `core->failed`, else the warnings kept (each kind once per instance). */
+static InputCheck check_inputs(Core *core, int check_step, double step_size, const char *prefix) {
+    char message[RV_MESSAGE_SIZE];
     State *s = &core->state;
-    InputCheck check = check_inputs(core, 0, 0.0, message, size);
+    InputCheck load = reducer_check_inputs(&core->map, s->theta_in, s->tau_load, check_step,
+                                           step_size, message, sizeof message), speed = INPUT_OK;
+    core->warnings = core->logged = 0;
+    if (load == INPUT_WARNING) warn(core, &core->load_warned, message);
+    if (load != INPUT_REFUSED && check_step) {
+        speed = reducer_check_speed(&core->map, &s->reducer, s->theta_in, step_size, message,
+                                    sizeof message);
+        if (speed == INPUT_WARNING) warn(core, &core->speed_warned, message);
+    }
+    if (load != INPUT_REFUSED && speed != INPUT_REFUSED) return INPUT_OK;
+    core->warnings = 0;   /* the step is not taken: nothing of it to warn of */
+    snprintf(core->failed, sizeof core->failed, "%s%s", prefix, message);
+    return INPUT_REFUSED;
+}
+
+InputCheck core_exit_initialization(Core *core) {
+    State *s = &core->state;
+    InputCheck check = check_inputs(core, 0, 0.0, "initialisation failed: ");
     s->mode = STEPPING;
-    /* as the pythonfmu FMU: logged here, then every step is refused with the reason */
-    if (check == INPUT_REFUSED)
-        snprintf(core->failed, sizeof core->failed, "initialisation failed: %s", message);
-    else
+    if (check != INPUT_REFUSED)
         reducer_initialize(&s->reducer, &core->map, s->reducer.time, s->theta_in, s->tau_load);
     return check;
 }
 
-InputCheck core_step(Core *core, double time, double step_size, char *message, size_t size) {
+InputCheck core_step(Core *core, double time, double step_size) {
     State *s = &core->state;
     InputCheck check;
-    if (core->failed[0]) {
-        snprintf(message, size, "%s", core->failed);
-        return INPUT_REFUSED;
-    }
-    check = check_inputs(core, 1, step_size, message, size);
+    core->warnings = core->logged = 0;
+    if (core->failed[0]) return INPUT_REFUSED;
+    check = check_inputs(core, 1, step_size, "");
     if (check != INPUT_REFUSED)
         reducer_step(&s->reducer, &core->map, time, step_size, s->theta_in, s->tau_load);
     return check;
 }
+
+const char *core_next_warning(Core *core) {
+    return core->logged < core->warnings ? core->warning[core->logged++] : NULL;
+}
+
+int core_terminated(const Core *core) { return core->failed[0] != '\0'; }
 
 void core_update_initial_unknowns(Core *core) {
     char ignored[RV_MESSAGE_SIZE];

@@ -38,13 +38,18 @@ typedef struct {
     Reducer reducer;             /* outputs, and the time and angles of the last step */
 } State;
 
+enum { WARNINGS = 2 };   /* a step can warn of its load and of its speed */
+
 /* One instance's model: its table, its state, what it has logged and refused. */
 typedef struct {
     TEMap map;
     State state;
     int logging[CATEGORIES];             /* which categories reach the host's logger */
     int load_warned;                     /* the momentary-class warning was logged */
-    char failed[RV_MESSAGE_SIZE + 32];   /* why initialisation failed; empty if it did not */
+    int speed_warned;                    /* the allowable-speed warning was logged */
+    int warnings, logged;                /* warnings of the last call; those handed out */
+    char warning[WARNINGS][RV_MESSAGE_SIZE];
+    char failed[RV_MESSAGE_SIZE + 32];   /* why the simulation ended; empty while it goes on */
 } Core;
 
 /* Back to the start values, the table kept. */
@@ -58,15 +63,25 @@ long core_set_logging(Core *core, int on, size_t n, const char *const categories
  * host holds); NULL if out of memory. */
 State *core_copy_state(const State *state, void *into);
 
-/* Leave initialisation mode: the outputs from the initial inputs.  INPUT_WARNING: a load above
- * the momentary class, `message` to log as a warning; INPUT_REFUSED: inputs the model cannot
- * take, `core->failed` to log as an error, and every later step is refused until core_reset. */
-InputCheck core_exit_initialization(Core *core, char *message, size_t size);
+/* Leave initialisation mode: the outputs from the initial inputs.  INPUT_REFUSED: inputs the
+ * model cannot take, `core->failed` to log as an error, and every later step is refused until
+ * core_reset.  Otherwise the outputs are set and any warning waits in core_next_warning. */
+InputCheck core_exit_initialization(Core *core);
 
 /* One step from `time` [s] of `step_size` [s] with the inputs set.  INPUT_REFUSED: not taken
- * (the state unchanged), the reason in `message` for an error and a discard; INPUT_WARNING:
- * taken, `message` to log as a warning (once per instance); INPUT_OK: taken. */
-InputCheck core_step(Core *core, double time, double step_size, char *message, size_t size);
+ * (the state unchanged), the reason in `core->failed`; the simulation has ended: no retry can
+ * make a NaN, an infinite value, a load or a speed beyond the design's limits or a step size
+ * that is not > 0 valid, so every later step is refused with the same reason until core_reset
+ * (a host that retried a refused step would otherwise loop for ever).  Otherwise taken, and
+ * any warning (a load above the momentary class, a speed above the allowable one: each once
+ * per instance) waits in core_next_warning. */
+InputCheck core_step(Core *core, double time, double step_size);
+
+/* The next warning of the last call to log (then forgotten), or NULL. */
+const char *core_next_warning(Core *core);
+
+/* Whether the simulation has ended (a refused input): fmi2Terminated, terminateSimulation. */
+int core_terminated(const Core *core);
 
 /* In initialisation mode, the outputs follow the inputs (they are initial unknowns). */
 void core_update_initial_unknowns(Core *core);

@@ -15,7 +15,7 @@
  *
  *   offset               type              field
  *   0                    char[8]           magic "RVTEMAP\0"
- *   8                    uint32            format version, 2
+ *   8                    uint32            format version, 3
  *   12                   uint32            A, angle points over one output revolution (>= 2)
  *   16                   uint32            T, torque levels (>= 2)
  *   20                   uint32            K, speeds of the load-free friction (>= 2)
@@ -24,13 +24,19 @@
  *   40                   float64           momentary maximum class, x rated (> 0)
  *   48                   float64           emergency-stop class, x rated (>= the momentary)
  *   56                   float64           the friction law's speed scale [rad/s] (> 0)
- *   64                   float64[T]        torque magnitudes [N*m], ascending, the first 0
- *   64 + 8T              float64[2][T][A]  te [rad]; branch 0 resisting, 1 driving loads
- *   64 + 8T + 16TA       float64[2][T][A]  tau_in [N*m]
- *   64 + 8T + 32TA       float64[2][T][A]  the Coulomb friction torque at the output [N*m]
- *   64 + 8T + 48TA       float64[K]        output speeds [rad/s], ascending, the first 0
- *   64 + 8T + 48TA + 8K  float64[K]        the load-free friction torque at the output [N*m]
- *   64 + 8T + 48TA + 16K                   end of file
+ *   64                   float64           allowable output speed [rad/s] (> 0)
+ *   72                   float64           speed factor, x allowable: beyond, refused (>= 1)
+ *   80                   char[64]          the design's name, UTF-8, NUL-padded (a NUL in it)
+ *   144                  float64[T]        torque magnitudes [N*m], ascending, the first 0
+ *   144 + 8T             float64[2][T][A]  te [rad]; branch 0 resisting, 1 driving loads
+ *   144 + 8T + 16TA      float64[2][T][A]  tau_in [N*m]
+ *   144 + 8T + 32TA      float64[2][T][A]  the Coulomb friction torque at the output [N*m]
+ *   144 + 8T + 48TA      float64[K]        output speeds [rad/s], ascending, the first 0
+ *   144 + 8T + 48TA + 8K float64[K]        the load-free friction torque at the output [N*m]
+ *   144 + 8T + 48TA + 16K                  end of file
+ *
+ * Version 3 added the speed limit (64..143): a version 2 table is refused, since the FMU
+ * would then step any input speed without a word.
  */
 #ifdef __MINGW32__
 #define __USE_MINGW_ANSI_STDIO 1   /* C99 printf and strtod (two-digit exponents), not msvcrt's */
@@ -45,9 +51,10 @@
 
 #define PI 3.14159265358979323846
 #define ARCSEC_RAD (PI / 180.0 / 3600.0)   /* rvfmu.core.units.ARCSEC, same expression */
+#define RPM (2.0 * PI / 60.0)                /* rvfmu.core.units.RPM, same expression */
 
 static const char MAGIC[8] = {'R', 'V', 'T', 'E', 'M', 'A', 'P', '\0'};
-enum { FORMAT_VERSION = 2, HEADER_SIZE = 64 };
+enum { FORMAT_VERSION = 3, HEADER_SIZE = 144, NAME_OFFSET = 80, NAME_SIZE = 64 };
 
 /* -- reading the table ---------------------------------------------------------------- */
 
@@ -146,6 +153,9 @@ int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
     map->emergency_factor = read_f64(data + 48);
     map->speeds = (int)K;
     map->speed_scale = read_f64(data + 56);
+    map->allowable_speed = read_f64(data + 64);
+    map->speed_factor = read_f64(data + 72);
+    memcpy(map->design, data + NAME_OFFSET, NAME_SIZE);
     for (k = 0, p = data + HEADER_SIZE; k < count; k++, p += 8) values[k] = read_f64(p);
     free(data);
     map->magnitude = values;
@@ -158,8 +168,13 @@ int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
     if (!(isfinite(map->ratio) && map->ratio > 0 && isfinite(map->rated_torque)
           && map->rated_torque > 0 && isfinite(map->momentary_factor) && map->momentary_factor > 0
           && isfinite(map->emergency_factor) && map->emergency_factor >= map->momentary_factor
-          && isfinite(map->speed_scale) && map->speed_scale > 0))
-        strcpy(reason, "ratio, rated torque, load classes and speed scale must be finite and > 0");
+          && isfinite(map->speed_scale) && map->speed_scale > 0
+          && isfinite(map->allowable_speed) && map->allowable_speed > 0
+          && isfinite(map->speed_factor) && map->speed_factor >= 1.0))
+        strcpy(reason, "ratio, rated torque, load classes, speed scale and allowable speed must "
+               "be finite and > 0, the speed factor >= 1");
+    else if (memchr(map->design, '\0', sizeof map->design) == NULL)
+        strcpy(reason, "the design's name must end in a NUL within its 64 bytes");
     else if (!all_finite(values, count))
         strcpy(reason, "non-finite values in the torque levels, te, tau_in or the friction");
     else if (map->magnitude[0] != 0.0 || map->drag_speed[0] != 0.0)
@@ -354,6 +369,31 @@ InputCheck reducer_check_inputs(const TEMap *map, double theta_in, double tau_lo
                  "the momentary maximum class (%g x): the small-displacement model is stretched; "
                  "treat the results with care", tau_load, ratio, map->rated_torque,
                  map->momentary_factor);
+        return INPUT_WARNING;
+    }
+    return INPUT_OK;
+}
+
+/* limits.check_speed, for the output speed the step implies: the same tests and the same texts
+ * (the slave's `input ` prefix, the value shown is theta_in's). */
+InputCheck reducer_check_speed(const TEMap *map, const Reducer *reducer, double theta_in,
+                               double step_size, char *message, size_t size) {
+    char value[40];
+    double output_speed = (theta_in - reducer->theta_in) / step_size / map->ratio;
+    double speed = fabs(output_speed), ratio = speed / map->allowable_speed;
+    double limit_rpm = map->speed_factor * map->allowable_speed / RPM;
+    format_number(theta_in, value, sizeof value);
+    if (!(ratio <= map->speed_factor)) {   /* NaN too: an angle step of inf - inf */
+        snprintf(message, size, "input theta_in = %s: is an output speed of %.4g rpm: must be "
+                 "within %g x the allowable output speed %g rpm of %s (%g rpm out, %.6g rpm in)",
+                 value, speed / RPM, map->speed_factor, map->allowable_speed / RPM, map->design,
+                 limit_rpm, limit_rpm * map->ratio);
+        return INPUT_REFUSED;
+    }
+    if (ratio > 1.0) {
+        snprintf(message, size, "input theta_in = %s is an output speed of %.4g rpm, %.2g x the "
+                 "allowable output speed %g rpm of %s: no rating covers it; treat the results "
+                 "with care", value, speed / RPM, ratio, map->allowable_speed / RPM, map->design);
         return INPUT_WARNING;
     }
     return INPUT_OK;

@@ -31,6 +31,9 @@ typedef struct {
     double per_radian;         /* angle points per radian of input */
     int speeds;                /* K: speeds of the load-free friction */
     double speed_scale;        /* the friction law's speed scale [rad/s at the input] */
+    double allowable_speed;    /* the catalogue's allowable output speed [rad/s] */
+    double speed_factor;       /* x allowable: above, the step is refused; above 1 x, a warning */
+    char design[64];           /* the design's name, for the messages (NUL-terminated) */
     double *magnitude;         /* (T,) ascending torque magnitudes [N*m], the first 0 */
     double *te;                /* (2, T, A): branch 0 resisting loads, 1 driving loads [rad] */
     double *tau_in;            /* (2, T, A) [N*m] */
@@ -82,6 +85,13 @@ double te_arcsec(double te);
  * The reason goes to `message` (the texts of the pythonfmu FMU, rvfmu/fmu/slave.py). */
 InputCheck reducer_check_inputs(const TEMap *map, double theta_in, double tau_load, int check_step,
                                 double step_size, char *message, size_t size);
+
+/* Whether the output speed a step implies, (theta_in - the last step's theta_in) / step_size /
+ * ratio [rad/s], is one the model can take (rvfmu.core.limits.check_speed): INPUT_REFUSED beyond
+ * speed_factor x the allowable output speed, INPUT_WARNING above it.  Finite inputs and a step
+ * size > 0 (reducer_check_inputs passed them).  The reason goes to `message`. */
+InputCheck reducer_check_speed(const TEMap *map, const Reducer *reducer, double theta_in,
+                               double step_size, char *message, size_t size);
 
 /* Python's repr() of a float (shortest text that reads back the same, "0.0", "nan", "-inf"). */
 void format_number(double value, char *text, size_t size);
