@@ -151,34 +151,66 @@ def test_fmpy_stops_with_an_error_on_every_input_no_retry_can_make_valid(native,
         assert result["seconds"] < HOST_LIMIT / 2
 
 
-def test_a_speed_above_the_allowable_one_is_computed_with_one_warning(native, python_fmu, design):
-    """1.5 x the allowable output speed for 0.1 s: every row computed, status OK, one warning
-    naming theta_in, the speed and the limit, in the three FMUs (and both pythonfmu models)."""
-    output_speed = 1.5 * design.allowable_output_speed
-    t = np.arange(0, 0.1005, STEP)
-    signal = np.zeros(t.size, dtype=[("time", float), ("theta_in", float), ("tau_load", float)])
-    signal["time"], signal["theta_in"], signal["tau_load"] = t, output_speed * design.ratio * t, 0.0
-    runs = [(native[2], {}), (native[3], {}), (python_fmu, {}),
-            (python_fmu, {"model": "dynamic"})]
-    for fmu, start_values in runs:
-        log = []
-        result = simulate_fmu(str(fmu), stop_time=0.1, output_interval=STEP, step_size=STEP,
-                              input=signal, start_values=start_values,   # default logging
+SPEED_HOST = r'''
+"""fmpy's simulate_fmu over 0.1 s at a constant input speed [rad/s], at fmpy's default logging,
+once per set of start values; prints, per run, the rows' times, theta_in and omega_out and
+what the FMU logged."""
+import json, sys
+import numpy as np
+from fmpy import simulate_fmu
+
+fmu, speed, runs = sys.argv[1], float(sys.argv[2]), json.loads(sys.argv[3])
+t = np.arange(0, 0.1005, 0.001)
+signal = np.zeros(t.size, dtype=[("time", float), ("theta_in", float), ("tau_load", float)])
+signal["time"], signal["theta_in"], signal["tau_load"] = t, speed * t, 0.0
+out = []
+for start_values in runs:
+    log = []
+    try:
+        result = simulate_fmu(fmu, stop_time=0.1, output_interval=0.001, step_size=0.001,
+                              input=signal, start_values=start_values,
                               output=["theta_in", "omega_out"],
-                              logger=lambda *args: log.append((int(args[-3]), args[-1].decode())))
-        assert result["time"][-1] == pytest.approx(0.1)
-        # row k holds the input applied at (k - 1) ms: the first move is from row 1 to row 2
-        warning = speed_message(design, result["theta_in"][1], result["theta_in"][2])
-        assert warning.startswith("input theta_in = 1.33046") and warning.endswith(
-            " is an output speed of 105 rpm, 1.5 x the allowable output speed 70 rpm of "
-            "RV-40E-121: no rating covers it; treat the results with care"), warning
-        warnings = [message for status, message in log if status == 1]
-        assert warnings == [warning], (fmu, start_values)
-        assert not [message for status, message in log if status > 1]
-        moving = result["omega_out"][52:] if start_values else result["omega_out"][2:]
-        np.testing.assert_allclose(moving.mean(), output_speed, rtol=0.01)
-        if not start_values:                                  # quasi-static: every step
-            np.testing.assert_allclose(moving, output_speed, rtol=0.01)
+                              logger=lambda *args: log.append((int(args[-3]),
+                                                               args[-1].decode())))
+    except Exception:
+        print(json.dumps([start_values, log]), file=sys.stderr)
+        raise
+    out.append({name: result[name].tolist() for name in ("time", "theta_in", "omega_out")}
+               | {"log": log})
+print(json.dumps(out))
+'''
+
+
+def test_a_speed_above_the_allowable_one_is_computed_with_one_warning(native, python_fmu, design,
+                                                                       tmp_path):
+    """1.5 x the allowable output speed for 0.1 s: every row computed, status OK, one warning
+    naming theta_in, the speed and the limit, in the three FMUs (and both pythonfmu models).
+    In a host process of its own: fmpy keeps the logger of the last simulate_fmu in one global
+    of its logging library, which every later default-logging instance of the process calls."""
+    output_speed = 1.5 * design.allowable_output_speed
+    script = tmp_path / "speed_host.py"
+    script.write_text(SPEED_HOST)
+    runs = [(native[2], [{}]), (native[3], [{}]), (python_fmu, [{}, {"model": "dynamic"}])]
+    for fmu, start_values in runs:
+        done = subprocess.run([sys.executable, str(script), str(fmu),
+                               repr(output_speed * design.ratio), json.dumps(start_values)],
+                              capture_output=True, text=True, timeout=HOST_LIMIT)
+        assert done.returncode == 0, done.stderr[-3000:]
+        for values, result in zip(start_values, json.loads(done.stdout)):
+            assert result["time"][-1] == pytest.approx(0.1)
+            # row k holds the input applied at (k - 1) ms: the first move is from row 1 to row 2
+            warning = speed_message(design, result["theta_in"][1], result["theta_in"][2])
+            assert warning.startswith("input theta_in = 1.33046") and warning.endswith(
+                " is an output speed of 105 rpm, 1.5 x the allowable output speed 70 rpm of "
+                "RV-40E-121: no rating covers it; treat the results with care"), warning
+            warnings = [message for status, message in result["log"] if status == 1]
+            assert warnings == [warning], (fmu, values)
+            assert not [message for status, message in result["log"] if status > 1]
+            omega = np.array(result["omega_out"])
+            moving = omega[52:] if values else omega[2:]
+            np.testing.assert_allclose(moving.mean(), output_speed, rtol=0.01)
+            if not values:                                  # quasi-static: every step
+                np.testing.assert_allclose(moving, output_speed, rtol=0.01)
 
 
 # -- libcosim ---------------------------------------------------------------------------------
@@ -282,7 +314,7 @@ def test_the_c_hosts_see_every_refusal_end_the_simulation(native, design, versio
 
 def test_the_fmu_sources_compile_without_warnings(native, python_fmu, tmp_path):
     """The native FMUs' sources/, and the guard the pythonfmu FMU's Linux binary is (which
-    links pythonfmu's library, carried beside it)."""
+    opens pythonfmu's library, carried beside it, by its path)."""
     with zipfile.ZipFile(python_fmu) as archive:
         names = set(archive.namelist())
     assert {"binaries/linux64/RVReducer.so", f"binaries/linux64/{PYTHONFMU_LIBRARY}",
@@ -300,6 +332,43 @@ def test_the_fmu_sources_compile_without_warnings(native, python_fmu, tmp_path):
                                    str(sources / name), "-o", str(tmp_path / f"{version}{name}.o")],
                                   capture_output=True, text=True)
             assert done.returncode == 0 and done.stderr == "", (version, name, done.stderr)
+
+
+TWO_FMUS_HOST = r'''
+"""Two pythonfmu FMUs, one after the other, in one process: fmpy deletes the first one's
+folder after its run; the second must run on its own copy of pythonfmu's library."""
+import sys
+import numpy as np
+from fmpy import simulate_fmu
+
+t = np.arange(0, 0.0205, 0.001)
+signal = np.zeros(t.size, dtype=[("time", float), ("theta_in", float), ("tau_load", float)])
+signal["time"], signal["theta_in"], signal["tau_load"] = t, 100.0 * t, -100.0
+for fmu in sys.argv[1:]:
+    print(len(simulate_fmu(fmu, stop_time=0.02, output_interval=0.001, step_size=0.001,
+                           input=signal)))
+signal["tau_load"][10:] = np.nan
+try:
+    simulate_fmu(sys.argv[-1], stop_time=0.02, output_interval=0.001, step_size=0.001,
+                 input=signal)
+except Exception as exc:
+    print(exc)
+'''
+
+
+def test_two_pythonfmu_fmus_in_one_process_each_run_their_own_library(python_fmu, design,
+                                                                        tmp_path):
+    """A second FMU's guard once took the first one's pythonfmu library (the dynamic loader
+    matched it by its soname), whose folder fmpy had deleted: the host crashed on the second
+    FMU's first log message."""
+    other = fmu_build(design, None, tmp_path / "Other.fmu", points=POINTS)
+    script = tmp_path / "two_fmus.py"
+    script.write_text(TWO_FMUS_HOST)
+    done = subprocess.run([sys.executable, str(script), str(python_fmu), str(other)],
+                          capture_output=True, text=True, timeout=HOST_LIMIT)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.splitlines() == ["21", "21", "[ERROR] input tau_load = nan: must be finite",
+                                        "fmi2DoStep failed with status 3 (error)."]
 
 
 # -- the table carries the speed limit ----------------------------------------------------------

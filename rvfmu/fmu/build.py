@@ -59,7 +59,7 @@ VARIABLE_UNITS = {
 DEFAULT_STOP_TIME = 1.0
 DEFAULT_STEP = 1e-3
 GUARD_SOURCE = PACKAGE / "fmu" / "native" / "pythonfmu_guard.c"
-PYTHONFMU_LIBRARY = "libpythonfmu-export.so"   # pythonfmu's Linux library, by its soname
+PYTHONFMU_LIBRARY = "libpythonfmu-export.so"   # pythonfmu's Linux library, beside the guard
 
 
 def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Path = "RVReducer.fmu",
@@ -124,18 +124,12 @@ def guard_linux_binary(fmu: Path) -> bool:
     if len(binaries) != 1:
         raise RuntimeError(f"{fmu}: expected one library in binaries/linux64/, found {binaries}")
     library = entries[binaries[0]]
-    # the guard is linked to it by its soname: a pythonfmu that renamed it needs this updated
-    if PYTHONFMU_LIBRARY.encode() + b"\0" not in library:
-        raise RuntimeError(f"pythonfmu's library does not have the soname {PYTHONFMU_LIBRARY}: "
-                           "update rvfmu.fmu.build.PYTHONFMU_LIBRARY")
     with tempfile.TemporaryDirectory(prefix="rvte_guard_") as tmp:
-        tmp = Path(tmp)
-        (tmp / PYTHONFMU_LIBRARY).write_bytes(library)
-        guard = tmp / "guard.so"
+        guard = Path(tmp) / "guard.so"
+        # the guard opens pythonfmu's library by its path at run time (native/pythonfmu_guard.c)
         command = [compiler, "-std=c99", "-O2", "-shared", "-fPIC",
                    f"-I{Path(fmpy.__file__).parent / 'c-code'}", str(GUARD_SOURCE), "-o",
-                   str(guard), f"-L{tmp}", "-Wl,--no-as-needed", f"-l:{PYTHONFMU_LIBRARY}",
-                   "-Wl,-rpath,$ORIGIN", "-lpthread"]
+                   str(guard), f'-DPYTHONFMU_LIBRARY="{PYTHONFMU_LIBRARY}"', "-ldl", "-lpthread"]
         done = subprocess.run(command, capture_output=True, text=True)
         if done.returncode != 0:
             raise RuntimeError(f"compiling the FMU's guard failed: {' '.join(command)}\n"

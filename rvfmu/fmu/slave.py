@@ -35,6 +35,7 @@ subclass (the deepest one in the class hierarchy: keep it the only one).
 """
 
 import math
+import sys
 import traceback
 from math import isfinite
 from pathlib import Path
@@ -94,11 +95,10 @@ class RVReducer(Fmi2Slave):
         self._reducer = None
         self._failed = None
         self._rated_torque = self._momentary_torque = math.inf
-        self._load_warned = False
+        self._warned = set()          # the inputs whose limit warning was logged
         self._design = None
         self._last_theta_in = 0.0    # theta_in of the last step taken [rad]
         self._allowed_angle_rate = math.inf   # input speed [rad/s] without a speed warning
-        self._speed_warned = False
 
         cont, par = Fmi2Variability.continuous, Fmi2Variability.fixed
         for name, text in (("theta_in", "input shaft (sun) angle [rad]"),
@@ -225,26 +225,26 @@ class RVReducer(Fmi2Slave):
         for name, value in (("theta_in", theta_in), ("tau_load", tau_load)):
             if not isfinite(value):
                 return f"input {name} = {value}: must be finite"
-        try:
-            warning = check_load("tau_load", tau_load, self._rated_torque)
-        except InputError as exc:
-            return f"input {exc}"
-        if warning and not self._load_warned:
-            self._load_warned = True
-            self.log(f"input {warning}", Fmi2Status.warning)
-        return None
+        return self._limited("tau_load", lambda: check_load("tau_load", tau_load,
+                                                             self._rated_torque))
 
     def _bad_speed(self, theta_in, step_size):
         """The message if the output speed the step implies is beyond the design's limit, or
         None (a warning is logged once per instance above the allowable speed)."""
         design = self._design
         output_speed = (theta_in - self._last_theta_in) / step_size / design.ratio
+        return self._limited("theta_in", lambda: check_speed("theta_in", theta_in, output_speed,
+                                                              design))
+
+    def _limited(self, name, check):
+        """The message if `check()` (a rvfmu.core.limits check of input `name`) refuses the
+        input, or None; the warning it returns is logged once per instance and input."""
         try:
-            warning = check_speed("theta_in", theta_in, output_speed, design)
+            warning = check()
         except InputError as exc:
             return f"input {exc}"
-        if warning and not self._speed_warned:
-            self._speed_warned = True
+        if warning and name not in self._warned:
+            self._warned.add(name)
             self.log(f"input {warning}", Fmi2Status.warning)
         return None
 
@@ -254,6 +254,7 @@ class RVReducer(Fmi2Slave):
         if not (math.isfinite(self.dynamic_step) and self.dynamic_step > 0):
             raise FmuInputError(f"dynamic_step = {self.dynamic_step}: must be a finite number > 0")
         resources = Path(self.resources) if self.resources else Path(".")
+        _search_resources_first(resources)
         design = load_design(self.design_file or resources / BUNDLED_DESIGN)
         if self.errors_file:
             errors = load_errors(self.errors_file, design)
@@ -301,6 +302,22 @@ class RVReducer(Fmi2Slave):
     def _fail(self, message):
         self._failed = message
         self.log(message, Fmi2Status.error)
+
+
+def _search_resources_first(resources: Path) -> None:
+    """Make every rvfmu package already imported look for its modules in this instance's
+    resources first.
+
+    A host may run the FMU again in the same process after deleting the folder of its first
+    run (fmpy's simulate_fmu does): the rvfmu packages imported then still search that folder,
+    and a module the first run did not import (the dynamic model's, after a quasi-static run)
+    was not found.
+    """
+    for name, module in list(sys.modules.items()):
+        if (name == "rvfmu" or name.startswith("rvfmu.")) and hasattr(module, "__path__"):
+            folder = str(resources.joinpath(*name.split(".")))
+            if Path(folder).is_dir() and folder not in module.__path__:
+                module.__path__.insert(0, folder)
 
 
 def _scaled(design, scales):

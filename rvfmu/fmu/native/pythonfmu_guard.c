@@ -8,9 +8,12 @@
  * fmpy run early without a word: fmpy (0.3.32) stops on a discarded step with fmi2Terminated
  * true without raising, and nothing is logged at its default logging.  docs/model.md section 8
  * wants the host to fail and to learn why, as the native FMU does it.  So this library is the
- * FMU's binaries/linux64/RVReducer.so, linked to pythonfmu's library beside it
- * (libpythonfmu-export.so, found through $ORIGIN); the host's dlsym finds every fmi2 function
- * of pythonfmu's there, except these:
+ * FMU's binaries/linux64/RVReducer.so, with pythonfmu's library beside it
+ * (libpythonfmu-export.so).  It opens that library by its full path (never by its soname:
+ * a process that ran another pythonfmu FMU before, whose folder a host such as fmpy has
+ * deleted since, holds a library of that soname, and the dynamic loader would hand this
+ * FMU that one, with the other FMU's state) and passes every fmi2 function on to it, except
+ * these:
  *
  *   fmi2Instantiate      pythonfmu's instance always logs, to this library's logger, which
  *                        passes warnings and errors to the host's logger whatever the host's
@@ -30,9 +33,10 @@
  * threads); pythonfmu's component is the host's handle, unchanged.  POSIX only: on Windows the
  * FMU carries pythonfmu's own DLL.
  */
-#define _GNU_SOURCE   /* RTLD_NEXT */
+#define _GNU_SOURCE   /* dladdr */
 #include <dlfcn.h>
 #include <pthread.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -68,8 +72,46 @@ static Guard *find(fmi2Component c) {
     return g;
 }
 
-/* pythonfmu's function `name` (the next definition after this library's). */
-static void *real(const char *name) { return dlsym(RTLD_NEXT, name); }
+/* pythonfmu's library: PYTHONFMU_LIBRARY in this library's folder (the build names it,
+ * rvfmu/fmu/build.py), opened once. */
+#ifndef PYTHONFMU_LIBRARY
+#define PYTHONFMU_LIBRARY "libpythonfmu-export.so"
+#endif
+static void *library = NULL;
+static char library_error[MESSAGE_SIZE] = "";
+static pthread_once_t library_once = PTHREAD_ONCE_INIT;
+
+static void open_library(void) {
+    Dl_info self;
+    char path[4096];
+    char *slash;
+    const char *why;
+    if (!dladdr((void *)&open_library, &self) || !self.dli_fname
+        || strlen(self.dli_fname) + sizeof PYTHONFMU_LIBRARY >= sizeof path) {
+        strcpy(library_error, "the FMU's library cannot find its own folder");
+        return;
+    }
+    strcpy(path, self.dli_fname);
+    slash = strrchr(path, '/');
+    strcpy(slash ? slash + 1 : path, PYTHONFMU_LIBRARY);
+    library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!library) {
+        why = dlerror();
+        snprintf(library_error, sizeof library_error, "cannot load pythonfmu's library: %s",
+                 why ? why : path);
+    }
+}
+
+__attribute__((destructor)) static void close_library(void) {
+    if (library) dlclose(library);
+    library = NULL;
+}
+
+/* pythonfmu's function `name`, or NULL. */
+static void *real(const char *name) {
+    pthread_once(&library_once, open_library);
+    return library ? dlsym(library, name) : NULL;
+}
 
 static int category_of(fmi2Status status) {
     switch (status) {
@@ -115,7 +157,15 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                               fmi2Boolean loggingOn) {
     fmi2InstantiateTYPE *instantiate = (fmi2InstantiateTYPE *)real("fmi2Instantiate");
     Guard *g;
-    if (!instantiate || !functions || !(g = calloc(1, sizeof *g))) return NULL;
+    if (!functions) return NULL;
+    if (!instantiate) {
+        if (functions->logger)
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Fatal,
+                              CATEGORY_NAMES[LOG_FATAL], "%s",
+                              library_error[0] ? library_error : "no fmi2Instantiate");
+        return NULL;
+    }
+    if (!(g = calloc(1, sizeof *g))) return NULL;
     g->host = *functions;
     g->mine = *functions;
     strncpy(g->name, instanceName ? instanceName : "", sizeof g->name - 1);
@@ -218,3 +268,71 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
     *value = g->ended[0] ? fmi2True : fmi2False;
     return fmi2OK;
 }
+
+/* Every other function of the FMI 2.0 co-simulation interface, passed on as it is. */
+#define FORWARD(name, params, args)                        \
+    fmi2Status name params {                               \
+        name##TYPE *f = (name##TYPE *)real(#name);         \
+        return f ? f args : fmi2Error;                     \
+    }
+
+const char *fmi2GetTypesPlatform(void) {
+    fmi2GetTypesPlatformTYPE *f = (fmi2GetTypesPlatformTYPE *)real("fmi2GetTypesPlatform");
+    return f ? f() : fmi2TypesPlatform;
+}
+
+const char *fmi2GetVersion(void) {
+    fmi2GetVersionTYPE *f = (fmi2GetVersionTYPE *)real("fmi2GetVersion");
+    return f ? f() : fmi2Version;
+}
+
+FORWARD(fmi2SetupExperiment, (fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                              fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime),
+        (c, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime))
+FORWARD(fmi2EnterInitializationMode, (fmi2Component c), (c))
+FORWARD(fmi2ExitInitializationMode, (fmi2Component c), (c))
+FORWARD(fmi2Terminate, (fmi2Component c), (c))
+FORWARD(fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                      fmi2Real value[]), (c, vr, nvr, value))
+FORWARD(fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                         fmi2Integer value[]), (c, vr, nvr, value))
+FORWARD(fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                         fmi2Boolean value[]), (c, vr, nvr, value))
+FORWARD(fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                        fmi2String value[]), (c, vr, nvr, value))
+FORWARD(fmi2SetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                      const fmi2Real value[]), (c, vr, nvr, value))
+FORWARD(fmi2SetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                         const fmi2Integer value[]), (c, vr, nvr, value))
+FORWARD(fmi2SetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                         const fmi2Boolean value[]), (c, vr, nvr, value))
+FORWARD(fmi2SetString, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                        const fmi2String value[]), (c, vr, nvr, value))
+FORWARD(fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate *state), (c, state))
+FORWARD(fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate state), (c, state))
+FORWARD(fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate *state), (c, state))
+FORWARD(fmi2SerializedFMUstateSize, (fmi2Component c, fmi2FMUstate state, size_t *size),
+        (c, state, size))
+FORWARD(fmi2SerializeFMUstate, (fmi2Component c, fmi2FMUstate state, fmi2Byte serialized[],
+                                size_t size), (c, state, serialized, size))
+FORWARD(fmi2DeSerializeFMUstate, (fmi2Component c, const fmi2Byte serialized[], size_t size,
+                                  fmi2FMUstate *state), (c, serialized, size, state))
+FORWARD(fmi2GetDirectionalDerivative, (fmi2Component c, const fmi2ValueReference unknown[],
+                                       size_t nUnknown, const fmi2ValueReference known[],
+                                       size_t nKnown, const fmi2Real dvKnown[],
+                                       fmi2Real dvUnknown[]),
+        (c, unknown, nUnknown, known, nKnown, dvKnown, dvUnknown))
+FORWARD(fmi2SetRealInputDerivatives, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                      const fmi2Integer order[], const fmi2Real value[]),
+        (c, vr, nvr, order, value))
+FORWARD(fmi2GetRealOutputDerivatives, (fmi2Component c, const fmi2ValueReference vr[],
+                                       size_t nvr, const fmi2Integer order[], fmi2Real value[]),
+        (c, vr, nvr, order, value))
+FORWARD(fmi2CancelStep, (fmi2Component c), (c))
+FORWARD(fmi2GetStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Status *value), (c, s, value))
+FORWARD(fmi2GetRealStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Real *value),
+        (c, s, value))
+FORWARD(fmi2GetIntegerStatus, (fmi2Component c, const fmi2StatusKind s, fmi2Integer *value),
+        (c, s, value))
+FORWARD(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind s, fmi2String *value),
+        (c, s, value))
