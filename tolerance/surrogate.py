@@ -32,7 +32,9 @@ class Chaos:
 
     Orthonormal Legendre polynomials (the basis of the uniform measure on
     [-1, 1]), total degree `degree`, terms chosen by LARS with the corrected
-    leave-one-out error.  `metamodel` is OpenTURNS's own evaluation (for checks).
+    leave-one-out error.  `metamodel` is OpenTURNS's own evaluation (for checks);
+    `loo_error` the corrected leave-one-out error of the kept terms relative to the
+    variance of y (Blatman & Sudret 2011, J. Comput. Phys. 230), so that Q2 = 1 - loo_error.
     """
 
     def __init__(self, X: np.ndarray, y: np.ndarray, degree: int = DEGREE):
@@ -53,6 +55,8 @@ class Chaos:
         self.alpha = np.array([list(enumerate_(int(i))) for i in result.getIndices()], dtype=int)
         self.coefficients = np.asarray(result.getCoefficients())[:, 0]
         self.metamodel = result.getMetaModel()
+        # LARS keeps the step of least error: the kept basis is the minimum of the history
+        self.loo_error = float(min(result.getErrorHistory()))
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         """Values at X (n, d) in [-1, 1]: (n,)."""
