@@ -20,12 +20,7 @@ from rvfmu.core.limits import SPEED_FACTOR
 from rvfmu.core.units import RPM
 from rvfmu.jobs.efficiency import EfficiencyReport
 from rvfmu.jobs.hysteresis import HysteresisReport
-
-
-def run_cli(args, capsys):
-    code = cli.main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return code, out, err
+from test_hardening import run_cli
 
 
 def one_line_error(code, out, err, command):

@@ -10,20 +10,15 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from rvfmu import api, cli
+from rvfmu import api
 from rvfmu.core import simulation
 from rvfmu.core.checks import InputError
 from rvfmu.core.excitations import (MIN_PERIODS, RESOLUTION_BINS, Excitations, amplitude_at,
                                     read_amplitudes, record_needed)
 from rvfmu.core.simulation import MAX_STEPS, Sampled, simulate
+from test_hardening import run_cli
 
 SEED002 = str(ROOT / "studies" / "seed002_errors.toml")
-
-
-def run_cli(args, capsys):
-    code = cli.main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture

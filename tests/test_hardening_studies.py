@@ -16,19 +16,13 @@ import psutil
 import pytest
 
 import tolerance
-from rvfmu import cli
 from rvfmu.core.checks import InputError
 from tolerance import run_mc, run_sobol, sobol
 from tolerance.study import load_study
 from tolerance_toy import write_study
+from test_hardening import run_cli
 
 CLI = [sys.executable, "-c", "import sys; from rvfmu.cli import main; sys.exit(main(sys.argv[1:]))"]
-
-
-def run_cli(args, capsys):
-    code = cli.main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def unit_problem(groups):
