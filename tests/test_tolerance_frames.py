@@ -256,7 +256,8 @@ def test_sobol_frame_is_long_ranked_and_matches_the_json(sobol):
     assert list(df.columns) == ["metric", "factor", "rank", "S1", "S1_conf", "ST", "ST_conf",
                                 "S1_reported", "ST_reported", "not_converged", "ci_wide",
                                 "S1_above_ST", "notes", "ranking_converged", "ST_above_next",
-                                "ST_above_next_conf", "order_settled"]
+                                "ST_above_next_conf", "order_settled", "method", "check_q2"]
+    assert set(df["method"]) == {"saltelli"} and df["check_q2"].isna().all()
     groups = list(result.study.groups)
     assert len(df) == 2 * len(groups)
     assert pd.api.types.is_string_dtype(df["metric"]) and pd.api.types.is_string_dtype(df["factor"])

@@ -112,7 +112,7 @@ def _sobol(args):
     result = run_sobol(args.study, args.n, second_order=True if args.second_order else None,
                        output=args.output, processes=args.processes, workers=args.workers,
                        scheduler=args.scheduler, progress=None, plots=not args.no_plots, log=_log,
-                       yes=args.yes)
+                       yes=args.yes, method=args.method)
     _show(result, args.json)
 
 
@@ -173,6 +173,10 @@ def add_study_commands(subparsers) -> None:
                    "[sobol] n); the model runs n*(G+2) times for G Sobol groups")
     p.add_argument("--second-order", action="store_true", help="also second-order indices "
                    "(n*(2G+2) runs)")
+    p.add_argument("--method", help="saltelli (every reducer of the design solved, the "
+                   "reference) or linearized (the TE curve linearized in the errors: 2A+1 "
+                   "solves for A error components, checked on solved reducers; for loaded "
+                   "studies); default: the study's [sobol] method, else saltelli")
     p.set_defaults(run=_sobol)
 
     p = subparsers.add_parser("report", help="one self-contained HTML report (and a Markdown "

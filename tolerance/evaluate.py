@@ -20,6 +20,7 @@ section 9).  The friction metrics run only if the study asks for them.
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,6 +29,7 @@ from rvfmu.core.errors import ErrorSet
 from rvfmu.core.friction import operating_losses
 from rvfmu.core.quasistatic import te_curve, windup
 
+from .error_rows import ErrorRows
 from .sampling import errors_from_unit
 
 UNITS = {"te_pp": "arcsec", "rms": "arcsec", "order": "arcsec", "lost_motion": "arcmin",
@@ -58,54 +60,105 @@ def metric_column(name: str) -> str:
     return f"{name}_{unit}" if unit else name
 
 
-def evaluate(study, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def evaluate(study, X) -> tuple[np.ndarray, np.ndarray]:
     """Metrics of the reducers of rows X (S, D) in [0, 1).
 
     Returns Y (S, M) in the units of `metric_column` for the study's metrics,
     in order, and converged (S,) bool (the equilibrium converged at every
     angle).  A reducer whose solve fails outright gives NaN and False.
+    X may instead be `ErrorRows` (reducers by their error vectors): Y is then
+    the model's outputs, (S, C) in the columns of `output_columns`.
     """
-    X = np.asarray(X, dtype=float)
-    errors = errors_from_unit(study, X)
+    if isinstance(X, ErrorRows):
+        errors, width, of = X.errors(), sum(map(len, output_columns(study))), _output_values
+    else:
+        X = np.asarray(X, dtype=float)
+        errors, width, of = errors_from_unit(study, X), len(study.metrics), _metrics
     try:
-        return _metrics(study, errors)
+        return of(study, errors)
     except np.linalg.LinAlgError:
         # One singular reducer must not cost the batch: solve the reducers one by one.
-        Y = np.full((X.shape[0], len(study.metrics)), np.nan)
-        converged = np.zeros(X.shape[0], dtype=bool)
-        for s in range(X.shape[0]):
+        Y = np.full((errors.samples, width), np.nan)
+        converged = np.zeros(errors.samples, dtype=bool)
+        for s in range(errors.samples):
             try:
-                Y[s], converged[s] = (a[0] for a in _metrics(study, errors.take([s])))
+                Y[s], converged[s] = (a[0] for a in of(study, errors.take([s])))
             except np.linalg.LinAlgError:
                 pass
         return Y, converged
 
 
+def output_columns(study) -> tuple[tuple, tuple]:
+    """(TE columns te_00000 ..., scalar kinds) of the outputs the study's metrics are read
+    from (`Outputs`): the curve at the study's points if a metric needs it, the windup pair
+    and the friction pair if one of each is asked for."""
+    kinds = {metric_kind(m) for m in study.metrics}
+    te = tuple(f"te_{k:05d}" for k in range(study.points)) \
+        if kinds - set(WINDUP_METRICS + FRICTION_METRICS) else ()
+    return te, tuple(k for group in (WINDUP_METRICS, FRICTION_METRICS) if kinds & set(group)
+                     for k in group)
+
+
+def _output_values(study, errors: ErrorSet):
+    """(S, C) the outputs in `output_columns`' order, and converged (S,)."""
+    out = outputs(study, errors)
+    te_columns, kinds = output_columns(study)
+    parts = ([out.te_arcsec] if te_columns else []) + [out.scalars[k][:, None] for k in kinds]
+    return np.hstack(parts), out.converged
+
+
 def _metrics(study, errors: ErrorSet):
+    out = outputs(study, errors)
+    return metrics_from(study, out.te_arcsec, out.scalars), out.converged
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """What the model gives for S reducers before the metrics are read off: te_arcsec (S, K)
+    the TE curve at the study's K points (None if no metric needs it), scalars {metric
+    kind: (S,)} the windup and friction metrics, converged (S,) bool."""
+
+    te_arcsec: np.ndarray | None
+    scalars: dict
+    converged: np.ndarray
+
+
+def outputs(study, errors: ErrorSet) -> Outputs:
+    """The TE curve and the scalar metrics of the reducers `errors` (`Outputs`)."""
     design = study.design
-    columns = {}
+    scalars = {}
+    te = None
     converged = np.ones(errors.samples, dtype=bool)
-    needs_curve = any(metric_kind(m) not in WINDUP_METRICS + FRICTION_METRICS for m in study.metrics)
-    if needs_curve:
+    if any(metric_kind(m) not in WINDUP_METRICS + FRICTION_METRICS for m in study.metrics):
         curve = te_curve(design, errors, tau_load=-study.load_Nm, points=study.points)
         te = curve.te_arcsec
         converged &= curve.converged
-        columns["te_pp"] = metrics.te_pp(te)
-        columns["rms"] = metrics.te_rms(te)
     if any(metric_kind(m) in WINDUP_METRICS for m in study.metrics):
         wind = windup(design, errors, positions=study.windup_positions)
         converged &= wind.converged
-        columns["lost_motion"] = wind.lost_motion_arcmin()
-        columns["torsional_rigidity"] = wind.torsional_rigidity_Nm_per_arcmin()
+        scalars["lost_motion"] = wind.lost_motion_arcmin()
+        scalars["torsional_rigidity"] = wind.torsional_rigidity_Nm_per_arcmin()
     if any(metric_kind(m) in FRICTION_METRICS for m in study.metrics):
         efficiency, running, ok = operating_losses(design, errors, study.load_Nm,
                                                    study.output_speed_rpm)
         converged &= ok
-        columns["efficiency"], columns["no_load_running_torque"] = efficiency, running
-    Y = np.empty((errors.samples, len(study.metrics)))
+        scalars["efficiency"], scalars["no_load_running_torque"] = efficiency, running
+    return Outputs(te, scalars, converged)
+
+
+def metrics_from(study, te_arcsec, scalars: dict) -> np.ndarray:
+    """Y (S, M) of the study's metrics from TE curves (S, K) and scalar outputs {kind: (S,)}:
+    the same columns as `evaluate`."""
+    S = te_arcsec.shape[0] if te_arcsec is not None else len(next(iter(scalars.values())))
+    Y = np.empty((S, len(study.metrics)))
     for j, name in enumerate(study.metrics):
-        if metric_kind(name) == "order":
-            Y[:, j] = metrics.amplitude_at_order(te, metric_order(name))
+        kind = metric_kind(name)
+        if kind == "order":
+            Y[:, j] = metrics.amplitude_at_order(te_arcsec, metric_order(name))
+        elif kind == "te_pp":
+            Y[:, j] = metrics.te_pp(te_arcsec)
+        elif kind == "rms":
+            Y[:, j] = metrics.te_rms(te_arcsec)
         else:
-            Y[:, j] = columns[name]
-    return Y, converged
+            Y[:, j] = scalars[kind]
+    return Y

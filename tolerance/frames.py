@@ -261,7 +261,8 @@ def sobol_frame(analyses: dict) -> pd.DataFrame:
     and the order over the next rank (`sobol.Indices.order`): ST_above_next (the ST
     difference), ST_above_next_conf (the half-width of its bootstrap interval),
     order_settled (that interval excludes 0); NaN and False on the last rank and where the
-    indices carry no resamples.
+    indices carry no resamples; method ("saltelli" or "linearized") and check_q2 (the
+    linearization's check on the metric, `tolerance.linearized`; NaN where none ran).
     """
     parts = []
     for column, result in analyses.items():
@@ -283,7 +284,9 @@ def sobol_frame(analyses: dict) -> pd.DataFrame:
             "S1_above_ST": ind.S1_above_ST[order],
             "notes": ["; ".join(notes[g]) for g in order],
             "ranking_converged": bool(result.convergence.converged),
-            "ST_above_next": above, "ST_above_next_conf": above_conf, "order_settled": settled}))
+            "ST_above_next": above, "ST_above_next_conf": above_conf, "order_settled": settled,
+            "method": result.method,
+            "check_q2": np.nan if result.check_q2 is None else float(result.check_q2)}))
     return pd.concat(parts, ignore_index=True)
 
 

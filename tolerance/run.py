@@ -19,7 +19,7 @@ import shutil
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,11 +29,12 @@ from rvfmu.core.errors import error_file_values, toml_text
 from rvfmu.core.quasistatic import TECurve, te_curve
 from rvfmu.outputs import output_folder
 
-from . import aliasing, frames, montecarlo, sobol, summaries
+from . import aliasing, frames, linearized, montecarlo, sobol, summaries
 from .backends import make_backend
+from .error_rows import ErrorRows
 from .sampling import errors_from_unit
 from .store import BatchResult, JobStore, open_output
-from .study import Study, flag, load_study, sobol_base_samples
+from .study import Study, check_sobol_method, flag, load_study, sobol_base_samples
 
 
 @dataclass(frozen=True)
@@ -139,14 +140,17 @@ def size_text(size: float) -> str:
 
 def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: bool | None = False,
             log=None, output: Path | None = None, yes: bool = False,
-            size_field: tuple[str, int] | None = None, prefix_jobs=()) -> Computed:
+            size_field: tuple[str, int] | None = None, prefix_jobs=(),
+            columns: tuple | None = None, like=None) -> Computed:
     """Metrics of rows [0, n_rows) of `job`, reusing the batches already in the output folder.
 
     rows(start, stop) -> (stop - start, D) sample rows.  Batches are the
     study's batch_size rows each, at fixed boundaries.  prefix_jobs: (job,
     rows) of other jobs whose first `rows` rows are the first rows of this
     one's (Sobol' runs at other n): their finished batches are checked against
-    this job's rows and copied in, not recomputed.  The first missing
+    this job's rows and copied in, not recomputed.  like: rows are error vectors
+    (`error_rows.ErrorRows` of this one-reducer ErrorSet's layout), and the job stores the
+    model's outputs in `columns` instead of the metrics.  The first missing
     batch is computed and timed before the others: a run estimated above a day,
     or above the free disk, stops there with an InputError on `size_field`
     (name, value) unless `yes`.  log(str) gets the estimate and the summary.
@@ -154,6 +158,9 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
     backend = backend or make_backend()
     folder = open_output(study, output)
     store = JobStore(folder, study, job)
+    if columns is not None:
+        store.columns = tuple(columns)
+    task = (lambda X: X) if like is None else (lambda X: ErrorRows(X, like))
     B = study.batch_size
     n_batches = -(-n_rows // B)
     done = store.load(n_rows, rows)
@@ -169,8 +176,8 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
         with backend:
             first = next(gaps)
             clock = time.perf_counter()
-            for (s, e), X, Y, conv in backend.map(study, iter([(first, rows(*first))])):
-                written = store.write(s, e, X, Y, conv)
+            for (s, e), X, Y, conv in backend.map(study, iter([(first, task(rows(*first)))])):
+                written = store.write(s, e, _raw(X), Y, conv)
                 done[(s, e)] = BatchResult(s, e, Y, conv)
             _stop_if_asked()
             plan = RunPlan(job, n_rows, n_batches, missing, B, backend.workers, backend.describe(),
@@ -186,9 +193,9 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
             try:
                 if bar is not None:
                     bar.update(first[1] - first[0])
-                tasks = ((b, rows(*b)) for b in gaps)
+                tasks = ((b, task(rows(*b))) for b in gaps)
                 for (s, e), X, Y, conv in backend.map(study, tasks):
-                    store.write(s, e, X, Y, conv)
+                    store.write(s, e, _raw(X), Y, conv)
                     done[(s, e)] = BatchResult(s, e, Y, conv)
                     if bar is not None:
                         bar.update(e - s)
@@ -207,6 +214,11 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
     if log is not None:
         log(result.summary(job))
     return result
+
+
+def _raw(X) -> np.ndarray:
+    """The array of a batch's rows: sample rows, or the error vectors of `ErrorRows`."""
+    return X.vectors if isinstance(X, ErrorRows) else X
 
 
 def _stop_if_asked() -> None:
@@ -373,11 +385,14 @@ class SobolResult:
     computed: Computed
     aliasing: aliasing.AliasingCheck | None = None
     files: dict = field(default_factory=dict)
+    method: str = "saltelli"
+    check: linearized.Check | None = None
 
     def table(self) -> str:
         text = summaries.sobol_table(self.study, self.analyses, self.n, self.Y.shape[0],
                                   self.second_order)
-        return "\n".join([text, *self.aliasing.lines()]) if self.aliasing else text
+        lines = [text, *(self.check.lines() if self.check is not None else ())]
+        return "\n".join([*lines, *(self.aliasing.lines() if self.aliasing else ())])
 
     def to_df(self, second_order: bool = False):
         """The indices as a long pandas DataFrame, one row per (metric, factor), each metric's
@@ -395,6 +410,9 @@ class SobolResult:
     def to_json(self) -> dict:
         return summaries.sobol_json(self.study, self.analyses, self.n, self.Y.shape[0],
                                  self.second_order, {
+                                     "method": self.method,
+                                     "linearized_check": None if self.check is None
+                                     else self.check.to_json(),
                                      "aliasing": None if self.aliasing is None
                                      else self.aliasing.to_json(),
                                      "output": str(self.study.output),
@@ -427,21 +445,29 @@ def other_sobol_jobs(problem: dict, n: int, second_order: bool) -> list:
 def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = None, output=None,
               processes: int | None = None, workers: int | None = None,
               scheduler: str | None = None, progress: bool | None = False, plots: bool = True,
-              log=None, yes: bool = False) -> SobolResult:
+              log=None, yes: bool = False, method: str | None = None,
+              solved_n: int | None = None) -> SobolResult:
     """Sobol indices of every metric of a study file over its tolerance factors.
 
-    n: base samples (a power of 2; default the study's [sobol] n); the model
-    runs n * (G + 2) times, or n * (2G + 2) with second_order, G Sobol groups
-    (one per factor unless factors share a `group`).  An n whose sample matrix
-    would not fit in memory is refused, `yes` or not.  Backends, the cost
-    estimate, `yes`, `log` and the aliasing check as for `run_mc`.  Writes
-    sobol_indices.json and sobol_ranking.txt, and with `plots` sobol_bars.png and
-    sobol_convergence.png, to the output folder.
+    n: base samples (a power of 2; default the study's [sobol] n); with
+    method "saltelli" (the reference) the model runs n * (G + 2) times, or
+    n * (2G + 2) with second_order, G Sobol groups (one per factor unless
+    factors share a `group`).  With method "linearized" it runs 2A + 1 times
+    for the study's A error components plus Saltelli's design of `solved_n` base samples (default the study's
+    [sobol] solved_n), which corrects and checks it; the design of n is
+    evaluated on it, and a metric whose check fails gets its indices from the
+    whole design solved (`tolerance.linearized`).  Default: the study's
+    [sobol] method.  An n whose sample matrix would not fit in memory is
+    refused, `yes` or not.
+    Backends, the cost estimate, `yes`, `log` and the aliasing check as for
+    `run_mc`.  Writes sobol_indices.json and sobol_ranking.txt, and with
+    `plots` sobol_bars.png and sobol_convergence.png, to the output folder.
     """
     progress, plots, yes = _flags(progress, plots, yes)
     second_order = flag("second_order", second_order, none=True)
     study = _load(study_path, output)
     n = study.sobol_n if n is None else sobol_base_samples("n", n)
+    method = study.sobol_method if method is None else check_sobol_method("method", method)
     second_order = study.second_order if second_order is None else second_order
     backend = make_backend(processes, workers, scheduler)   # its options checked before any work
     _warn_load(study, log)
@@ -449,25 +475,54 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     _check_sample_memory(problem, n, second_order)
     X = sobol.sample(problem, n, second_order, seed=study.seed)
     job = sobol_job(n, second_order)
-    computed = compute(study, job, X.shape[0], lambda s, e: X[s:e], backend, progress, log,
-                       yes=yes, size_field=("n", n),
-                       prefix_jobs=other_sobol_jobs(problem, n, second_order))
-    bad = np.flatnonzero(~np.all(np.isfinite(computed.Y), axis=1))
-    if bad.size:
-        raise RuntimeError(f"the model failed on {bad.size} of {X.shape[0]} Sobol rows (first: row "
-                           f"{bad[0]}); Sobol indices need every row: check the tolerances")
-    analyses = sobol.analyze(problem, computed.Y, study.metric_columns, second_order,
-                             study.resamples, study.sobol_confidence, study.seed)
-    check_rows = min(X.shape[0], aliasing.CHECK_ROWS)
-    alias = aliasing.check(study, X[:check_rows], computed.Y[:check_rows],
-                           Path(study.output) / job)
+    analyses, check = {}, None
+    if method == "linearized":
+        start = time.perf_counter()
+        linear = linearized.linearize(study, backend, progress, log, yes)
+        m = min(study.sobol_solved_n if solved_n is None else sobol_base_samples("solved_n", solved_n), n)
+        rows_m = m * sobol.rows_per_base_sample(problem, second_order)
+        solved = compute(study, sobol_job(m, second_order), rows_m, lambda s, e: X[s:e], backend,
+                         progress, log, yes=yes, prefix_jobs=other_sobol_jobs(problem, m, second_order))
+        Y = linear.predict(study, X)
+        pairs = linearized.independent_rows(problem, rows_m, second_order)
+        check = linearized.check(study, solved.Y[pairs], Y[pairs], linear.solves)
+        for j, (column, q2) in enumerate(zip(study.metric_columns, check.q2)):
+            if q2 >= linearized.Q2_MIN:
+                final = linearized.corrected_indices(problem, Y[:, j], solved.Y[:, j], second_order,
+                                                     study.resamples, study.sobol_confidence,
+                                                     study.seed)
+                conv = sobol.convergence(problem, Y[:, j], second_order, study.resamples,
+                                         study.sobol_confidence, study.seed)
+                analyses[column] = sobol.SobolAnalysis(column, final, conv, "linearized", float(q2))
+        computed = Computed(Y, np.ones(Y.shape[0], dtype=bool), solved.batches, solved.reused,
+                            solved.computed, linear.solves + solved.computed_rows,
+                            time.perf_counter() - start, solved.backend, study.batch_size)
+        alias_rows = (X[:aliasing.CHECK_ROWS], solved.Y[:aliasing.CHECK_ROWS],
+                      Path(study.output) / sobol_job(m, second_order))
+    if len(analyses) < len(study.metric_columns):
+        computed = compute(study, job, X.shape[0], lambda s, e: X[s:e], backend, progress, log,
+                           yes=yes, size_field=("n", n),
+                           prefix_jobs=other_sobol_jobs(problem, n, second_order))
+        bad = np.flatnonzero(~np.all(np.isfinite(computed.Y), axis=1))
+        if bad.size:
+            raise RuntimeError(f"the model failed on {bad.size} of {X.shape[0]} Sobol rows (first: "
+                               f"row {bad[0]}); Sobol indices need every row: check the tolerances")
+        solved_analyses = sobol.analyze(problem, computed.Y, study.metric_columns, second_order,
+                                        study.resamples, study.sobol_confidence, study.seed)
+        q2 = dict(zip(study.metric_columns, check.q2)) if check is not None else {}
+        analyses = {column: analyses.get(column) or replace(result, check_q2=q2.get(column))
+                    for column, result in solved_analyses.items()}
+        check_rows = min(X.shape[0], aliasing.CHECK_ROWS)
+        alias_rows = (X[:check_rows], computed.Y[:check_rows], Path(study.output) / job)
+    alias = aliasing.check(study, *alias_rows)
     folder = Path(study.output)
     files = {"indices": folder / "sobol_indices.json", "ranking": folder / "sobol_ranking.txt"}
     if plots:
         files["bars"] = summaries.plot_sobol(study, analyses, folder / "sobol_bars.png")
         files["convergence"] = summaries.plot_convergence(study, analyses,
                                                        folder / "sobol_convergence.png")
-    result = SobolResult(study, n, second_order, X, computed.Y, analyses, computed, alias, files)
+    result = SobolResult(study, n, second_order, X, computed.Y, analyses, computed, alias, files,
+                         method, check)
     files["ranking"].write_text(result.table() + "\n")
     summaries.write_json(files["indices"], result.to_json())
     return result
@@ -505,8 +560,6 @@ def _warn_load(study: Study, log) -> None:
 def _load(study_path, output) -> Study:
     """The study (a file or a Study), with `output` as its folder if given; the folder checked."""
     if isinstance(study_path, Study):
-        from dataclasses import replace
-
         study = study_path if output is None else replace(study_path, output=Path(output))
     elif isinstance(study_path, (str, Path)):
         study = load_study(study_path, output)

@@ -114,7 +114,8 @@ class Indices:
     bootstrap intervals at `confidence`; S2, S2_conf: (G, G) upper triangles
     (NaN elsewhere) or None.  constant: the output did not vary (all zero).
     ST_resamples: (R, G) ST over each of SALib's R bootstrap resamples, the same
-    base samples for every group, or None (indices read back from a file).
+    base samples for every group, or None (indices read back from a file); S1_resamples
+    the same of S1.
     whole_input: the only group holds every variable: S1 = ST = 1 exactly (G = 1).
     """
 
@@ -130,6 +131,7 @@ class Indices:
     constant: bool = False
     ST_resamples: np.ndarray | None = None
     whole_input: bool = False
+    S1_resamples: np.ndarray | None = None
 
     @property
     def S1_reported(self) -> np.ndarray:
@@ -268,7 +270,8 @@ def indices(problem: dict, y: np.ndarray, second_order: bool = False, resamples:
     return Indices(names, n, np.asarray(si["S1"], dtype=float), np.asarray(si["S1_conf"], dtype=float),
                    np.asarray(si["ST"], dtype=float), np.asarray(si["ST_conf"], dtype=float),
                    S2, S2_conf, confidence,
-                   ST_resamples=np.asarray(si["ST_conf_all"], dtype=float).reshape(resamples, G))
+                   ST_resamples=np.asarray(si["ST_conf_all"], dtype=float).reshape(resamples, G),
+                   S1_resamples=np.asarray(si["S1_conf_all"], dtype=float).reshape(resamples, G))
 
 
 @dataclass(frozen=True)
@@ -312,6 +315,8 @@ class SobolAnalysis:
     column: str
     indices: Indices
     convergence: Convergence
+    method: str = "saltelli"            # or "linearized" (tolerance/linearized.py)
+    check_q2: float | None = None       # the linearization's check on this metric, if it ran
 
 
 def analyze(problem: dict, Y: np.ndarray, columns, second_order: bool = False,

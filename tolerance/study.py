@@ -25,7 +25,9 @@ arcsec) and names every tolerance by its error name:
     te_pp_arcsec = 60.0
 
     [montecarlo]                   # n: reducers; confidence: of the yield interval
-    [sobol]                        # n: base samples (power of 2); second_order; resamples; confidence
+    [sobol]                        # n: base samples (power of 2); second_order; resamples; confidence;
+                                   # method: "saltelli" (default) or "linearized" (loaded studies),
+                                   # solved_n: its solved base samples (default 64)
 
     [tolerances.crank_cam_eccentricity]
     position_um = 9.0              # diameter of the true-position zone
@@ -78,7 +80,7 @@ SECTIONS = {
     "operating": ("load_Nm", "points", "windup_positions", "output_speed_rpm"),
     "spec": None,  # keys: metric columns
     "montecarlo": ("n", "confidence"),
-    "sobol": ("n", "second_order", "resamples", "confidence"),
+    "sobol": ("n", "second_order", "resamples", "confidence", "method", "solved_n"),
     "tolerances": None,  # keys: error names
 }
 FACTOR_KEYS = ("distribution", "group", "cost")
@@ -200,6 +202,8 @@ class Study:
     second_order: bool = False
     resamples: int = 200
     sobol_confidence: float = 0.95
+    sobol_method: str = "saltelli"
+    sobol_solved_n: int = 64
     path: Path | None = field(default=None, compare=False)
     text: str = field(default="", compare=False, repr=False)
 
@@ -241,6 +245,8 @@ class Study:
         integer("montecarlo.n", self.mc_n, 1, where=where)
         sobol_base_samples("sobol.n", self.sobol_n, where)
         integer("sobol.resamples", self.resamples, 10, where=where)
+        check_sobol_method("sobol.method", self.sobol_method, where)
+        sobol_base_samples("sobol.solved_n", self.sobol_solved_n, where)
         for key, value in (("montecarlo.confidence", self.mc_confidence),
                            ("sobol.confidence", self.sobol_confidence)):
             if not 0.0 < finite_number(key, value, where) < 1.0:
@@ -328,6 +334,19 @@ class Study:
         """sha256 of `inputs()` (canonical JSON)."""
         text = json.dumps(self.inputs(), sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()
+
+
+SOBOL_METHODS = ("saltelli", "linearized")
+
+
+def check_sobol_method(field_name: str, method, where: str = "") -> str:
+    """A Sobol method's name, checked: "saltelli" (the reference: every reducer of Saltelli's
+    design solved) or "linearized" (the TE curve linearized in the errors,
+    `tolerance.linearized`)."""
+    if method not in SOBOL_METHODS:
+        raise InputError(field_name, method, "must be one of " + ", ".join(
+            f'"{m}"' for m in SOBOL_METHODS), where)
+    return method
 
 
 def sobol_base_samples(field_name: str, n, where: str = "") -> int:
@@ -441,6 +460,8 @@ def study_from_values(values: dict, path: Path, text: str = "", output=None) -> 
         second_order=_bool("sobol.second_order", sections["sobol"].get("second_order", False), where),
         resamples=integer("sobol.resamples", sections["sobol"].get("resamples", 200), 10, where=where),
         sobol_confidence=sections["sobol"].get("confidence", 0.95),
+        sobol_method=sections["sobol"].get("method", "saltelli"),
+        sobol_solved_n=sections["sobol"].get("solved_n", 64),
         path=path, text=text,
     )
 
@@ -492,6 +513,8 @@ def study_from_store(folder: Path, name: str, inputs: dict, study_text: str = ""
             second_order=sections["sobol"].get("second_order", False),
             resamples=sections["sobol"].get("resamples", 200),
             sobol_confidence=sections["sobol"].get("confidence", 0.95),
+            sobol_method=sections["sobol"].get("method", "saltelli"),
+            sobol_solved_n=sections["sobol"].get("solved_n", 64),
             path=folder / "study.toml", text=study_text)
     except (KeyError, TypeError) as exc:
         raise InputError("inputs.json", str(folder / "inputs.json"), f"lacks {exc} or holds a "
@@ -576,4 +599,4 @@ def _beside(study_path: Path, name: str) -> Path:
 
 
 __all__ = ["Factor", "SpecLimit", "Study", "load_study", "study_from_values", "study_from_store",
-           "model_fingerprint", "sobol_base_samples", "flag"]
+           "model_fingerprint", "sobol_base_samples", "check_sobol_method", "flag"]

@@ -199,7 +199,9 @@ def sobol_table(study, analyses: dict, n: int, evaluations: int, second_order: b
         ind, conv = result.indices, result.convergence
         conf = f"{100 * ind.confidence:g} %"
         lines.append("")
-        lines.append(f"{column}  (S1, ST with {conf} bootstrap CI, {study.resamples} resamples)")
+        lines.append(f"{column}  (S1, ST with {conf} bootstrap CI, {study.resamples} resamples)"
+                     + ("; Saltelli's design evaluated on the TE linearized in the errors, "
+                        f"check Q2 = {result.check_q2:.4f}" if result.method == "linearized" else ""))
         if ind.constant:
             lines.append("  the metric did not vary over the sample: every index is 0")
             continue
@@ -257,6 +259,8 @@ def sobol_json(study, analyses: dict, n: int, evaluations: int, second_order: bo
                   for g, name in enumerate(ind.names)]
         groups.sort(key=lambda item: item["rank"])
         entry = {"constant": ind.constant, "groups": groups, "order_groups": ind.order_groups(),
+                 "method": result.method, "check_q2": _num(result.check_q2)
+                 if result.check_q2 is not None else None,
                  "convergence": {"n": list(conv.n),
                                  "ST": {name: [_num(v) for v in conv.ST[:, g]]
                                         for g, name in enumerate(ind.names)},
