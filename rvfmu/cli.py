@@ -17,8 +17,13 @@ import re
 import sys
 from importlib import metadata
 
-from . import api
 from .core.checks import InputError
+
+try:
+    from . import api
+except InputError as exc:   # a bad RVTE_LAWS, met as the core loads (rvfmu/core/compiled.py)
+    print(f"rvte: error: {exc}", file=sys.stderr)
+    raise SystemExit(2) from None
 from .progress import ProgressBar
 
 COMMAND_GROUP = "rvte.commands"

@@ -10,6 +10,12 @@ functions it calls: newton_kernel's iteration, which inlines pin_law's `contact`
 keep the old contact after pin_law.py changed.  So the cache of this folder is one unit:
 `SOURCES_STAMP` holds the digest of every source file here, and when that digest changes
 every cached kernel of the folder goes before any is loaded.
+
+RVTE_LAWS=newton selects the reference forms of the pins' and the roller bearings' laws,
+inverted by Newton's method (`pin_law.contact_newton`, `roller_law.roller_law_newton`),
+where the default ("direct") takes their forms without an inner iteration.  The choice is
+made once, at import, because numba freezes a kernel's callees when it compiles it; kernels
+compiled under it are not cached, so that the cache only ever holds the default forms.
 """
 
 from __future__ import annotations
@@ -56,6 +62,18 @@ def _drop_stale_cache():
         pass
 
 
+def _law_forms() -> bool:
+    """Whether RVTE_LAWS asks for the Newton-inverted reference laws."""
+    forms = os.environ.get("RVTE_LAWS", "direct")
+    if forms not in ("direct", "newton"):
+        from .checks import InputError
+
+        raise InputError("RVTE_LAWS", forms, "must be 'direct' (the default) or 'newton'",
+                         "environment")
+    return forms == "newton"
+
+
+NEWTON_LAWS = _law_forms()
 _NUMBA = _numba()
 COMPILED = _NUMBA is not None
 if COMPILED:
@@ -67,6 +85,6 @@ def kernel(function):
     if _NUMBA is None:
         return function
     try:
-        return _NUMBA.njit(cache=True, nogil=True, error_model="numpy")(function)
+        return _NUMBA.njit(cache=not NEWTON_LAWS, nogil=True, error_model="numpy")(function)
     except RuntimeError:    # no writable cache location (e.g. a read-only install)
         return _NUMBA.njit(nogil=True)(function)
