@@ -112,7 +112,7 @@ def _sobol(args):
     result = run_sobol(args.study, args.n, second_order=True if args.second_order else None,
                        output=args.output, processes=args.processes, workers=args.workers,
                        scheduler=args.scheduler, progress=None, plots=not args.no_plots, log=_log,
-                       yes=args.yes, method=args.method)
+                       yes=args.yes, method=args.method, rounds=True if args.rounds else None)
     _show(result, args.json)
 
 
@@ -177,6 +177,10 @@ def add_study_commands(subparsers) -> None:
                    "reference) or linearized (the TE curve linearized in the errors: 2A+1 "
                    "solves for A error components, checked on solved reducers; for loaded "
                    "studies); default: the study's [sobol] method, else saltelli")
+    p.add_argument("--rounds", action="store_true", help="stop by itself: double the base "
+                   "samples (the linearized method's solved ones) from 64 until every metric's "
+                   "order groups are those of the two rounds before, n at most (default: the study's "
+                   "[sobol] rounds)")
     p.set_defaults(run=_sobol)
 
     p = subparsers.add_parser("report", help="one self-contained HTML report (and a Markdown "

@@ -84,6 +84,7 @@ class Linearization:
     scalar_slope: dict
     solves: int
     like: ErrorSet
+    computed: int = 0       # of the solves, those this run computed (the rest were stored)
 
     def outputs(self, errors: ErrorSet) -> Outputs:
         """The predicted `Outputs` of the reducers `errors`."""
@@ -142,7 +143,8 @@ def linearize(study, backend=None, progress=None, log=None, yes: bool = False) -
     K = len(te_columns)
     return Linearization(points[0], active, Y[0, :K] if K else None, width[:, :K] if K else None,
                          {k: float(Y[0, K + j]) for j, k in enumerate(kinds)},
-                         {k: width[:, K + j] for j, k in enumerate(kinds)}, points.shape[0], like)
+                         {k: width[:, K + j] for j, k in enumerate(kinds)}, points.shape[0], like,
+                         computed.computed_rows)
 
 
 # -- the corrected indices and the check -----------------------------------------------------

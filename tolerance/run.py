@@ -387,11 +387,13 @@ class SobolResult:
     files: dict = field(default_factory=dict)
     method: str = "saltelli"
     check: linearized.Check | None = None
+    rounds: tuple = ()
 
     def table(self) -> str:
         text = summaries.sobol_table(self.study, self.analyses, self.n, self.Y.shape[0],
                                   self.second_order)
-        lines = [text, *(self.check.lines() if self.check is not None else ())]
+        lines = [text, *(self.check.lines() if self.check is not None else ()),
+                 *(r.text(self.method) for r in self.rounds)]
         return "\n".join([*lines, *(self.aliasing.lines() if self.aliasing else ())])
 
     def to_df(self, second_order: bool = False):
@@ -411,6 +413,7 @@ class SobolResult:
         return summaries.sobol_json(self.study, self.analyses, self.n, self.Y.shape[0],
                                  self.second_order, {
                                      "method": self.method,
+                                     "rounds": [r.to_json() for r in self.rounds],
                                      "linearized_check": None if self.check is None
                                      else self.check.to_json(),
                                      "aliasing": None if self.aliasing is None
@@ -446,7 +449,7 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
               processes: int | None = None, workers: int | None = None,
               scheduler: str | None = None, progress: bool | None = False, plots: bool = True,
               log=None, yes: bool = False, method: str | None = None,
-              solved_n: int | None = None) -> SobolResult:
+              solved_n: int | None = None, rounds: bool | None = None) -> SobolResult:
     """Sobol indices of every metric of a study file over its tolerance factors.
 
     n: base samples (a power of 2; default the study's [sobol] n); with
@@ -457,8 +460,12 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     [sobol] solved_n), which corrects and checks it; the design of n is
     evaluated on it, and a metric whose check fails gets its indices from the
     whole design solved (`tolerance.linearized`).  Default: the study's
-    [sobol] method.  An n whose sample matrix would not fit in memory is
-    refused, `yes` or not.
+    [sobol] method.  rounds (default the study's [sobol] rounds): start at
+    ROUND_START base samples (Saltelli's n, or the linearized method's solved
+    ones) and double them, reusing every reducer solved, until the order
+    groups of every metric are those of the two rounds before (and every
+    check passed), or n (resp. solved_n) is reached.  An n
+    whose sample matrix would not fit in memory is refused, `yes` or not.
     Backends, the cost estimate, `yes`, `log` and the aliasing check as for
     `run_mc`.  Writes sobol_indices.json and sobol_ranking.txt, and with
     `plots` sobol_bars.png and sobol_convergence.png, to the output folder.
@@ -468,18 +475,89 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     study = _load(study_path, output)
     n = study.sobol_n if n is None else sobol_base_samples("n", n)
     method = study.sobol_method if method is None else check_sobol_method("method", method)
+    solved_n = study.sobol_solved_n if solved_n is None else sobol_base_samples("solved_n", solved_n)
+    rounds = study.sobol_rounds if rounds is None else flag("rounds", rounds)
     second_order = study.second_order if second_order is None else second_order
     backend = make_backend(processes, workers, scheduler)   # its options checked before any work
     _warn_load(study, log)
     problem = study.problem()
     _check_sample_memory(problem, n, second_order)
+    linear = linearized.linearize(study, backend, progress, log, yes) \
+        if method == "linearized" else None
+    # the rounds: Saltelli's n, or the linearized method's solved base samples, doubled from
+    # ROUND_START until the order groups stop changing or n (the budget) is reached
+    last = min(solved_n, n) if linear is not None else n
+    sizes = [last]
+    if rounds:
+        sizes = [size for size in (1 << k for k in range(31)) if ROUND_START <= size < last] + [last]
+    history = []
+    start, solved = time.perf_counter(), linear.computed if linear is not None else 0
+    for size in sizes:
+        estimate = _estimate(study, problem, n if linear is not None else size, size, linear,
+                             second_order, backend, progress, log, yes)
+        groups = {column: a.indices.order_groups() for column, a in estimate[2].items()}
+        settled = len(history) >= SETTLED_ROUNDS - 1 and all(
+            r.order_groups == groups for r in history[-(SETTLED_ROUNDS - 1):])
+        checks = estimate[4].passed() if estimate[4] is not None else np.ones(1, dtype=bool)
+        solved += estimate[3].computed_rows
+        history.append(SobolRound(size, solved, groups, settled and bool(np.all(checks))))
+        if log is not None and rounds:
+            log(history[-1].text(method))
+        if history[-1].settled:
+            break
+    X, n_used, analyses, computed, check, alias_rows = estimate
+    computed = replace(computed, computed_rows=solved, seconds=time.perf_counter() - start)
+    alias = aliasing.check(study, *alias_rows)
+    folder = Path(study.output)
+    files = {"indices": folder / "sobol_indices.json", "ranking": folder / "sobol_ranking.txt"}
+    if plots:
+        files["bars"] = summaries.plot_sobol(study, analyses, folder / "sobol_bars.png")
+        files["convergence"] = summaries.plot_convergence(study, analyses,
+                                                       folder / "sobol_convergence.png")
+    result = SobolResult(study, n_used, second_order, X, computed.Y, analyses, computed, alias,
+                         files, method, check, tuple(history) if rounds else ())
+    files["ranking"].write_text(result.table() + "\n")
+    summaries.write_json(files["indices"], result.to_json())
+    return result
+
+
+ROUND_START = 64     # base samples of the first round (rounds = true)
+SETTLED_ROUNDS = 3   # rounds in a row with the same order groups: settled (two doublings)
+
+
+@dataclass(frozen=True)
+class SobolRound:
+    """One round of a Sobol run that stops itself: `size` base samples (Saltelli's n, or
+    the linearized method's solved_n), `solved` reducers solved up to it in this run,
+    order_groups {column: groups} and whether they settled (the same in SETTLED_ROUNDS
+    rounds in a row, every check passed)."""
+
+    size: int
+    solved: int
+    order_groups: dict
+    settled: bool
+
+    def text(self, method: str) -> str:
+        what = "solved base samples" if method == "linearized" else "base samples"
+        groups = "; ".join(f"{column}: {summaries.order_text(g) if g else '-'}"
+                           for column, g in self.order_groups.items())
+        return (f"round of {self.size} {what} ({self.solved} reducers solved in this run): "
+                f"{groups}" + (" -> settled, stop" if self.settled else ""))
+
+    def to_json(self) -> dict:
+        return {"size": self.size, "solved": self.solved, "order_groups": self.order_groups,
+                "settled": self.settled}
+
+
+def _estimate(study, problem, n, m, linear, second_order, backend, progress, log, yes):
+    """(X, n, analyses, computed, check, aliasing rows) of one Sobol estimate: Saltelli's
+    design of n base samples solved, or with a linearization (`linear`) evaluated on it and
+    corrected by its first m base samples solved; a metric whose check fails gets Saltelli's
+    whole design, solved."""
     X = sobol.sample(problem, n, second_order, seed=study.seed)
     job = sobol_job(n, second_order)
     analyses, check = {}, None
-    if method == "linearized":
-        start = time.perf_counter()
-        linear = linearized.linearize(study, backend, progress, log, yes)
-        m = min(study.sobol_solved_n if solved_n is None else sobol_base_samples("solved_n", solved_n), n)
+    if linear is not None:
         rows_m = m * sobol.rows_per_base_sample(problem, second_order)
         solved = compute(study, sobol_job(m, second_order), rows_m, lambda s, e: X[s:e], backend,
                          progress, log, yes=yes, prefix_jobs=other_sobol_jobs(problem, m, second_order))
@@ -494,9 +572,7 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
                 conv = sobol.convergence(problem, Y[:, j], second_order, study.resamples,
                                          study.sobol_confidence, study.seed)
                 analyses[column] = sobol.SobolAnalysis(column, final, conv, "linearized", float(q2))
-        computed = Computed(Y, np.ones(Y.shape[0], dtype=bool), solved.batches, solved.reused,
-                            solved.computed, linear.solves + solved.computed_rows,
-                            time.perf_counter() - start, solved.backend, study.batch_size)
+        computed = replace(solved, Y=Y, converged=np.ones(Y.shape[0], dtype=bool))
         alias_rows = (X[:aliasing.CHECK_ROWS], solved.Y[:aliasing.CHECK_ROWS],
                       Path(study.output) / sobol_job(m, second_order))
     if len(analyses) < len(study.metric_columns):
@@ -514,18 +590,7 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
                     for column, result in solved_analyses.items()}
         check_rows = min(X.shape[0], aliasing.CHECK_ROWS)
         alias_rows = (X[:check_rows], computed.Y[:check_rows], Path(study.output) / job)
-    alias = aliasing.check(study, *alias_rows)
-    folder = Path(study.output)
-    files = {"indices": folder / "sobol_indices.json", "ranking": folder / "sobol_ranking.txt"}
-    if plots:
-        files["bars"] = summaries.plot_sobol(study, analyses, folder / "sobol_bars.png")
-        files["convergence"] = summaries.plot_convergence(study, analyses,
-                                                       folder / "sobol_convergence.png")
-    result = SobolResult(study, n, second_order, X, computed.Y, analyses, computed, alias, files,
-                         method, check)
-    files["ranking"].write_text(result.table() + "\n")
-    summaries.write_json(files["indices"], result.to_json())
-    return result
+    return X, n, analyses, computed, check, alias_rows
 
 
 def stored_batches(study_path, output=None, job: str | None = None) -> int:

@@ -27,7 +27,8 @@ arcsec) and names every tolerance by its error name:
     [montecarlo]                   # n: reducers; confidence: of the yield interval
     [sobol]                        # n: base samples (power of 2); second_order; resamples; confidence;
                                    # method: "saltelli" (default) or "linearized" (loaded studies),
-                                   # solved_n: its solved base samples (default 64)
+                                   # solved_n: its solved base samples (default 64); rounds:
+                                   # double from 64 until the order groups settle (n the budget)
 
     [tolerances.crank_cam_eccentricity]
     position_um = 9.0              # diameter of the true-position zone
@@ -80,7 +81,7 @@ SECTIONS = {
     "operating": ("load_Nm", "points", "windup_positions", "output_speed_rpm"),
     "spec": None,  # keys: metric columns
     "montecarlo": ("n", "confidence"),
-    "sobol": ("n", "second_order", "resamples", "confidence", "method", "solved_n"),
+    "sobol": ("n", "second_order", "resamples", "confidence", "method", "solved_n", "rounds"),
     "tolerances": None,  # keys: error names
 }
 FACTOR_KEYS = ("distribution", "group", "cost")
@@ -204,6 +205,7 @@ class Study:
     sobol_confidence: float = 0.95
     sobol_method: str = "saltelli"
     sobol_solved_n: int = 64
+    sobol_rounds: bool = False
     path: Path | None = field(default=None, compare=False)
     text: str = field(default="", compare=False, repr=False)
 
@@ -462,6 +464,7 @@ def study_from_values(values: dict, path: Path, text: str = "", output=None) -> 
         sobol_confidence=sections["sobol"].get("confidence", 0.95),
         sobol_method=sections["sobol"].get("method", "saltelli"),
         sobol_solved_n=sections["sobol"].get("solved_n", 64),
+        sobol_rounds=_bool("sobol.rounds", sections["sobol"].get("rounds", False), where),
         path=path, text=text,
     )
 
@@ -515,6 +518,7 @@ def study_from_store(folder: Path, name: str, inputs: dict, study_text: str = ""
             sobol_confidence=sections["sobol"].get("confidence", 0.95),
             sobol_method=sections["sobol"].get("method", "saltelli"),
             sobol_solved_n=sections["sobol"].get("solved_n", 64),
+            sobol_rounds=sections["sobol"].get("rounds", False),
             path=folder / "study.toml", text=study_text)
     except (KeyError, TypeError) as exc:
         raise InputError("inputs.json", str(folder / "inputs.json"), f"lacks {exc} or holds a "
