@@ -9,7 +9,6 @@ import json
 import numpy as np
 import pytest
 
-from conftest import ROOT
 from rvfmu.core.checks import InputError
 from rvfmu.core.quasistatic import te_curve
 from tolerance import linearized, sobol

@@ -35,7 +35,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -45,16 +44,6 @@ REDUCERS = 16
 POINTS = 720
 CALLS = 200_000
 FORMS = ("newton", "direct")
-
-
-def best_of(job, repeats):
-    job()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        job()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def law_arguments(design):
@@ -77,6 +66,7 @@ def measure(forms, repeats, results_file):
     import numba
 
     from bench_jobs import machine
+    from bench_roller_law import best_of
     from rvfmu.core import compiled, pin_law, roller_law
     from rvfmu.core.quasistatic import equilibria, input_angles, windup
     from rvfmu.core.units import ARCSEC
