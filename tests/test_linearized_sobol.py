@@ -227,3 +227,55 @@ def test_the_json_and_the_frame_say_the_method_and_its_check(tmp_path):
     frame = result.to_df()
     assert set(frame["method"]) == {"linearized"}
     assert np.all(frame["check_q2"] >= linearized.Q2_MIN)
+
+
+# -- the corrected estimator on functions with known indices -------------------------------
+
+def ishigami(X, a=7.0, b=0.1):
+    return np.sin(X[:, 0]) + a * np.sin(X[:, 1]) ** 2 + b * X[:, 2] ** 4 * np.sin(X[:, 0])
+
+
+def test_the_corrected_estimator_finds_ishigamis_indices_from_a_cruder_function():
+    a, b = 7.0, 0.1
+    problem = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[-np.pi, np.pi]] * 3}
+    variance = a ** 2 / 8 + b * np.pi ** 4 / 5 + b ** 2 * np.pi ** 8 / 18 + 0.5
+    first = np.array([0.5 * (1 + b * np.pi ** 4 / 5) ** 2, a ** 2 / 8, 0.0]) / variance
+    total = first + np.array([8 * b ** 2 * np.pi ** 8 / 225, 0.0, 8 * b ** 2 * np.pi ** 8 / 225]) \
+        / variance
+    X = sobol.sample(problem, 4096, seed=11)
+    m = 256 * sobol.rows_per_base_sample(problem)
+    crude = ishigami(X, 6.0, 0.08)            # the "linearization": other coefficients
+    result = linearized.corrected_indices(problem, crude, ishigami(X[:m]), resamples=300, seed=5)
+    assert np.all(np.abs(result.ST - total) <= result.ST_conf)
+    assert np.all(np.abs(result.S1 - first) <= result.S1_conf)
+    # the correction is what makes it right: the crude function alone is off beyond its CI
+    alone = sobol.indices(problem, crude, resamples=300, seed=5)
+    assert np.any(np.abs(alone.ST - total) > alone.ST_conf)
+    # and its intervals are narrower than those of the 256 solved base samples alone
+    solved_only = sobol.indices(problem, ishigami(X[:m]), resamples=300, seed=5)
+    assert np.all(result.ST_conf[:2] < solved_only.ST_conf[:2])
+
+
+def g_function(X, a):
+    return np.prod((np.abs(4 * X - 2) + a) / (1 + a), axis=1)
+
+
+def test_the_corrected_estimator_finds_the_grouped_g_functions_indices():
+    a = np.array([0.0, 1.0, 4.5, 9.0, 99.0, 99.0])
+    groups = ["g1", "g1", "g2", "g2", "g3", "g3"]
+    problem = {"num_vars": 6, "names": [f"x{i}" for i in range(6)], "bounds": [[0, 1]] * 6,
+               "groups": groups}
+    partial = (1 / 3) / (1 + a) ** 2
+    variance = np.prod(1 + partial) - 1
+    first, total = [], []
+    for name in ("g1", "g2", "g3"):
+        inside = np.array([g == name for g in groups])
+        first.append((np.prod(1 + partial[inside]) - 1) / variance)
+        total.append(1 - (np.prod(1 + partial[~inside]) - 1) / variance)
+    X = sobol.sample(problem, 4096, seed=3)
+    m = 256 * sobol.rows_per_base_sample(problem)
+    crude = g_function(X, a + 0.3)
+    result = linearized.corrected_indices(problem, crude, g_function(X[:m], a), resamples=300,
+                                          seed=2)
+    assert np.all(np.abs(result.ST - np.array(total)) <= result.ST_conf)
+    assert np.all(np.abs(result.S1 - np.array(first)) <= result.S1_conf)
