@@ -435,13 +435,24 @@ def plot_efficiency(report, path: str | Path) -> Path:
     return _saved(plt, fig, path, dpi=120)
 
 
-def plot_hysteresis(report, path: str | Path) -> Path:
-    """The hysteresis loop (`rvfmu.jobs.hysteresis.HysteresisReport`): output angle against output
-    torque with the input locked, the loop with friction and its frictionless middle (left),
-    the middle around zero torque with the lost motion's span marked (right)."""
+INSET_FRICTION_TORQUES = 5  # the inset's torque half-span, x the friction torque at zero:
+                            # the branches cross the clearance at +-T_f, well inside it
+
+
+def figure_hysteresis(report):
+    """The hysteresis loop (`rvfmu.jobs.hysteresis.HysteresisReport`) as a matplotlib Figure:
+    output angle against output torque with the input locked, the loop with friction and its
+    frictionless middle (top left); the middle around zero torque with the lost motion's span
+    marked, and an inset over +-INSET_FRICTION_TORQUES friction torques where the two branches
+    cross the clearance apart (top right); the loop's width, the unloading branch's angle less
+    the loading one's at the same torque [arcsec], against torque (bottom).  Drawn over
+    +-rated the branches are one line (they are 2 T_f ~ 4 N*m apart): the width and the inset
+    are what show friction."""
     plt = _pyplot()
     h = report.loop
-    fig, (whole, middle) = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True)
+    fig, axes = plt.subplot_mosaic([["whole", "middle"], ["width", "width"]],
+                                   figsize=(12, 8.4), constrained_layout=True)
+    whole, middle = axes["whole"], axes["middle"]
     for ax in (whole, middle):
         ax.plot(h.loop[:, 0], h.loop[:, 1] / ARCMIN, "-", color="tab:red", lw=1.2,
                 label="with friction")
@@ -453,8 +464,7 @@ def plot_hysteresis(report, path: str | Path) -> Path:
     whole.legend(fontsize=8, loc="upper left")
     span = 0.1 * h.design.rated_torque
     middle.set_xlim(-span, span)
-    inside = np.abs(h.windup) < np.inf
-    near = inside & (np.abs(h.tau_load) <= span)
+    near = np.abs(h.tau_load) <= span
     if near.any():
         lo, hi = h.windup[near].min() / ARCMIN, h.windup[near].max() / ARCMIN
         middle.set_ylim(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo))
@@ -463,4 +473,55 @@ def plot_hysteresis(report, path: str | Path) -> Path:
         middle.axvline(sign * 0.03 * rated, color="tab:blue", lw=0.8, ls="--")
     middle.set_title(f"lost motion {h.lost_motion_arcmin:.3f} arcmin (±3 % rated, dashed), "
                      f"hysteresis loss {h.hysteresis_loss_arcmin:.3f} arcmin", fontsize=10)
-    return _saved(plt, fig, path, dpi=120)
+    _branches_inset(middle, h)
+    _width_panel(axes["width"], report)
+    return fig
+
+
+def _branches_inset(ax, h) -> None:
+    """The loop's two branches apart, over +-INSET_FRICTION_TORQUES friction torques at zero
+    (upper left of `ax`, where the loop leaves the panel empty)."""
+    mid = 0.5 * (h.tau_load[1:] + h.tau_load[:-1])
+    held = float(np.interp(0.0, mid, h.friction_torque))
+    if not held > 0.0:  # no friction: one branch, nothing to tell apart
+        return
+    half = h.loop.shape[0] // 2
+    window = INSET_FRICTION_TORQUES * held
+    inset = ax.inset_axes([0.05, 0.5, 0.42, 0.42])
+    for branch, colour, label in ((h.loop[:half], "tab:red", "loading"),
+                                  (h.loop[half:], "tab:blue", "unloading")):
+        inset.plot(branch[:, 0], branch[:, 1] / ARCMIN, "-", color=colour, lw=1.2, label=label)
+    inset.plot(h.tau_load, h.windup / ARCMIN, ":", color="0.3", lw=1)
+    inset.set_xlim(-window, window)
+    inside = np.abs(h.loop[:, 0]) <= window
+    lo, hi = h.loop[inside, 1].min() / ARCMIN, h.loop[inside, 1].max() / ARCMIN
+    inset.set_ylim(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo))
+    inset.set_title(f"±{window:.2g} N·m: friction torque {held:.2g} N·m at zero", fontsize=7)
+    inset.tick_params(labelsize=7)
+    inset.legend(fontsize=6, loc="lower right")
+    inset.grid(alpha=0.3)
+
+
+def _width_panel(ax, report) -> None:
+    """The loop's width [arcsec] against output torque, on a log scale where friction opens
+    the whole loop: the clearance's ~30 arcsec at zero and the few arcsec friction gives
+    loaded on one axis."""
+    torques, width = report.width_torques_Nm, 60.0 * report.width_arcmin()
+    ax.plot(torques, width, "-", color="tab:purple", lw=1.2)
+    # log where friction opens the loop everywhere: not on the round-off of a frictionless one
+    if width.min() > 1e-9 * 60.0 * float(np.abs(report.loop.windup).max()) / ARCMIN:
+        ax.set_yscale("log")
+    ax.plot([0.0], [60.0 * report.width_at_zero_arcmin], "o", color="tab:purple", ms=4)
+    ax.set_xlabel("output torque τ_load [N·m]")
+    ax.set_ylabel("loop width [arcsec]")
+    ax.set_title(f"the loop's width: unloading less loading branch at the same torque; "
+                 f"{60 * report.width_at_zero_arcmin:.3g} arcsec at zero torque (dot), "
+                 f"{60 * report.width_max_arcmin:.3g} at most "
+                 f"({report.width_max_torque_Nm:.3g} N·m)",
+                 fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+
+
+def plot_hysteresis(report, path: str | Path) -> Path:
+    """The hysteresis loop and its width (`figure_hysteresis`), written to `path`."""
+    return _saved(_pyplot(), figure_hysteresis(report), path, dpi=120)
