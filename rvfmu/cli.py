@@ -90,7 +90,8 @@ def _stiffness(args):
 def _efficiency(args):
     with ProgressBar("efficiency") as bar:
         report = api.efficiency(args.design, args.errors, speeds=args.speeds, loads=args.loads,
-                                plot_path=args.plot, progress=bar)
+                                plot_path=args.plot, progress=bar,
+                                temperature_C=args.temperature)
     _show(report, args.json, (("plot", args.plot),))
 
 
@@ -255,6 +256,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--loads", type=_values, default=None,
                    help="resisting output torques [N*m], comma-separated (default 25, 50, 75 "
                    "and 100 %% of rated)")
+    p.add_argument("--temperature", type=float, default=40.0,
+                   help="lubricant temperature [C], -40 to 150 (default 40: the viscosity of its "
+                   "ISO VG grade; a stated lubricant_viscosity_cSt holds at every temperature)")
     p.add_argument("--plot", help="write the efficiency chart and the running torque")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(run=_efficiency)
@@ -264,7 +268,8 @@ def build_parser() -> argparse.ArgumentParser:
     _design_and_errors(p)
     p.add_argument("--max-load", type=float, default=None,
                    help="the sweep's end [N*m], in both senses (default: the rated torque)")
-    p.add_argument("--plot", help="write the loop as a figure")
+    p.add_argument("--plot", help="write the loop as a figure, with its branches apart around "
+                   "zero torque and its width against torque")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(run=_hysteresis)
 

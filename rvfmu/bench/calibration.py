@@ -396,6 +396,10 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
             continue
         if name in FRICTION_UNITS:
             current = getattr(design, field)
+            if field == "lubricant_viscosity" and current == 0.0:
+                # not stated: start from its grade's at 40 C; the fit states it (every temperature)
+                from ..core.lubricant import viscosity_cSt
+                current = viscosity_cSt(design)
             if not current > 0.0:
                 raise InputError("fit", name, f"is fitted on its logarithm, and the design's "
                                  f"{_FRICTION_BY_NAME[name].file_key} is {current:g}: give it a "

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .checks import InputError, finite_number, integer, non_negative, positive
+from .lubricant import check_lubricant
 from .units import ARCMIN, ARCSEC, DEG, GPA, MM, RPM
 
 
@@ -129,7 +130,14 @@ DESIGN_FIELDS = (
     FieldSpec("bearing_drag_factor", "bearing_drag_factor", 1.0, "non_negative",
               "Palmgren's f0 of the load-free drag of every rolling bearing", 2.0),
     FieldSpec("lubricant_viscosity", "lubricant_viscosity_cSt", 1.0, "non_negative",
-              "kinematic viscosity of the lubricant at running temperature [mm^2/s]", 100.0),
+              "kinematic viscosity of the lubricant [mm^2/s], when stated the same at every "
+              "temperature; 0 = not stated: that of lubricant_iso_vg and "
+              "lubricant_viscosity_index at the temperature (rvfmu/core/lubricant.py)", 0.0),
+    FieldSpec("lubricant_iso_vg", "lubricant_iso_vg", 1, "int",
+              "ISO 3448 viscosity grade of the lubricant: its viscosity at 40 C [mm^2/s]", 100),
+    FieldSpec("lubricant_viscosity_index", "lubricant_viscosity_index", 1.0, "signed",
+              "viscosity index of the lubricant (ASTM D2270), 0 to 400; 95: a typical mineral "
+              "gear oil", 95.0),
     FieldSpec("needle_pitch_diameter", "needle_pitch_diameter_mm", MM, "non_negative",
               "pitch diameter of a crank-disc needle bearing; 0 = its friction left out", 0.0),
     FieldSpec("tapered_pitch_diameter", "tapered_pitch_diameter_mm", MM, "non_negative",
@@ -231,7 +239,9 @@ class RVDesign:
     tapered_friction: float = 0.0018
     main_bearing_friction: float = 0.002
     bearing_drag_factor: float = 2.0
-    lubricant_viscosity: float = 100.0
+    lubricant_viscosity: float = 0.0
+    lubricant_iso_vg: int = 100
+    lubricant_viscosity_index: float = 95.0
     needle_pitch_diameter: float = 0.0
     tapered_pitch_diameter: float = 0.0
     main_bearing_pitch_diameter: float = 0.0
@@ -383,6 +393,7 @@ def _check_relations(d: RVDesign) -> None:
     if not 0.0 < d.pressure_angle < math.radians(45):
         raise InputError("pressure_angle_deg", math.degrees(d.pressure_angle),
                          "must be between 0 and 45 deg", where)
+    check_lubricant(d.lubricant_iso_vg, d.lubricant_viscosity_index, where)
     _check_stiffnesses(d)
 
 

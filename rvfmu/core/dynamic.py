@@ -61,6 +61,7 @@ from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .friction import RPM, drag_moments, mesh_loss_factor
 from .kernels import Elements, Geometry, element_forces, gather, touched_columns
+from .lubricant import viscosity_cSt
 from .pin_law import contacts
 from .stiffness import transverse_contact_ratio
 from .roller_law import TABLE_DE, TABLE_E, radial_law
@@ -246,7 +247,7 @@ class DynamicModel:
         one to the bit)."""
         d = self.design
         pins = min(d.pin_disc_friction, d.pin_groove_friction) > 0.0
-        drag = d.bearing_drag_factor > 0.0 and d.lubricant_viscosity > 0.0 and \
+        drag = d.bearing_drag_factor > 0.0 and viscosity_cSt(d) > 0.0 and \
             any(r > 0.0 for r, kind in zip(turning["radius"], turning["kind"])
                 if kind not in (None, "output seal"))
         return bool(pins or np.any(turning["friction"] * np.abs(turning["rows"]).sum(axis=1) > 0.0)

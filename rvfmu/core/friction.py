@@ -16,7 +16,8 @@ section 2, and every contact loses a power >= 0:
   for the crank bearings, |theta_out'| for the main bearings); the moment is a
   load-proportional part mu * P * d_m / 2 (SKF's constant-coefficient estimate, written on
   the pitch diameter) and Palmgren's load-free drag 1e-7 f0 (nu n)^(2/3) d_m^3 [N mm]
-  (Harris & Kotzalas, Rolling Bearing Analysis);
+  (Harris & Kotzalas, Rolling Bearing Analysis), nu the lubricant's kinematic viscosity at
+  its temperature (`lubricant.viscosity_cSt`: ISO VG grade and viscosity index, Walther);
 - a sun-planet mesh: mu * H_V of the power it rolls, the sun torque times the sun's speed
   relative to the carrier (ISO/TR 14179-2, Ohlendorf's loss factor H_V);
 - the output's lip seal: its torque times the output speed.
@@ -42,6 +43,7 @@ from .design import RVDesign
 from .equivalent import EquivalentModel, dof_names
 from .errors import ErrorSet
 from .limits import check_load, check_speed
+from .lubricant import REFERENCE_TEMPERATURE_C, check_temperature, viscosity_cSt
 from .quasistatic import NO_LOAD_PROBE, _checked_errors
 from .solver import solve_pairs
 from .units import MM, RPM
@@ -215,30 +217,34 @@ def coulomb_torques(design: RVDesign, pin_force, pin_slide_arm, cam_force, crank
     }
 
 
-def drag_moments(design: RVDesign, speed_rpm) -> dict:
+def drag_moments(design: RVDesign, speed_rpm,
+                 temperature_C: float = REFERENCE_TEMPERATURE_C) -> dict:
     """{"crank-disc needle bearings", "crank-carrier bearings", "main bearings": array [N*m]}
     Palmgren's load-free moment of one needle bearing, of one crank's tapered pair (two
     bearings) and of the main bearings (two), each turning at `speed_rpm` against its
-    outer part."""
+    outer part, in the lubricant at `temperature_C` [C] (`lubricant.viscosity_cSt`)."""
     d = design
+    nu = viscosity_cSt(d, temperature_C)
 
     def drag(pitch_diameter):
-        return bearing_drag_moment(d.bearing_drag_factor, d.lubricant_viscosity, speed_rpm,
-                                   pitch_diameter)
+        return bearing_drag_moment(d.bearing_drag_factor, nu, speed_rpm, pitch_diameter)
 
     return {"crank-disc needle bearings": drag(d.needle_pitch_diameter),
             "crank-carrier bearings": 2.0 * drag(d.tapered_pitch_diameter),
             "main bearings": 2.0 * drag(d.main_bearing_pitch_diameter)}
 
 
-def load_free_torques(design: RVDesign, output_speed_rpm) -> dict:
+def load_free_torques(design: RVDesign, output_speed_rpm,
+                      temperature_C: float = REFERENCE_TEMPERATURE_C) -> dict:
     """{"crank-disc needle bearings", "crank-carrier bearings", "main bearings", "output seal":
     (V,) [N*m]} the friction torque at the output of the bearings' drag and the seal at
-    output speeds (V,) [rpm]: each bearing's Palmgren moment (`drag_moments`) times its
-    speed over the output's (z_p for the crank bearings, 1 for the main bearings)."""
+    output speeds (V,) [rpm], the lubricant at `temperature_C` [C]: each bearing's Palmgren
+    moment (`drag_moments`) times its speed over the output's (z_p for the crank bearings,
+    1 for the main bearings)."""
     d = design
     n_out = np.abs(np.atleast_1d(np.asarray(output_speed_rpm, dtype=float)))
-    crank, main = drag_moments(d, d.z_p * n_out), drag_moments(d, n_out)
+    crank = drag_moments(d, d.z_p * n_out, temperature_C)
+    main = drag_moments(d, n_out, temperature_C)
     return {
         "crank-disc needle bearings": 2 * d.n_c * d.z_p * crank["crank-disc needle bearings"],
         "crank-carrier bearings": d.n_c * d.z_p * crank["crank-carrier bearings"],
@@ -247,23 +253,27 @@ def load_free_torques(design: RVDesign, output_speed_rpm) -> dict:
     }
 
 
-def drag_kinks(design: RVDesign) -> np.ndarray:
+def drag_kinks(design: RVDesign, temperature_C: float = REFERENCE_TEMPERATURE_C) -> np.ndarray:
     """Output speeds [rad/s] where a bearing's drag leaves Palmgren's floor for his power law,
-    nu n = 160^(3/2) (the kinks of `load_free_torques`; none without a lubricant)."""
-    if not design.lubricant_viscosity > 0.0:
+    nu n = 160^(3/2), nu at `temperature_C` [C] (the kinks of `load_free_torques`; none
+    without a lubricant)."""
+    nu = viscosity_cSt(design, temperature_C)
+    if not nu > 0.0:
         return np.empty(0)
     ratios = np.array([design.z_p, 1.0])           # the crank bearings' speed, the main bearings'
-    return DRAG_FLOOR ** 1.5 / (design.lubricant_viscosity * ratios) * RPM
+    return DRAG_FLOOR ** 1.5 / (nu * ratios) * RPM
 
 
-def contact_losses(design: RVDesign, loads: ContactLoads, output_speed_rpm) -> dict:
+def contact_losses(design: RVDesign, loads: ContactLoads, output_speed_rpm,
+                   temperature_C: float = REFERENCE_TEMPERATURE_C) -> dict:
     """{LOSS_NAMES: (V, S, L) power [W]} lost by each kind of contact at every output speed
-    (V,) [rpm], reducer and load of `loads`, averaged over its angles; each >= 0."""
+    (V,) [rpm], reducer and load of `loads`, averaged over its angles, the lubricant at
+    `temperature_C` [C]; each >= 0."""
     w = np.abs(np.atleast_1d(np.asarray(output_speed_rpm, dtype=float))) * RPM       # (V,)
     coulomb = {k: v.mean(axis=-1) for k, v in coulomb_torques(                      # (S, L)
         design, loads.pin_force, loads.pin_slide_arm, loads.cam_force, loads.crank_seat_force,
         loads.main_force, loads.tau_in).items()}
-    free = load_free_torques(design, w / RPM)                                        # (V,)
+    free = load_free_torques(design, w / RPM, temperature_C)                         # (V,)
     shape = (w.size,) + loads.main_force.shape[:-1]                                 # (V, S, L)
     out = {}
     for name in LOSS_NAMES:
@@ -296,19 +306,21 @@ def output_speeds(field: str, output_speed_rpm, design: RVDesign,
 
 
 def operating_losses(design: RVDesign, errors: ErrorSet | None, load_Nm: float,
-                     output_speed_rpm: float, points: int = AVERAGE_POINTS):
+                     output_speed_rpm: float, points: int = AVERAGE_POINTS,
+                     temperature_C: float = REFERENCE_TEMPERATURE_C):
     """(efficiency (S,), no-load running torque at the input (S,) [N*m]) of every reducer of
     `errors` at one operating point: a resisting load [N*m] > 0 at an output speed [rpm]
-    > 0, forward (the motor drives); the tolerance studies' metrics.  A speed beyond
-    `limits.SPEED_FACTOR` x the allowable output speed raises InputError; the warning above
-    1 x is the caller's to give (`limits.check_speed`)."""
+    > 0, forward (the motor drives), the lubricant at `temperature_C` [C]; the tolerance
+    studies' metrics.  A speed beyond `limits.SPEED_FACTOR` x the allowable output speed
+    raises InputError; the warning above 1 x is the caller's to give (`limits.check_speed`)."""
+    temperature_C = check_temperature(temperature_C)
     load = finite_number("load_Nm", load_Nm)
     speed = finite_number("output_speed_rpm", output_speed_rpm)
     if not speed > 0.0:
         raise InputError("output_speed_rpm", speed, "must be a positive output speed [rpm]")
     check_speed("output_speed_rpm", speed, speed * RPM, design)
     loads = contact_loads(design, errors, [0.0, -load], crank_turn_angles(design, points))
-    lost = sum(contact_losses(design, loads, [speed]).values())[0]                 # (S, 2)
+    lost = sum(contact_losses(design, loads, [speed], temperature_C).values())[0]  # (S, 2)
     w = speed * RPM
     efficiency = load * w / (load * w + lost[:, 1]) if load > 0.0 else np.zeros(lost.shape[0])
     return efficiency, lost[:, 0] / (design.ratio * w), loads.converged.all(axis=(1, 2))
@@ -318,6 +330,8 @@ def operating_losses(design: RVDesign, errors: ErrorSet | None, load_Nm: float,
 class EfficiencyMap:
     """Efficiency of one reducer over output speeds (V,) [rpm] and resisting loads (L,) [N*m].
 
+    temperature_C [C] and lubricant_viscosity_cSt [mm^2/s]: the lubricant's temperature and
+    its viscosity there (`lubricant.viscosity_cSt`);
     efficiency, backdriving_efficiency, input_torque_Nm (the motor's torque, forward),
     loss_W (forward, total): (V, L); losses: {LOSS_NAMES: (V, L) W}, forward;
     no_load_running_torque_Nm (V,): at the input, turning the unloaded reducer;
@@ -341,6 +355,8 @@ class EfficiencyMap:
     backdriving_torque_output_Nm: float
     converged: bool
     warnings: tuple[str, ...] = ()
+    temperature_C: float = REFERENCE_TEMPERATURE_C
+    lubricant_viscosity_cSt: float = math.nan
 
 
 STANDSTILL_RPM = 1e-9    # a speed at which every loss is its limit at standstill
@@ -348,13 +364,16 @@ STANDSTILL_RPM = 1e-9    # a speed at which every loss is its limit at standstil
 
 def efficiency_map(design: RVDesign, errors: ErrorSet | None = None, output_speed_rpm=None,
                    load_Nm=None, points: int = AVERAGE_POINTS, sample: int = 0,
-                   progress=None) -> EfficiencyMap:
+                   progress=None,
+                   temperature_C: float = REFERENCE_TEMPERATURE_C) -> EfficiencyMap:
     """Forward and backdriving efficiency, input torque and losses at every output speed
     [rpm] and resisting load [N*m] (defaults: those of 5 to 60 rpm within the design's
     allowable output speed; 25 % to 100 % of rated torque),
     the no-load running torque over the speeds and the starting and backdriving torques,
-    each loss averaged over `points` angles of one crank turn.  progress(count): optional,
+    each loss averaged over `points` angles of one crank turn, the lubricant at
+    `temperature_C` [C] (default 40, its grade's temperature).  progress(count): optional,
     called as the (1 + 2 loads) x points equilibria are solved."""
+    temperature_C = check_temperature(temperature_C)
     if output_speed_rpm is None:     # the chart's speeds the design is rated for
         output_speed_rpm = [v for v in DEFAULT_SPEEDS_RPM
                             if v * RPM <= design.allowable_output_speed * (1.0 + 1e-12)]
@@ -373,19 +392,22 @@ def efficiency_map(design: RVDesign, errors: ErrorSet | None = None, output_spee
     forward = contact_loads(design, errors, np.concatenate([[0.0], -loads]), theta_in, [sample],
                             progress=progress)
     backward = contact_loads(design, errors, loads, theta_in, [sample], progress=progress)
-    result = efficiency_from_loads(design, forward, speeds, loads, backward)
+    result = efficiency_from_loads(design, forward, speeds, loads, backward, temperature_C)
     return replace(result, warnings=result.warnings + ((note,) if note else ()))
 
 
 def efficiency_from_loads(design: RVDesign, forward: ContactLoads, output_speed_rpm, load_Nm,
-                          backward: ContactLoads | None = None) -> EfficiencyMap:
+                          backward: ContactLoads | None = None,
+                          temperature_C: float = REFERENCE_TEMPERATURE_C) -> EfficiencyMap:
     """`efficiency_map` from its contact loads: `forward` (one reducer) at the torques
-    [0, -load_Nm...], `backward` at +load_Nm (None: the backdriving efficiency is nan).  The
-    loads do not depend on the friction fields, so a calibration of those solves them once.
-    The speeds are checked as `output_speeds` checks them (field "speeds")."""
+    [0, -load_Nm...], `backward` at +load_Nm (None: the backdriving efficiency is nan), the
+    lubricant at `temperature_C` [C].  The loads do not depend on the friction fields (nor
+    on the temperature), so a calibration of those solves them once.  The speeds are
+    checked as `output_speeds` checks them (field "speeds")."""
+    temperature_C = check_temperature(temperature_C)
     speeds, warnings = output_speeds("speeds", output_speed_rpm, design)
     loads = np.atleast_1d(np.asarray(load_Nm, dtype=float))
-    lost = {k: v[:, 0] for k, v in contact_losses(design, forward, speeds).items()}
+    lost = {k: v[:, 0] for k, v in contact_losses(design, forward, speeds, temperature_C).items()}
     total = sum(lost.values())                                                     # (V, 1 + L)
     w = speeds[:, None] * RPM
     p_out = loads[None] * w
@@ -393,9 +415,11 @@ def efficiency_from_loads(design: RVDesign, forward: ContactLoads, output_speed_
     if backward is None:
         back = np.full(p_out.shape, np.nan)
     else:
-        total_back = sum(contact_losses(design, backward, speeds).values())[:, 0]     # (V, L)
+        total_back = sum(contact_losses(design, backward, speeds,
+                                        temperature_C).values())[:, 0]               # (V, L)
         back = np.maximum(1.0 - total_back / p_out, 0.0)
-    standstill = sum(contact_losses(design, forward, [STANDSTILL_RPM]).values())[0, 0, 0]
+    standstill = sum(contact_losses(design, forward, [STANDSTILL_RPM],
+                                    temperature_C).values())[0, 0, 0]
     start = standstill / (design.ratio * STANDSTILL_RPM * RPM)
     return EfficiencyMap(
         design=design, output_speed_rpm=speeds, load_Nm=loads,
@@ -409,4 +433,5 @@ def efficiency_from_loads(design: RVDesign, forward: ContactLoads, output_speed_
         backdriving_torque_output_Nm=float(design.ratio * start),
         converged=bool(forward.converged.all()
                        and (backward is None or backward.converged.all())),
-        warnings=warnings)
+        warnings=warnings, temperature_C=temperature_C,
+        lubricant_viscosity_cSt=viscosity_cSt(design, temperature_C))

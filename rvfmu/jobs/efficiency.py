@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ..core.friction import (AVERAGE_POINTS, DEFAULT_LOAD_FRACTIONS, LOSS_NAMES, EfficiencyMap,
                             efficiency_map)
+from ..core.lubricant import REFERENCE_TEMPERATURE_C, check_temperature
 from ..outputs import figure_file
 from ..progress import counter as progress_counter
 
@@ -26,6 +27,10 @@ class EfficiencyReport:
     def summary(self) -> str:
         m, d = self.map, self.map.design
         lines = [f"design             {d.name} (ratio {d.ratio:g}, rated torque {d.rated_torque:g} N*m)",
+                 f"lubricant          {m.temperature_C:g} C, "
+                 f"{m.lubricant_viscosity_cSt:.4g} mm^2/s "
+                 + (f"(ISO VG {d.lubricant_iso_vg}, VI {d.lubricant_viscosity_index:g})"
+                    if d.lubricant_viscosity == 0.0 else "(stated, at every temperature)"),
                  "efficiency         forward / backdriving [%] at output speed (rows, rpm) and "
                  "resisting torque (columns, N*m)",
                  "  rpm   " + "".join(f"{t:>16.4g}" for t in m.load_Nm)]
@@ -52,6 +57,8 @@ class EfficiencyReport:
         m = self.map
         return {
             "design": m.design.name,
+            "temperature_C": m.temperature_C,
+            "lubricant_viscosity_cSt": m.lubricant_viscosity_cSt,
             "map": [{"output_speed_rpm": float(s), "load_Nm": float(t),
                      "efficiency": float(m.efficiency[v, j]),
                      "backdriving_efficiency": float(m.backdriving_efficiency[v, j]),
@@ -69,7 +76,8 @@ class EfficiencyReport:
 
 
 def efficiency(design, errors=None, speeds=None, loads=None,
-               plot_path: str | Path | None = None, progress=None) -> EfficiencyReport:
+               plot_path: str | Path | None = None, progress=None,
+               temperature_C: float = REFERENCE_TEMPERATURE_C) -> EfficiencyReport:
     """Efficiency map, running, starting and backdriving torque of one reducer.
 
     design: preset name, design file or RVDesign; errors: error file or ErrorSet (default
@@ -77,17 +85,21 @@ def efficiency(design, errors=None, speeds=None, loads=None,
     output speed refused, above 1 x warned, `rvfmu.core.limits.check_speed`); loads:
     resisting output torques [N*m] (default 25 % to 100 % of rated); plot_path: the
     catalogue's chart (checked before any work); progress(total, done): optional, called as
-    the equilibria are solved.
+    the equilibria are solved; temperature_C: the lubricant's [C], -40 to 150 (default 40,
+    its ISO VG grade's temperature; a design that states lubricant_viscosity_cSt keeps that
+    viscosity at every temperature).
     """
     from .common import resolve_design, resolve_errors
 
+    temperature_C = check_temperature(temperature_C)
     plot_path = None if plot_path is None else figure_file("plot", plot_path)
     design = resolve_design(design)
     errors = resolve_errors(design, errors)
     count = len(DEFAULT_LOAD_FRACTIONS) if loads is None else len(loads)
     report = EfficiencyReport(efficiency_map(
         design, errors, speeds, loads,
-        progress=progress_counter((1 + 2 * count) * AVERAGE_POINTS, progress)))
+        progress=progress_counter((1 + 2 * count) * AVERAGE_POINTS, progress),
+        temperature_C=temperature_C))
     if plot_path is not None:
         from ..plots import plot_efficiency
 
