@@ -24,9 +24,14 @@ from .compiled import kernel
 from .equivalent import _layout, _unit
 from .friction import DRAG_FLOOR, RPM, drag_moments
 from .kernels import Geometry
+from .lubricant import viscosity_cSt
 from .stiffness import transverse_contact_ratio
 
 DRAG_NONE, DRAG_BEARING, DRAG_CONSTANT = 0, 1, 2
+# a pin's disc lobe is kept from the step before while its contact point lies inside that
+# lobe by more than this share of its distance from the disc centre (`_same_lobe`): some
+# 1e-9 rad, where the angle atan2 gives carries a few 1e-16 rad of round-off
+LOBE_MARGIN = 1e-9
 
 GeometryConstants = namedtuple("GeometryConstants", [
     "ratio", "k_beta",             # i; -z_s / z_pl: the cranks' turn per relative input turn
@@ -43,6 +48,8 @@ GeometryConstants = namedtuple("GeometryConstants", [
     "pin_pos", "pin_radial",       # (z_p, 2) pin centres [m], their radial units
     "pitch_reach",                 # z_p e: the pitch point's distance from the pin circle centre
     "r_rp", "d_rrp", "d_rp", "pitch_arm", "z_c",
+    "lobe_edges",                  # (z_c + 1, 2): the unit vectors of the disc's lobe edges, at
+                                   # angles 2 pi l / z_c in the disc's frame (l = z_c: l = 0's)
     # one reducer's errors: complex ones as (..., 2) real and imaginary parts
     "sun_eccentricity", "planet_eccentricity", "sun_assembly", "carrier_crank_hole",
     "crank_cam_eccentricity", "disc_crank_hole", "carrier_assembly",
@@ -98,6 +105,7 @@ def geometry_constants(model) -> GeometryConstants:
         model.mesh == "varying", 0.0, 0.0, float(eps - 1.0), int(d.z_s),
         floats(d.R_p * _unit(pin_angle)), floats(_unit(pin_angle)), float(d.z_p * d.e),
         float(d.r_rp), float(d.d_rrp), float(d.d_rp), float(d.R_p * d.z_c / d.z_p), int(d.z_c),
+        floats(_unit(2.0 * np.pi * np.r_[np.arange(d.z_c), 0] / d.z_c)),
         _parts(err.sun_eccentricity[0]), _parts(err.planet_eccentricity[0]),
         _parts(err.sun_assembly[0]), _parts(err.carrier_crank_hole[0]),
         _parts(err.crank_cam_eccentricity[0]), _parts(err.disc_crank_hole[0]),
@@ -107,7 +115,7 @@ def geometry_constants(model) -> GeometryConstants:
         ints(rot["disc"]), float(d.sun_inertia), float(d.carrier_inertia), float(d.crank_mass),
         float(d.crank_inertia), float(d.disc_mass), float(d.disc_inertia),
         ints(el.pin_dofs), ints(el.turn_cols), floats(el.turn_rows), drag_kind, coefficient,
-        floats(radius), float(d.lubricant_viscosity),
+        floats(radius), viscosity_cSt(d),     # at 40 C: the dynamic model has no temperature yet
     )._replace(double_pair=DOUBLE_PAIR * single, single_pair=single)
 
 
@@ -128,6 +136,24 @@ def _circling(nominal, force, x, y, rot, angle, radius, mass, inertia, w, acc, w
 
 
 @kernel
+def _same_lobe(x, y, edges, lobe, z_c):
+    """The lobe of the disc, `lobe` or a neighbour of it, in which the point (x, y) [m] of the
+    disc's frame lies by more than LOBE_MARGIN of its distance from the centre, or -1 (none
+    such, or lobe -1).  Inside lobe l, between the edges' unit vectors e_l and e_l+1 (lobes
+    narrower than pi), both cross products e_l x p and p x e_l+1 are positive: where both
+    exceed the margin, p's angle lies that far inside, and atan2's lobe is that one."""
+    if lobe < 0:
+        return -1
+    margin = LOBE_MARGIN * (abs(x) + abs(y))
+    for shift in (0, 1, -1):
+        m = (lobe + shift) % z_c
+        if (edges[m, 0] * y - edges[m, 1] * x > margin
+                and x * edges[m + 1, 1] - y * edges[m + 1, 0] > margin):
+            return m
+    return -1
+
+
+@kernel
 def fill_geometry(c, theta, omega, alpha, tau_load, L, k_lin, lin, B, brg, P, pins, external,
                   tangent, pin_slip, turn_slip, turn_drag):
     """The element geometry of the steps at input angles theta (A,) [rad], speeds omega,
@@ -144,6 +170,7 @@ def fill_geometry(c, theta, omega, alpha, tau_load, L, k_lin, lin, B, brg, P, pi
     seat = np.empty((n_c, 2))
     nominal = np.empty(n)
     force = np.empty(n)
+    lobes = np.full((2, z_p), -1, dtype=np.int64)   # each pin's lobe at the step before
     for t in range(theta.shape[0]):
         th_in = theta[t]
         th_out = th_in / c.ratio
@@ -240,6 +267,10 @@ def fill_geometry(c, theta, omega, alpha, tau_load, L, k_lin, lin, B, brg, P, pi
             dx, dy = math.cos(psi + np.pi * j), math.sin(psi + np.pi * j)
             px, py = c.pitch_reach * dx, c.pitch_reach * dy
             cx, cy = c.e * dx, c.e * dy
+            # the disc's frame is turned by th_out + pi j: its lobe where atan2 is not needed
+            cos_disc, sin_disc = math.cos(th_out), math.sin(th_out)
+            if j == 1:
+                cos_disc, sin_disc = -cos_disc, -sin_disc
             for k in range(z_p):
                 nx, ny = c.pin_pos[k, 0] - px, c.pin_pos[k, 1] - py
                 reach = math.hypot(nx, ny)
@@ -253,8 +284,12 @@ def fill_geometry(c, theta, omega, alpha, tau_load, L, k_lin, lin, B, brg, P, pi
                 rx, ry = c.pin_radial[k, 0], c.pin_radial[k, 1]
                 radial_dot = nx * rx + ny * ry
                 tangent_dot = ny * rx - nx * ry
-                disc_angle = (math.atan2(ay, ax) - th_out) - np.pi * j
-                lobe = min(int(math.floor((disc_angle % two_pi) * c.z_c / two_pi)), c.z_c - 1)
+                lobe = _same_lobe(ax * cos_disc + ay * sin_disc, ay * cos_disc - ax * sin_disc,
+                                  c.lobe_edges, lobes[j, k], c.z_c)
+                if lobe < 0:        # the first step, or a lobe edge near: atan2's own
+                    disc_angle = (math.atan2(ay, ax) - th_out) - np.pi * j
+                    lobe = min(int(math.floor((disc_angle % two_pi) * c.z_c / two_pi)), c.z_c - 1)
+                lobes[j, k] = lobe
                 gap = c.d_rrp - c.d_rp * radial_dot
                 pins[t, j, k] = (c.pin_radius[k] - gap - c.pin_radial_error[k] * radial_dot
                                  - c.pin_pitch[k] * tangent_dot) + c.disc_profile[j, lobe] \

@@ -28,9 +28,9 @@ import numpy as np
 
 from .compiled import COMPILED, kernel
 from .dynamic import DynamicModel, Motion, at_rest
-from .dynamic_geometry import build_geometry
+from .dynamic_geometry import GeometryConstants, build_geometry
 from .errors import ErrorSet
-from .kernels import element_forces, newmark_steps
+from .kernels import Elements, forces_only, newmark_steps, scratch
 from .newmark import (BETA, CYCLE_TOLERANCE, GAMMA, MAX_ITERATIONS, TOLERANCE, NewmarkStepper,
                       State, static_start)
 from .reducer_model import Outputs, step_efficiency
@@ -53,6 +53,7 @@ class DynamicReducer:
         self.model = None
         self.time = self.theta_in = self.omega_in = self.tau_load = 0.0
         self.state = None
+        self._parts = None
 
     def _model(self, tau_load: float) -> DynamicModel:
         flank = 1 if tau_load <= 0 else -1
@@ -64,6 +65,17 @@ class DynamicReducer:
                 self.model.modal_frequencies = before.modal_frequencies
                 self.model.modal_shapes, self.model.floating = before.modal_shapes, before.floating
         return self.model
+
+    def _compiled_parts(self, model: DynamicModel) -> tuple:
+        """(constants, elements) of the model as plain tuples for `communication_step`, made
+        again only when the model or its elements change: numba types a named tuple's fields
+        one by one in Python at every call (some 10 us for the 67 constants and the 24
+        elements), a plain tuple's in C (4 us)."""
+        parts = self._parts
+        if parts is None or parts[0] is not model or parts[1] is not model.elements:
+            parts = self._parts = (model, model.elements, tuple(model.constants()),
+                                   tuple(model.elements))
+        return parts[2], parts[3]
 
     def _outputs(self, omega_in: float, tau_in: float, tau_load: float,
                  torque_rate: float = 0.0, p_loss: float = 0.0, p_out: float = 0.0) -> Outputs:
@@ -93,9 +105,11 @@ class DynamicReducer:
         omega = (theta_in - self.theta_in) / step_size
         model = self._model(tau_load)
         if COMPILED and model.compiled_geometry:
-            q, v, a = (x.copy() for x in (self.state.q, self.state.v, self.state.a))
+            state = self.state
+            q, v, a = state.q.copy(), state.v.copy(), state.a.copy()
+            constants, elements = self._compiled_parts(model)
             tau_in, p_loss, speed = communication_step(
-                model.constants(), model.elements, model.mass, float(time), float(step_size), count,
+                constants, elements, model.mass, float(time), float(step_size), count,
                 self.theta_in, omega, float(tau_load), q, v, a, model.sun_rot, model.carrier_rot,
                 model.shaft_k, model.shaft_c, model.scale)
             p_out = -float(tau_load) * (omega / self.design.ratio + speed)
@@ -150,15 +164,17 @@ class DynamicReducer:
 
 
 @kernel
-def communication_step(c, el, mass, time, step_size, count, theta_start, omega, tau_load, q, v, a,
-                       sun_rot, carrier_rot, shaft_k, shaft_c, scale):
+def communication_step(constants, elements, mass, time, step_size, count, theta_start, omega,
+                       tau_load, q, v, a, sun_rot, carrier_rot, shaft_k, shaft_c, scale):
     """One communication step of `DynamicReducer.step` in one call: count internal steps
     from time to time + step_size [s], the input angle from theta_start [rad] at omega
-    [rad/s], under tau_load [N*m]; the element geometry from the model's constants c
-    (`geometry_constants`), the elements el and the masses, the state q, v, a updated in
-    place.  Returns the means over the step (trapezoids over the internal steps, as the
-    Python route takes them) of the input torque [N*m], of the dissipated power [W] and of
-    the carrier's speed deviation [rad/s]."""
+    [rad/s], under tau_load [N*m]; the element geometry from the model's constants
+    (`geometry_constants`), the elements and the masses, the state q, v, a updated in
+    place.  The constants and the elements come as plain tuples of their fields
+    (`DynamicReducer._compiled_parts`) and are named again here.  Returns the means over the
+    step (trapezoids over the internal steps, as the Python route takes them) of the input
+    torque [N*m], of the dissipated power [W] and of the carrier's speed deviation [rad/s]."""
+    c, el = GeometryConstants(*constants), Elements(*elements)
     A = count + 1
     t, h = np.empty(A), np.empty(A)
     theta, speed, alpha, load = np.empty(A), np.full(A, omega), np.zeros(A), np.full(A, tau_load)
@@ -170,8 +186,10 @@ def communication_step(c, el, mass, time, step_size, count, theta_start, omega, 
     n = q.size
     out_q, out_v, power = np.empty((A, n)), np.empty((A, n)), np.empty((A, 2))
     out_q[0], out_v[0] = q, v
-    f, K, C = np.empty(n), np.empty((n, n)), np.empty((n, n))
-    power[0, 0], power[0, 1] = element_forces(el, g, 0, q, v, f, K, C)
+    # the powers at the step's start: the forces alone, their tangent not wanted (the same
+    # powers as `element_forces`, to the bit)
+    f, unused = np.empty(n), np.empty((0, 0))
+    power[0, 0], power[0, 1] = forces_only(el, g, 0, q, v, f, unused, unused, scratch(el, g), False)
     newmark_steps(el, g, 1, A, mass, q, v, a, BETA, GAMMA, TOLERANCE, CYCLE_TOLERANCE,
                   MAX_ITERATIONS, out_q, out_v, power)
     torque, loss, turn = 0.0, 0.0, 0.0

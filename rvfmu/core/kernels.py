@@ -7,6 +7,10 @@ microsecond of Python, so the run is slow however little arithmetic it does.
 These two functions hold that loop; numba compiles them (`COMPILED`) when it
 is installed, and without it (a host Python that lacks it, or RVTE_NUMBA=0)
 they run as they are, as plain numpy: the same results, several times slower.
+A step's Newton iteration takes three updates as a rule (some 1e-6, 1e-10 and 1e-14 m):
+the third comes from the second's factors of the tangent and a residual evaluated
+without one (`newmark_steps`, `forces_only`): some 30 % of the step's eliminations
+and of its tangents' assembly saved.
 
 Friction (docs/model.md section 9) rides on the same elements: every pin, bearing and
 mesh has a slip, its sliding speed [m/s], the nominal kinematics' plus a row over the
@@ -21,6 +25,7 @@ stiffnesses and external forces at a run of time steps, axis 0 the step).
 
 from __future__ import annotations
 
+import warnings
 from collections import namedtuple
 
 import numpy as np
@@ -30,6 +35,7 @@ from .pin_law import contact
 from .roller_law import roller_law
 
 LINE_SEARCH_HALVINGS = 8    # a Newton update is halved at most this often (to 1/256)
+REUSE_BELOW = 1e-8          # [m] a Newton update this small: the next from its factors
 
 Elements = namedtuple("Elements", [
     "linear_c",        # (m,) dashpots of the meshes and sun support [N s/m]
@@ -143,9 +149,18 @@ def element_forces(el, g, a, q, v, f, K, C):
 @kernel
 def forces_into(el, g, a, q, v, f, K, C, work):
     """`element_forces` with its working arrays `work` (`scratch`) given."""
+    return forces_only(el, g, a, q, v, f, K, C, work, True)
+
+
+@kernel
+def forces_only(el, g, a, q, v, f, K, C, work, tangent):
+    """`forces_into`, K and C only where `tangent` is True: else they are left as they are
+    and the forces f and the powers are those it gives, to the bit (a residual whose
+    tangent is not wanted: `newmark_steps` reusing an earlier one's elimination)."""
     f[:] = 0.0
-    K[:, :] = 0.0
-    C[:, :] = 0.0
+    if tangent:
+        K[:, :] = 0.0
+        C[:, :] = 0.0
     friction_power, damper_power = 0.0, 0.0
     nb = el.bearing_k.shape[0]
     # each element's normal force and its gradient over the element's own unknowns (for the
@@ -167,11 +182,17 @@ def forces_into(el, g, a, q, v, f, K, C, work):
         mesh_load[e] = abs(force)
         mesh_sign[e] = 1.0 if force >= 0.0 else -1.0
         for x in range(cols.shape[1]):
+            if L[e, x] == 0.0:
+                continue                # a padding column (`touched_columns`): adds nothing
             i = cols[e, x]
             f[i] += L[e, x] * force
+            if not tangent:
+                continue
             for y in range(cols.shape[1]):
-                K[i, cols[e, y]] += k * L[e, x] * L[e, y]
-                C[i, cols[e, y]] += c * L[e, x] * L[e, y]
+                if L[e, y] != 0.0:
+                    K[i, cols[e, y]] += k * L[e, x] * L[e, y]
+                    if c != 0.0:    # the elements' dashpots are none but IMPACT's (modal damping)
+                        C[i, cols[e, y]] += c * L[e, x] * L[e, y]
     # bearings: 2-D springs (linear, or the roller law) with a dead zone of half the radial
     # clearance
     cols, B = g.bearing_cols, g.B[a]
@@ -207,12 +228,19 @@ def forces_into(el, g, a, q, v, f, K, C, work):
         sxy = (radial - across) * ux * uy
         for x in range(cols.shape[1]):
             i, bx, by = cols[b, x], B[b, 0, x], B[b, 1, x]
+            if bx == 0.0 and by == 0.0:
+                continue                # a padding column: adds nothing
             f[i] += bx * fx + by * fy
+            if not tangent:
+                continue
             tx, ty = sxx * bx + sxy * by, sxy * bx + syy * by
             for y in range(cols.shape[1]):
                 j, cx, cy = cols[b, y], B[b, 0, y], B[b, 1, y]
+                if cx == 0.0 and cy == 0.0:
+                    continue
                 K[i, j] += tx * cx + ty * cy
-                C[i, j] += c * (bx * cx + by * cy)
+                if c != 0.0:
+                    C[i, j] += c * (bx * cx + by * cy)
     # pins: unilateral along their normals, over each disc's own three unknowns; each disc's
     # pins are summed over its three unknowns first (`work.disc_*`), then added in once
     mu = el.pin_friction
@@ -248,6 +276,8 @@ def forces_into(el, g, a, q, v, f, K, C, work):
             if mu == 0.0:
                 for x in range(3):
                     df[x] += R[p, x] * normal
+                    if not tangent:
+                        continue
                     for y in range(3):
                         dk[x, y] += k * R[p, x] * R[p, y]
                         dc[x, y] += c * R[p, x] * R[p, y]
@@ -260,6 +290,8 @@ def forces_into(el, g, a, q, v, f, K, C, work):
             slide = resist * dsign
             for x in range(3):
                 df[x] += R[p, x] * normal + T[p, x] * resist * sign
+                if not tangent:
+                    continue
                 kx = k * R[p, x] + mu * sign * k * T[p, x]
                 cx = c * R[p, x] + mu * sign * c * T[p, x]
                 for y in range(3):
@@ -267,21 +299,26 @@ def forces_into(el, g, a, q, v, f, K, C, work):
                     dc[x, y] += cx * R[p, y] + slide * T[p, x] * T[p, y]
         for x in range(3):
             f[dofs[x]] += df[x]
+            if not tangent:
+                continue
             for y in range(3):
                 K[dofs[x], dofs[y]] += dk[x, y]
                 C[dofs[x], dofs[y]] += dc[x, y]
     # input shaft: the sun's rotation deviation against a torsional spring to the housing
     s = el.shaft
     f[s] += el.shaft_k * q[s] + el.shaft_c * v[s]
-    K[s, s] += el.shaft_k
-    C[s, s] += el.shaft_c
+    if tangent:
+        K[s, s] += el.shaft_k
+        C[s, s] += el.shaft_c
     damper_power += el.shaft_c * v[s] * v[s]
     # modal damping (DynamicModel.set_modal_damping): a constant matrix on the velocities
     for i in range(el.modal_c.shape[0]):
         force = 0.0
         for j in range(el.modal_c.shape[1]):
             force += el.modal_c[i, j] * v[j]
-            C[i, j] += el.modal_c[i, j]
+        if tangent:
+            for j in range(el.modal_c.shape[1]):
+                C[i, j] += el.modal_c[i, j]
         f[i] += force
         damper_power += v[i] * force
     # turning contacts: bearings, meshes and the seal resist their slip with R s(w),
@@ -308,6 +345,8 @@ def forces_into(el, g, a, q, v, f, K, C, work):
             if i < 0:
                 continue
             f[i] += S[e, x] * resist * sign
+            if not tangent:
+                continue
             for y in range(cols.shape[1]):
                 if cols[e, y] >= 0:
                     C[i, cols[e, y]] += resist * dsign * S[e, x] * S[e, y]
@@ -334,10 +373,18 @@ def _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma, ma
     """The Newmark rule's acceleration and velocity at displacement q into a, v, the element
     forces into f, K, C (`forces_into`, working arrays `work`) and the step's residual
     M a + f - F into residual; returns the (friction, damper) powers."""
+    return _residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma, mass, f, K, C,
+                     residual, work, True)
+
+
+@kernel
+def _residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma, mass, f, K, C, residual,
+              work, tangent):
+    """`_newmark_residual`, with K and C only where `tangent` is True (`forces_only`)."""
     for i in range(q.size):
         a[i] = (q[i] - q_old[i] - h * v_old[i]) / (beta * h * h) - (0.5 / beta - 1.0) * a_old[i]
         v[i] = v_old[i] + h * ((1.0 - gamma) * a_old[i] + gamma * a[i])
-    powers = forces_into(el, g, k, q, v, f, K, C, work)
+    powers = forces_only(el, g, k, q, v, f, K, C, work, tangent)
     for i in range(q.size):
         residual[i] = mass[i] * a[i] + f[i] - g.external[k, i]
     return powers
@@ -374,6 +421,53 @@ def solve_in_place(A, x):
     return True
 
 
+@kernel
+def factor_in_place(A, pivots):
+    """`solve_in_place`'s elimination kept for later right-hand sides (`solve_factored`): A
+    becomes its LU factors (the multipliers below the diagonal, each in the row where it was
+    used), pivots (n,) the row swapped into each column's place.  False where a pivot is
+    zero (A singular).  The same operations in the same order: solve_factored(A, pivots, x)
+    after it gives solve_in_place's x to the bit."""
+    n = A.shape[0]
+    for c in range(n):
+        pivot, big = c, abs(A[c, c])
+        for r in range(c + 1, n):
+            if abs(A[r, c]) > big:
+                pivot, big = r, abs(A[r, c])
+        pivots[c] = pivot
+        if big == 0.0:
+            return False
+        if pivot != c:
+            for j in range(c, n):
+                A[c, j], A[pivot, j] = A[pivot, j], A[c, j]
+        for r in range(c + 1, n):
+            m = A[r, c] / A[c, c]
+            A[r, c] = m
+            if m != 0.0:
+                for j in range(c + 1, n):
+                    A[r, j] -= m * A[c, j]
+    return True
+
+
+@kernel
+def solve_factored(A, pivots, x):
+    """x <- A^-1 x from the factors of `factor_in_place` (A, pivots unchanged)."""
+    n = x.size
+    for c in range(n):
+        p = pivots[c]
+        if p != c:
+            x[c], x[p] = x[p], x[c]
+        for r in range(c + 1, n):
+            m = A[r, c]
+            if m != 0.0:
+                x[r] -= m * x[c]
+    for r in range(n - 1, -1, -1):
+        value = x[r]
+        for j in range(r + 1, n):
+            value -= A[r, j] * x[j]
+        x[r] = value / A[r, r]
+
+
 def _solve_numpy(A, x):
     """`solve_in_place` by LAPACK, for the plain numpy run (a Python loop of n^3 would cost
     a millisecond a step there)."""
@@ -384,7 +478,39 @@ def _solve_numpy(A, x):
     return True
 
 
+def _factor_numpy(A, pivots):
+    """`factor_in_place` by LAPACK (getrf, whose pivots are the same swaps), for the plain
+    numpy run."""
+    from scipy.linalg import lu_factor
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")         # a singular A is told by its zero pivot
+        lu, swaps = lu_factor(A, check_finite=False)
+    A[:, :] = lu
+    pivots[:] = swaps
+    return bool(np.all(np.diag(lu) != 0.0))
+
+
+def _solve_factored_numpy(A, pivots, x):
+    """`solve_factored` by LAPACK (getrs) on `_factor_numpy`'s factors."""
+    from scipy.linalg import lu_solve
+
+    x[:] = lu_solve((A, pivots), x, check_finite=False)
+
+
 solve_step = solve_in_place if COMPILED else _solve_numpy
+factor_step = factor_in_place if COMPILED else _factor_numpy
+solve_factors = solve_factored if COMPILED else _solve_factored_numpy
+
+
+@kernel
+def _norm(x):
+    """The Euclidean norm of x (n,), summed in order (what np.sqrt(np.sum(x * x)) gives, without
+    its temporary array)."""
+    total = 0.0
+    for i in range(x.size):
+        total += x[i] * x[i]
+    return np.sqrt(total)
 
 
 @kernel
@@ -403,12 +529,20 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
     alternates between the two sides.  With friction (`Elements.line_search`) each
     Newton update is halved until the step's residual falls (at most LINE_SEARCH_HALVINGS
     times): the regularised sign is a sigmoid over a slip of a few um/s, and a full
-    Newton update from outside it overshoots to the other side and back.  Returns
-    (most Newton iterations in one step, steps that did not converge)."""
+    Newton update from outside it overshoots to the other side and back.
+
+    An update below REUSE_BELOW (Newton's quadratic phase) is followed by one from the same
+    factors (`solve_factored`), at the residual alone (`forces_only`): the tangent there
+    differs from the last one's by that update's share of the deflections, 1e-4 or less,
+    and so does the next update from its Newton value, itself some 1e-14 m (a few
+    1e-18 m apart).  Where that update is not yet below the tolerance (a contact switched),
+    the next is Newton's again.  Returns (most Newton iterations in one step, steps that did
+    not converge)."""
     n = q.size
     f, residual, dq, start = np.empty(n), np.zeros(n), np.empty(n), np.empty(n)
     q_old, v_old, a_old = np.empty(n), np.empty(n), np.empty(n)
     K, C, J = np.empty((n, n)), np.empty((n, n)), np.empty((n, n))
+    pivots = np.empty(n, dtype=np.int64)
     work = scratch(el, g)
     most, failed = 0, 0
     powers = (0.0, 0.0)
@@ -422,34 +556,42 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
         it = 0
         last, before = np.inf, np.inf
         evaluated = False
+        reuse = False           # this update from the last one's factors
         while it < max_iterations:
             it += 1
             if not evaluated:
-                powers = _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma,
-                                           mass, f, K, C, residual, work)
-            J[:, :] = C             # in place: no temporaries compiled, whole arrays in numpy
-            J *= kc
-            J += K
+                powers = _residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma, mass,
+                                   f, K, C, residual, work, not reuse)
             for i in range(n):
-                J[i, i] += mass[i] * ka
                 dq[i] = -residual[i]
-            if not solve_step(J, dq):
-                break                               # a singular tangent: the step fails
+            if reuse:
+                solve_factors(J, pivots, dq)
+            else:
+                for i in range(n):      # J = K + kc C + ka M, as (C kc) + K: no temporaries
+                    for j in range(n):
+                        J[i, j] = C[i, j] * kc + K[i, j]
+                    J[i, i] += mass[i] * ka
+                if not factor_step(J, pivots):
+                    break                           # a singular tangent: the step fails
+                solve_factors(J, pivots, dq)
             size = 0.0
             for i in range(n):
                 size = max(size, abs(dq[i]))
+            # the next update from these factors: after a small Newton update, not after one
+            # from old factors (an update not yet converged after it needs a new tangent)
+            reuse_next = not reuse and size < REUSE_BELOW
             if el.line_search and size >= tolerance:
                 # (an update below the tolerance has converged: no line search, whose residual
                 # could no longer fall below round-off and would halve it eight times for nothing)
-                norm = np.sqrt(np.sum(residual * residual))
+                norm = _norm(residual)
                 start[:] = q
                 fraction = 1.0
                 for _ in range(LINE_SEARCH_HALVINGS + 1):
                     for i in range(n):
                         q[i] = start[i] + fraction * dq[i]
-                    powers = _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma,
-                                               mass, f, K, C, residual, work)
-                    if np.sqrt(np.sum(residual * residual)) < norm:
+                    powers = _residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma,
+                                       mass, f, K, C, residual, work, not reuse_next)
+                    if _norm(residual) < norm:
                         break
                     fraction *= 0.5
                 size *= fraction
@@ -458,6 +600,7 @@ def newmark_steps(el, g, first, stop, mass, q, v, a, beta, gamma, tolerance, cyc
                 for i in range(n):
                     q[i] += dq[i]
                 evaluated = False
+            reuse = reuse_next
             if size < tolerance or (size < cycle_tolerance and abs(size - before) <= 1e-3 * size):
                 converged = True
                 break
