@@ -482,6 +482,10 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     _warn_load(study, log)
     problem = study.problem()
     _check_sample_memory(problem, n, second_order)
+    if method == "linearized" and study.load_Nm == 0.0 and log is not None:
+        log("warning: method linearized at no load: which pins touch depends on the errors, so "
+            "its check usually fails there and the run then solves Saltelli's whole design too "
+            "(docs/studies.md section 4.6)")
     linear = linearized.linearize(study, backend, progress, log, yes) \
         if method == "linearized" else None
     # the rounds: Saltelli's n, or the linearized method's solved base samples, doubled from
