@@ -482,6 +482,7 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     _warn_load(study, log)
     problem = study.problem()
     _check_sample_memory(problem, n, second_order)
+    start = time.perf_counter()
     if method == "linearized" and study.load_Nm == 0.0 and log is not None:
         log("warning: method linearized at no load: which pins touch depends on the errors, so "
             "its check usually fails there and the run then solves Saltelli's whole design too "
@@ -495,7 +496,7 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     if rounds:
         sizes = [size for size in (1 << k for k in range(31)) if ROUND_START <= size < last] + [last]
     history = []
-    start, solved = time.perf_counter(), linear.computed if linear is not None else 0
+    solved = linear.computed if linear is not None else 0
     for size in sizes:
         estimate = _estimate(study, problem, n if linear is not None else size, size, linear,
                              second_order, backend, progress, log, yes)
