@@ -1,7 +1,7 @@
 """The dynamic step made cheaper without changing what it computes.
 
 - the elimination kept as factors (`kernels.factor_in_place`, `solve_factored`) solves as
-  `solve_in_place` does, to the bit, and LAPACK's stand-in without numba to round-off;
+  the elimination in place it replaced (`solve_in_place`, kept here) does, to the bit, and LAPACK's stand-in without numba to round-off;
 - the forces evaluated without their tangent (`kernels.forces_only`) are the forces, to the bit;
 - a Newton update from the factors of the one before (`kernels.REUSE_BELOW`) moves a run by
   far less than the integrator's tolerance against Newton's own updates throughout, and
@@ -13,6 +13,7 @@
 No timing here: studies/benchmarks/bench_dynamic.py measures the speed.
 """
 
+import numba
 import numpy as np
 import pytest
 
@@ -31,6 +32,37 @@ def test_numba_is_in_use():
     assert kernels.COMPILED, "numba is a dependency: the kernels must compile"
 
 
+@numba.njit
+def solve_in_place(A, x):
+    """x <- A^-1 x by Gaussian elimination with partial pivoting, A overwritten; False where
+    a pivot is zero: the elimination the step solved with before it kept its factors (the
+    reference `kernels.factor_in_place` and `solve_factored` are held to)."""
+    n = x.size
+    for c in range(n):
+        pivot, big = c, abs(A[c, c])
+        for r in range(c + 1, n):
+            if abs(A[r, c]) > big:
+                pivot, big = r, abs(A[r, c])
+        if big == 0.0:
+            return False
+        if pivot != c:
+            for j in range(c, n):
+                A[c, j], A[pivot, j] = A[pivot, j], A[c, j]
+            x[c], x[pivot] = x[pivot], x[c]
+        for r in range(c + 1, n):
+            m = A[r, c] / A[c, c]
+            if m != 0.0:
+                for j in range(c + 1, n):
+                    A[r, j] -= m * A[c, j]
+                x[r] -= m * x[c]
+    for r in range(n - 1, -1, -1):
+        value = x[r]
+        for j in range(r + 1, n):
+            value -= A[r, j] * x[j]
+        x[r] = value / A[r, r]
+    return True
+
+
 def tangents(n=18, count=20, seed=3):
     """Random tangents that need row swaps (small diagonal), and right-hand sides."""
     rng = np.random.default_rng(seed)
@@ -43,7 +75,7 @@ def tangents(n=18, count=20, seed=3):
 def test_the_factors_solve_as_the_elimination_to_the_bit():
     for A, x in tangents():
         A1, x1 = A.copy(), x.copy()
-        assert kernels.solve_in_place(A1, x1)
+        assert solve_in_place(A1, x1)
         A2, x2, pivots = A.copy(), x.copy(), np.empty(A.shape[0], dtype=np.int64)
         assert kernels.factor_in_place(A2, pivots)
         assert np.any(pivots != np.arange(A.shape[0]))        # rows were swapped
@@ -66,7 +98,7 @@ def test_a_singular_tangent_is_told_by_every_route():
     A = np.arange(1.0, 17.0).reshape(4, 4)          # rank 2
     A[:, 3] = 0.0
     pivots = np.empty(4, dtype=np.int64)
-    assert not kernels.solve_in_place(A.copy(), np.ones(4))
+    assert not solve_in_place(A.copy(), np.ones(4))
     assert not kernels.factor_in_place(A.copy(), pivots)
     assert not kernels._factor_numpy(A.copy(), pivots)
 

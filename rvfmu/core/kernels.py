@@ -391,43 +391,14 @@ def _residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma, mass, f, K
 
 
 @kernel
-def solve_in_place(A, x):
-    """x <- A^-1 x by Gaussian elimination with partial pivoting; A is overwritten.  False
-    where a pivot is zero (A singular).  For the 18-21 unknowns of a step this costs about
-    half of a LAPACK call through numba, which copies both arrays first."""
-    n = x.size
-    for c in range(n):
-        pivot, big = c, abs(A[c, c])
-        for r in range(c + 1, n):
-            if abs(A[r, c]) > big:
-                pivot, big = r, abs(A[r, c])
-        if big == 0.0:
-            return False
-        if pivot != c:
-            for j in range(c, n):
-                A[c, j], A[pivot, j] = A[pivot, j], A[c, j]
-            x[c], x[pivot] = x[pivot], x[c]
-        for r in range(c + 1, n):
-            m = A[r, c] / A[c, c]
-            if m != 0.0:
-                for j in range(c + 1, n):
-                    A[r, j] -= m * A[c, j]
-                x[r] -= m * x[c]
-    for r in range(n - 1, -1, -1):
-        value = x[r]
-        for j in range(r + 1, n):
-            value -= A[r, j] * x[j]
-        x[r] = value / A[r, r]
-    return True
-
-
-@kernel
 def factor_in_place(A, pivots):
-    """`solve_in_place`'s elimination kept for later right-hand sides (`solve_factored`): A
-    becomes its LU factors (the multipliers below the diagonal, each in the row where it was
-    used), pivots (n,) the row swapped into each column's place.  False where a pivot is
-    zero (A singular).  The same operations in the same order: solve_factored(A, pivots, x)
-    after it gives solve_in_place's x to the bit."""
+    """Gaussian elimination with partial pivoting kept for later right-hand sides
+    (`solve_factored`): A becomes its LU factors (the multipliers below the diagonal, each
+    in the row where it was used), pivots (n,) the row swapped into each column's place.
+    False where a pivot is zero (A singular).  For the 18-21 unknowns of a step this costs
+    about half of a LAPACK call through numba, which copies both arrays first; the
+    elimination that solved in place (tests/test_dynamic_step_speed.py keeps it) gives the
+    same x to the bit."""
     n = A.shape[0]
     for c in range(n):
         pivot, big = c, abs(A[c, c])
@@ -468,16 +439,6 @@ def solve_factored(A, pivots, x):
         x[r] = value / A[r, r]
 
 
-def _solve_numpy(A, x):
-    """`solve_in_place` by LAPACK, for the plain numpy run (a Python loop of n^3 would cost
-    a millisecond a step there)."""
-    try:
-        x[:] = np.linalg.solve(A, x)
-    except np.linalg.LinAlgError:
-        return False
-    return True
-
-
 def _factor_numpy(A, pivots):
     """`factor_in_place` by LAPACK (getrf, whose pivots are the same swaps), for the plain
     numpy run."""
@@ -498,7 +459,6 @@ def _solve_factored_numpy(A, pivots, x):
     x[:] = lu_solve((A, pivots), x, check_finite=False)
 
 
-solve_step = solve_in_place if COMPILED else _solve_numpy
 factor_step = factor_in_place if COMPILED else _factor_numpy
 solve_factors = solve_factored if COMPILED else _solve_factored_numpy
 

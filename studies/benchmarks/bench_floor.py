@@ -22,7 +22,7 @@ one thread):
   counted on a short run with the kernels as plain numpy (RVTE_NUMBA=0, in a child
   process: the same algorithm); one evaluation of the element forces with the Newmark
   residual (`kernels._newmark_residual`) and one elimination of the 18 x 18 tangent
-  (`kernels.solve_step`) are timed compiled on a state of the run; the element geometry of
+  (`kernels.factor_step` and `kernels.solve_factors`) are timed compiled on a state of the run; the element geometry of
   the steps is timed as built (`DynamicModel._chunk`).  A step takes at least its
   geometry, one evaluation and one elimination: the floor.  The FMU's dynamic model
   steps the same Newmark at internal steps of 0.1 ms (`dynamic_reducer.DEFAULT_INTERNAL_STEP`),
@@ -268,12 +268,13 @@ def dynamic(seconds: float):
     @numba.njit
     def eliminations(repeat, J):
         n = J.shape[0]
-        A, x = np.empty((n, n)), np.empty(n)
+        A, x, pivots = np.empty((n, n)), np.empty(n), np.empty(n, dtype=np.int64)
         for _ in range(repeat):
             A[:, :] = J
             for i in range(n):
                 x[i] = 1.0
-            kernels.solve_step(A, x)
+            kernels.factor_step(A, pivots)
+            kernels.solve_factors(A, pivots, x)
         return x
 
     repeat = 20000
