@@ -102,8 +102,8 @@ def output_columns(study) -> tuple[tuple, tuple]:
 def _output_values(study, errors: ErrorSet):
     """(S, C) the outputs in `output_columns`' order, and converged (S,)."""
     out = outputs(study, errors)
-    te_columns, kinds = output_columns(study)
-    parts = ([out.te_arcsec] if te_columns else []) + [out.scalars[k][:, None] for k in kinds]
+    parts = ([out.te_arcsec] if out.te_arcsec is not None else []) + \
+        [out.scalars[k][:, None] for k in output_columns(study)[1]]
     return np.hstack(parts), out.converged
 
 
@@ -126,19 +126,20 @@ class Outputs:
 def outputs(study, errors: ErrorSet) -> Outputs:
     """The TE curve and the scalar metrics of the reducers `errors` (`Outputs`)."""
     design = study.design
+    te_columns, kinds = output_columns(study)
     scalars = {}
     te = None
     converged = np.ones(errors.samples, dtype=bool)
-    if any(metric_kind(m) not in WINDUP_METRICS + FRICTION_METRICS for m in study.metrics):
+    if te_columns:
         curve = te_curve(design, errors, tau_load=-study.load_Nm, points=study.points)
         te = curve.te_arcsec
         converged &= curve.converged
-    if any(metric_kind(m) in WINDUP_METRICS for m in study.metrics):
+    if "lost_motion" in kinds:
         wind = windup(design, errors, positions=study.windup_positions)
         converged &= wind.converged
         scalars["lost_motion"] = wind.lost_motion_arcmin()
         scalars["torsional_rigidity"] = wind.torsional_rigidity_Nm_per_arcmin()
-    if any(metric_kind(m) in FRICTION_METRICS for m in study.metrics):
+    if "efficiency" in kinds:
         efficiency, running, ok = operating_losses(design, errors, study.load_Nm,
                                                    study.output_speed_rpm)
         converged &= ok
