@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from rvfmu import api
-from rvfmu.bench.calibration import design_sources, parameters
+from rvfmu.bench.calibration_data import design_sources
+from rvfmu.bench.calibration_values import parameters
 from rvfmu.cli import main
 from rvfmu.bench.compare import model_grid
 from rvfmu.core.design import load_design

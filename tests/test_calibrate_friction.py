@@ -1,5 +1,6 @@
-"""Calibrating the friction fields to efficiencies and running torques (rvfmu/bench/calibration.py,
-docs/model.md section 9): known coefficients come back from the figures they made."""
+"""Calibrating the friction fields to efficiencies and running torques
+(rvfmu/bench/calibration_problem.py, docs/model.md section 9): known coefficients come back
+from the figures they made."""
 
 import json
 

@@ -14,7 +14,7 @@ import pytest
 
 from rvfmu import api
 from rvfmu.bench import catalogue
-from rvfmu.bench.calibration import parameters
+from rvfmu.bench.calibration_values import parameters
 from rvfmu.cli import main
 from rvfmu.core.checks import InputError
 from rvfmu.core.design import (DESIGN_FIELDS, ESTIMATE_NAMES, PRESET_NAMES, design_from_file_values,

@@ -26,7 +26,7 @@ POINTS = 256          # per output revolution: cheap, and the record's rows lie 
 
 @pytest.fixture(scope="module")
 def rv20():
-    # the identifications fit the bearings as linear springs (rvfmu/bench/calibration.py)
+    # the identifications fit the bearings as linear springs (rvfmu/bench/calibration_values.py)
     return linear_bearings(preset("RV-20E"))
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rvfmu import api, cli
-from rvfmu.bench import calibration
+from rvfmu.bench import calibration_data, calibration_fit, calibration_problem, calibration_values
 from rvfmu.core import friction, hysteresis as hysteresis_module
 from rvfmu.core.checks import InputError
 from rvfmu.core.design import preset
@@ -200,8 +200,8 @@ def test_catalogue_friction_points_have_their_speeds_checked(tmp_path, capsys):
     assert "140 rpm out" in err and not out.exists()
     data.write_text("[[running_torque]]\noutput_speed_rpm = 100\ninput_torque_Nm = 0.03\n")
     design = preset("RV-40E-121")
-    problem = calibration.problem(design, [calibration.catalogue_dataset(
-        data, calibration.read_toml("data", data))], ["bearing_drag_factor"])
+    problem = calibration_problem.problem(design, [calibration_data.catalogue_dataset(
+        data, calibration_data.read_toml("data", data))], ["bearing_drag_factor"])
     assert len(problem.warnings) == 1
     assert problem.warnings[0].startswith("frame.toml running_torque 1: output_speed_rpm = 100.0 "
                                           "is an output speed of 100 rpm")
@@ -263,31 +263,31 @@ def test_a_peak_out_of_reach_writes_nothing_and_is_marked_without_a_file(tmp_pat
 def test_a_fit_pressed_against_a_default_bound_is_refused_and_a_given_one_is_not(rv40):
     """`out_of_reach`: the value on its default bound with the misfit still falling beyond it
     names the figure, the value, the bound and the model's figure there."""
-    data = calibration.DataSet("frame.toml", catalogue=calibration.Catalogue(
+    data = calibration_data.DataSet("frame.toml", catalogue=calibration_data.Catalogue(
         torsional_rigidity_Nm_per_arcmin=1e9))
-    (p,) = calibration.parameters(rv40, ["output_stiffness"])
-    problem = calibration.Problem(rv40, (p,), (data,), "catalogue", 8)
+    (p,) = calibration_values.parameters(rv40, ["output_stiffness"])
+    problem = calibration_problem.Problem(rv40, (p,), (data,), "catalogue", 8)
     after = [np.array([126.2])]
     res = np.array([126.2 / 1e9 - 1.0])
     jac = np.array([[1.3e-7]])           # the rigidity rises with the stiffness
-    error = calibration.out_of_reach(problem, np.array([False]), np.array([True]), jac, res,
-                                     after)
+    error = calibration_fit.out_of_reach(problem, np.array([False]), np.array([True]), jac, res,
+                                         after)
     assert isinstance(error, InputError)
     assert error.field == "torsional_rigidity_Nm_per_arcmin" and error.value == 1e9
     assert (f"output_stiffness ends at its upper bound {p.upper:.4g} N*m/arcmin" in str(error)
             and "torsional_rigidity_Nm_per_arcmin = 126.2" in str(error))
     # inside the window, pressed inward, or on bounds the user gave: no refusal
-    assert calibration.out_of_reach(problem, np.array([False]), np.array([False]), jac, res,
-                                    after) is None
-    assert calibration.out_of_reach(problem, np.array([False]), np.array([True]), -jac, res,
-                                    after) is None
+    assert calibration_fit.out_of_reach(problem, np.array([False]), np.array([False]), jac, res,
+                                        after) is None
+    assert calibration_fit.out_of_reach(problem, np.array([False]), np.array([True]), -jac, res,
+                                        after) is None
     given = dataclasses.replace(p, bounds_given=True)
-    assert calibration.out_of_reach(dataclasses.replace(problem, parameters=(given,)),
-                                    np.array([False]), np.array([True]), jac, res, after) is None
+    assert calibration_fit.out_of_reach(dataclasses.replace(problem, parameters=(given,)),
+                                        np.array([False]), np.array([True]), jac, res, after) is None
     # the corners: the default window cannot reach 1e9, a window the user states is his
-    error = calibration.beyond_reach(problem)
+    error = calibration_fit.beyond_reach(problem)
     assert error.field == "torsional_rigidity_Nm_per_arcmin" and error.value == 1e9
-    assert calibration.beyond_reach(dataclasses.replace(problem, parameters=(given,))) is None
+    assert calibration_fit.beyond_reach(dataclasses.replace(problem, parameters=(given,))) is None
 
 
 def test_a_shipped_calibration_still_runs_and_writes(tmp_path):

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rvfmu import api
-from rvfmu.bench import calibration
+from rvfmu.bench import calibration_values
 from rvfmu.core import friction, lubricant
 from rvfmu.core.checks import InputError
 from rvfmu.core.design import design_from_file_values, preset
@@ -171,7 +171,7 @@ def test_at_40_C_every_result_is_todays_to_the_bit():
 
 
 def test_a_fit_of_the_viscosity_starts_from_the_grade():
-    (parameter,) = calibration.parameters(preset("RV-40E-121"), ["lubricant_viscosity"])
+    (parameter,) = calibration_values.parameters(preset("RV-40E-121"), ["lubricant_viscosity"])
     assert parameter.value == 100.0
 
 

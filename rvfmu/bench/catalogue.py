@@ -13,15 +13,15 @@ stiffer than its frame, with more lost motion.
 How the gap is closed, and why so:
 
 - Two values, two figures.  The torsional rigidity identifies a torsional
-  stiffness in series with the output (`calibration.OUTPUT_STIFFNESS`: what the
+  stiffness in series with the output (`calibration_values.OUTPUT_STIFFNESS`: what the
   model does not have, lumped where a catalogue test measures it); the lost
   motion identifies the size of the modification pair
-  (`calibration.MODIFICATION_SCALE`: the tip and root clearance that sets the
+  (`calibration_values.MODIFICATION_SCALE`: the tip and root clearance that sets the
   backlash), which the seeds give only partly.  Each figure moves mostly one
   value, so the pair is identifiable; nothing else is fitted.
 - The lost motion is aimed at `lost_motion_aim` x the catalogue's bound (the
   catalogue file says why): a typical reducer of the frame, inside the bound.
-- The fit is `rvfmu.bench.calibration` (differential evolution, then least squares)
+- The fit is `rvfmu.bench.calibration_fit` (differential evolution, then least squares)
   on the catalogue target, from the estimate: the preset file's `[calibration]`
   table records the fitted values, the figures before and after and how it was
   made; `preset(name)` applies it, `preset(name + "-estimate")` does not.
@@ -36,8 +36,10 @@ from dataclasses import dataclass
 from importlib import metadata, resources
 from pathlib import Path
 
-from .calibration import (MODIFICATION_SCALE, OUTPUT_STIFFNESS, Calibration, Catalogue, DataSet,
-                          calibrate, problem)
+from .calibration_data import Catalogue, DataSet
+from .calibration_fit import Calibration, calibrate
+from .calibration_problem import problem
+from .calibration_values import MODIFICATION_SCALE, OUTPUT_STIFFNESS
 from ..core.checks import InputError
 from ..core.design import ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, in_file_units, preset, preset_file
 from ..core.quasistatic import Windup, windup

@@ -18,14 +18,14 @@ from .common import resolve_design, resolve_errors, _json_safe, _design_ratio
 
 @dataclass(frozen=True)
 class CalibrateReport:
-    """A calibration (`rvfmu.bench.calibration.Calibration`) with its inputs and output file."""
+    """A calibration (`rvfmu.bench.calibration_fit.Calibration`) with its inputs and output file."""
 
     calibration: object
     data: tuple[str, ...]
     output: str | None
 
     def summary(self) -> str:
-        from ..bench.calibration import describe, setting
+        from ..bench.calibration_values import describe, setting
 
         cal = self.calibration
         prob = cal.problem
@@ -37,13 +37,14 @@ class CalibrateReport:
             f"{'s' if len(prob.datasets) > 1 else ''}, target {prob.target}",
         ]
         if prob.target != "catalogue":
-            from ..bench.calibration import default_points as calibration_points
+            from ..bench.calibration_problem import default_points as calibration_points
 
             full = default_points(d)
             lines.append(f"model             {prob.points} points per output revolution (" + (
                 f"the pin-passing order {d.z_p * d.z_c} resolved)" if prob.points // 2 > d.z_p * d.z_c
                 else f"32*z_p or more: under load the peaks within ~1 % of the {full}-point "
-                     "model's, see rvfmu/bench/calibration.py)" if prob.points >= calibration_points(d)
+                     "model's, see rvfmu/bench/calibration_problem.py)"
+                if prob.points >= calibration_points(d)
                 else f"fewer than the default {calibration_points(d)}: the peaks may be several % "
                      f"below the {full}-point model's)"))
         lines += [f"fit               least squares on ln(value): differential_evolution, then "
@@ -122,7 +123,7 @@ def calibrate(design, data, fit, target: str | None = None, errors=None, load: f
               maxiter: int | None = None, popsize: int | None = None, seed: int | None = None,
               output: str | Path | None = None, progress=None) -> CalibrateReport:
     """Identify stiffnesses and friction fields of `design` from measurements
-    (`rvfmu.bench.calibration`).
+    (`rvfmu.bench.calibration_fit`).
 
     data: files, each a bench CSV (read as `measure` reads it, the design's ratio; at
     `load` with `errors`), a data-set TOML ([[dataset]] tables with te_pp_arcsec or data,
@@ -135,9 +136,13 @@ def calibrate(design, data, fit, target: str | None = None, errors=None, load: f
     before the first model evaluation.  progress(total, done): optional.  A figure out of
     the bounds' reach or a fit pressed against a default bound raises InputError instead of
     writing `output` (the first before the fit); without `output` the report carries it as
-    a warning (`rvfmu.bench.calibration.beyond_reach`, `out_of_reach`).
+    a warning (`rvfmu.bench.calibration_fit.beyond_reach`, `out_of_reach`).
     """
-    from ..bench import calibration as calib
+    from ..bench import calibration_fit
+    from ..bench.calibration_data import (DataSet, catalogue_dataset, design_sources, is_catalogue,
+                                          peaks_datasets, read_toml)
+    from ..bench.calibration_problem import problem
+    from ..bench.calibration_values import parameters
 
     output = None if output is None else output_file("output", output, ("toml",))
     resolved = resolve_design(design)
@@ -154,10 +159,10 @@ def calibrate(design, data, fit, target: str | None = None, errors=None, load: f
                        remove_orders=remove_orders, remove_input_orders=remove_input_orders,
                        keep_orders=keep_orders).measured
 
-    sources = calib.design_sources(design) if isinstance(design, (str, Path)) else \
-        calib.design_sources(resolved.name.split(" (")[0])
+    sources = design_sources(design) if isinstance(design, (str, Path)) else \
+        design_sources(resolved.name.split(" (")[0])
     # The values and bounds first: a wrong --fit name is reported before any file is read.
-    calib.parameters(resolved, fit, bounds, sources)
+    parameters(resolved, fit, bounds, sources)
     datasets = []
     for path in paths:
         path = Path(path)
@@ -165,25 +170,26 @@ def calibrate(design, data, fit, target: str | None = None, errors=None, load: f
             raise InputError("data", str(path), "must be an existing bench CSV, data-set TOML or "
                              "catalogue TOML")
         if path.suffix.lower() == ".toml":
-            values = calib.read_toml("data", path)
-            if calib.is_catalogue(values):
-                datasets.append(calib.catalogue_dataset(path, values, load, error_set))
+            values = read_toml("data", path)
+            if is_catalogue(values):
+                datasets.append(catalogue_dataset(path, values, load, error_set))
             else:
-                datasets += calib.peaks_datasets(path, values, resolved, load, errors, read_record)
+                datasets += peaks_datasets(path, values, resolved, load, errors, read_record)
         else:
-            datasets.append(calib.DataSet(path.name, float(load), error_set,
-                                          measured=read_record(path)))
-    prob = calib.problem(resolved, datasets, fit, target, bounds, sources, points)
+            datasets.append(DataSet(path.name, float(load), error_set,
+                                    measured=read_record(path)))
+    prob = problem(resolved, datasets, fit, target, bounds, sources, points)
     budget = {k: v for k, v in (("maxiter", maxiter), ("popsize", popsize), ("seed", seed))
               if v is not None}
-    total = ((budget.get("maxiter", calib.DE_MAXITER) + 1) * budget.get("popsize", calib.DE_POPSIZE)
-             * len(prob.parameters))
-    # a fit that is no calibration writes nothing (`bench.calibration.out_of_reach`)
-    result = calib.calibrate(prob, progress=None if progress is None else
-                             (lambda done: progress(max(total, done), done)),
-                             refuse=output is not None, **budget)
+    total = ((budget.get("maxiter", calibration_fit.DE_MAXITER) + 1)
+             * budget.get("popsize", calibration_fit.DE_POPSIZE) * len(prob.parameters))
+    # a fit that is no calibration writes nothing (`bench.calibration_fit.out_of_reach`)
+    result = calibration_fit.calibrate(prob, progress=None if progress is None else
+                                       (lambda done: progress(max(total, done), done)),
+                                       refuse=output is not None, **budget)
     if output is not None:
-        output.write_text(calib.design_text(result, [str(p) for p in paths], sources,
-                                            str(design) if isinstance(design, (str, Path)) else ""))
+        output.write_text(calibration_fit.design_text(
+            result, [str(p) for p in paths], sources,
+            str(design) if isinstance(design, (str, Path)) else ""))
     return CalibrateReport(result, tuple(str(p) for p in paths),
                            None if output is None else str(output))

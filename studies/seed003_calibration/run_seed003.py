@@ -33,7 +33,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from rvfmu import api
-from rvfmu.bench.calibration import default_points
+from rvfmu.bench.calibration_problem import default_points
 from rvfmu.bench.compare import model_grid
 from rvfmu.core.design import load_design
 from rvfmu.core.errors import load_errors
