@@ -339,3 +339,39 @@ def test_a_bad_law_forms_setting_is_refused_naming_it(monkeypatch):
     assert pin_law.contact is pin_law.contact_direct and pin_law.contacts is pin_law.contacts_direct
     assert roller_law.roller_law is roller_law.roller_law_direct
     assert roller_law.radial_law is roller_law.radial_law_direct
+
+
+def test_the_laws_no_load_solve_from_the_kinematic_pose_is_the_one_from_the_elastic_solve():
+    """Without bearing clearance the roller law's no-load solve starts from the kinematic pose
+    with the stated stiffnesses, pins in interference and all; the reference route first
+    removes the interference by an elastic solve.  The energy is convex: the same TE to
+    1e-9 arcsec, on reducers where the kinematic pose does leave interference."""
+    from rvfmu.core.equivalent import EquivalentModel
+    from rvfmu.core.quasistatic import NO_LOAD_PROBE
+    from tolerance.montecarlo import sample
+    from tolerance.sampling import errors_from_unit
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / "quick_mc.toml")
+    design = study.design
+    errors = stack([load_errors(ROOT / "studies" / "seed002_errors.toml", design),
+                    errors_from_unit(study, sample(study, 3))])
+    model = EquivalentModel(design, input_angles(design, 60) + 0.05, flank=1)
+    s, a = (g.ravel() for g in np.meshgrid(np.arange(errors.samples), np.arange(60), indexing="ij"))
+    probe = NO_LOAD_PROBE * design.rated_torque
+    zero = np.zeros(s.size)
+    te = {}
+    for start in solver.LAW_STARTS:
+        eq = solver.solve_pairs(model, errors, s, a, zero, no_load_probe=probe, law_start=start)
+        assert eq.converged.all()
+        te[start] = model.output_angle(eq.q, zero) / ARCSEC
+    assert np.ptp(te["elastic"]) > 1.0
+    np.testing.assert_allclose(te["kinematic"], te["elastic"], rtol=0, atol=1e-9)
+    # the two routes do start differently: the kinematic pose leaves pins in interference
+    stated = solver.ReducedSystem(model, np.zeros(model.bearing_k.size, dtype=bool),
+                                  rollers=False)
+    half = model.clearance_halves(errors)
+    poses = [stated.solve(errors, s, a, zero, half, -probe, start_only=only).q for only in (True, False)]
+    assert np.max(np.abs(poses[0] - poses[1])) > 1e-9
+    with pytest.raises(ValueError, match="law_start"):
+        solver.solve_pairs(model, errors, s, a, zero, no_load_probe=probe, law_start="newton")

@@ -17,7 +17,9 @@ Speed comes from structure, not from approximations:
   linear parts take their (pre)stressed shape, then the reducer turns along its
   zero-energy mechanism mode until the first pin touches (docs/model.md section 5);
   only where that leaves a pin in interference, or with bearing clearance, is
-  the equilibrium under a small probe torque solved and taken back to zero;
+  the equilibrium under a small probe torque solved and taken back to zero (with
+  the roller law and no clearance, the kinematic pose is only the start of the
+  law's one solve, interference and all);
 - the Newton iteration is compiled and runs pair by pair, each stopping when it
   has converged (`newton_kernel`; without numba, all pairs are iterated together
   in numpy and those that have converged leave the batch), and the pairs come
@@ -212,7 +214,8 @@ class ReducedSystem:
 
     # -- one chunk -------------------------------------------------------------------------
     def solve(self, errors: ErrorSet, sample, angle, tau_load, half_clearance, probe,
-              first_count=None, bearing_direction=None, start=None) -> Equilibrium:
+              first_count=None, bearing_direction=None, start=None,
+              start_only=False) -> Equilibrium:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
         tau_load == 0 gives the no-load limit from the side of the signed probe
@@ -231,6 +234,11 @@ class ReducedSystem:
         start: (B, n) optional, all unknowns of each pair at a nearby equilibrium (the
         no-load limit with the stated stiffnesses): the no-load pairs of a system with
         the roller law then start there and are solved at LAW_PROBE x probe.
+        start_only: the no-load pairs without bearing clearance keep their kinematic pose
+        (`_first_contact`) even where it leaves a pin in interference: it is only the start
+        of the roller law's solve, whose minimiser does not depend on where it starts, so
+        the elastic solve with the stated stiffnesses that would remove the interference
+        first is skipped (it changes the law's result by the Newton tolerance alone).
         """
         model = self.model
         B = len(angle)
@@ -252,7 +260,8 @@ class ReducedSystem:
                 z = np.flatnonzero(zero)
                 qz, rigid = self._first_contact(angle[z], f0[z], pin_b[z], np.sign(probe))
                 qn[z] = qz
-                elastic[z[~rigid]] = True
+                if not start_only:
+                    elastic[z[~rigid]] = True
         iterations = 0
         groups = [np.flatnonzero(elastic & ~zero), np.flatnonzero(elastic & zero)]
         for group, at_zero in zip(groups, (False, True)):
@@ -512,8 +521,12 @@ def pin_forces(delta, law):
     return contacts(delta, law)[1]
 
 
+LAW_STARTS = ("kinematic", "elastic")
+
+
 def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_load,
-                no_load_probe: float, progress=None, zero_side: int = -1) -> Equilibrium:
+                no_load_probe: float, progress=None, zero_side: int = -1,
+                law_start: str = "kinematic") -> Equilibrium:
     """Equilibria of many (reducer, angle) pairs, in chunks.
 
     sample, angle: (B,) indices into `errors` and `model.pose`; tau_load: (B,) [N*m].
@@ -522,7 +535,14 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     no_load_probe [N*m] > 0 is the size of the probe torque it uses where needed.
     A bearing with clearance in any reducer of `errors` stays nonlinear for all
     of them, so then every zero-load pair takes the probe-and-continuation route.
+    law_start: where the roller law's no-load solve starts without clearance (`_routes`):
+    "kinematic", the kinematic pose with the stated stiffnesses, any interference left in;
+    "elastic", that pose with the interference first removed by an elastic solve with
+    the stated stiffnesses (the reference: the same minimiser, within the Newton
+    tolerance, at about twice the Newton steps; tests/test_law_forms.py).
     """
+    if law_start not in LAW_STARTS:
+        raise ValueError(f"law_start {law_start!r}: must be one of {LAW_STARTS}")
     probe = no_load_probe if zero_side > 0 else -no_load_probe
     sample, angle = np.asarray(sample), np.asarray(angle)
     tau_load = np.broadcast_to(np.asarray(tau_load, dtype=float), sample.shape)
@@ -545,10 +565,11 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
             at = pairs[part]
             eq = system.solve(errors, sample[at], angle[at], tau_load[at], half, probe,
                               None if count is None else count[part],
-                              None if toward is None else toward[part])
+                              None if toward is None else toward[part],
+                              start_only=law is not None and law_start == "kinematic")
             if law is not None:
-                # the limit with the stated stiffnesses is within a fraction of an arcsec
-                # of that with the roller law, which starts there
+                # the kinematic limit with the stated stiffnesses is within a fraction of an
+                # arcsec of that with the roller law, which starts there
                 eq = law.solve(errors, sample[at], angle[at], tau_load[at], half, probe,
                                start=eq.q)
             return at, eq
@@ -570,8 +591,9 @@ def _routes(model, clearance, tau_load):
     with the stated stiffnesses first (kinematics, or the continuation with
     clearance).  Without clearance it then moves to the roller law (then_law): the
     over-constrained chain's self-stress and any preload from the errors are carried
-    by the law, which a single solve at LAW_PROBE x the probe, started from the limit
-    with the stated stiffnesses, finds (`solve_pairs`).  With clearance the law's
+    by the law, which a single solve at LAW_PROBE x the probe, started from the
+    kinematic limit with the stated stiffnesses (pins in interference left in: the
+    law's solve removes it), finds (`solve_pairs`).  With clearance the law's
     bearings stay linear beyond it at no load (docs/model.md section 6)."""
     law = model.bearing_law_a > 0.0
     if not law.any():
