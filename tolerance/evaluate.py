@@ -141,7 +141,8 @@ def outputs(study, errors: ErrorSet) -> Outputs:
         scalars["torsional_rigidity"] = wind.torsional_rigidity_Nm_per_arcmin()
     if "efficiency" in kinds:
         efficiency, running, ok = operating_losses(design, errors, study.load_Nm,
-                                                   study.output_speed_rpm)
+                                                   study.output_speed_rpm,
+                                                   temperature_C=study.temperature_C)
         converged &= ok
         scalars["efficiency"], scalars["no_load_running_torque"] = efficiency, running
     return Outputs(te, scalars, converged)

@@ -20,6 +20,7 @@ arcsec) and names every tolerance by its error name:
     points = 720                   # per output revolution
     windup_positions = 8           # input positions of the windup test (lost motion, rigidity)
     output_speed_rpm = 15.0        # of the friction metrics (efficiency, no_load_running_torque)
+    temperature_C = 40.0           # of the friction metrics: the lubricant's temperature [C]
 
     [spec]                         # a metric column = its limit (maximum; rigidity: minimum)
     te_pp_arcsec = 60.0
@@ -69,6 +70,7 @@ from rvfmu.core.equivalent import check_angles
 from rvfmu.core.errors import (ERROR_FRACTION, ERROR_NAMES, ErrorSet, error_file_values,
                               error_limits, errors_from_file_values, load_errors)
 from rvfmu.core.limits import check_load, check_speed
+from rvfmu.core.lubricant import REFERENCE_TEMPERATURE_C, check_temperature
 from rvfmu.core.quasistatic import default_points
 from rvfmu.core.units import RPM, UM
 
@@ -78,7 +80,7 @@ from .evaluate import LOWER_LIMITED, metric_column, metric_kind, metric_order
 
 SECTIONS = {
     "study": ("name", "design", "errors", "seed", "metrics", "batch_size", "output"),
-    "operating": ("load_Nm", "points", "windup_positions", "output_speed_rpm"),
+    "operating": ("load_Nm", "points", "windup_positions", "output_speed_rpm", "temperature_C"),
     "spec": None,  # keys: metric columns
     "montecarlo": ("n", "confidence"),
     "sobol": ("n", "second_order", "resamples", "confidence", "method", "solved_n", "rounds"),
@@ -172,6 +174,7 @@ class SpecLimit:
     sense: str
 
     def passes(self, values):
+        """(n,) bool: which of `values` (n,), in the column's unit, meet this limit."""
         return values <= self.limit if self.sense == "max" else values >= self.limit
 
     def __str__(self):
@@ -196,6 +199,7 @@ class Study:
     points: int | None = None
     windup_positions: int = 8
     output_speed_rpm: float = OUTPUT_SPEED_RPM
+    temperature_C: float = REFERENCE_TEMPERATURE_C
     spec: tuple[SpecLimit, ...] = ()
     mc_n: int = 1000
     mc_confidence: float = 0.95
@@ -235,6 +239,7 @@ class Study:
                              "must be a positive output speed [rpm]", where)
         check_speed("operating.output_speed_rpm", self.output_speed_rpm,
                     self.output_speed_rpm * RPM, self.design, where)
+        check_temperature(self.temperature_C, "operating.temperature_C", where)
         if "efficiency" in self.metrics and not self.load_Nm > 0.0:
             raise InputError("operating.load_Nm", self.load_Nm, "must be a resisting torque > 0 "
                              "for the metric efficiency (the output's power over the input's)", where)
@@ -321,7 +326,8 @@ class Study:
             "operating": {"load_Nm": self.load_Nm, "points": self.points,
                           "windup_positions": self.windup_positions,
                           # only where it changes a number: the friction metrics
-                          **({"output_speed_rpm": self.output_speed_rpm}
+                          **({"output_speed_rpm": self.output_speed_rpm,
+                              "temperature_C": self.temperature_C}
                              if set(self.metrics) & {"efficiency", "no_load_running_torque"} else {})},
             "metrics": list(self.metrics),
             "tolerances": {f.name: f.file_values() for f in self.factors},
@@ -455,6 +461,8 @@ def study_from_values(values: dict, path: Path, text: str = "", output=None) -> 
                                  where=where),
         output_speed_rpm=finite_number("operating.output_speed_rpm",
                                        op.get("output_speed_rpm", OUTPUT_SPEED_RPM), where),
+        temperature_C=finite_number("operating.temperature_C",
+                                    op.get("temperature_C", REFERENCE_TEMPERATURE_C), where),
         spec=_spec(sections["spec"], metrics, where),
         mc_n=integer("montecarlo.n", sections["montecarlo"].get("n", 1000), 1, where=where),
         mc_confidence=sections["montecarlo"].get("confidence", 0.95),
@@ -509,6 +517,7 @@ def study_from_store(folder: Path, name: str, inputs: dict, study_text: str = ""
             batch_size=inputs["batch_size"], output=folder, load_Nm=operating["load_Nm"],
             points=operating["points"], windup_positions=operating["windup_positions"],
             output_speed_rpm=operating.get("output_speed_rpm", OUTPUT_SPEED_RPM),
+            temperature_C=operating.get("temperature_C", REFERENCE_TEMPERATURE_C),
             spec=_spec(values.get("spec", {}), metrics, "study.toml"),
             mc_n=sections["montecarlo"].get("n", 1000),
             mc_confidence=sections["montecarlo"].get("confidence", 0.95),

@@ -40,7 +40,7 @@ def operating_text(study) -> str:
     d = study.design
     load = "no load" if study.load_Nm == 0 else f"load {study.load_Nm:g} N*m resisting"
     if {"efficiency", "no_load_running_torque"} & set(study.metrics):
-        load += f" at {study.output_speed_rpm:g} rpm output"
+        load += f" at {study.output_speed_rpm:g} rpm output, the lubricant at {study.temperature_C:g} C"
     pin_order = d.z_p * d.z_c
     nyquist = study.points // 2
     resolve = (f"resolves the pin-passing order {pin_order}" if nyquist > pin_order else
@@ -111,6 +111,9 @@ def mc_table(study, analysis: MCAnalysis, computed=None, aliasing=None) -> str:
 
 
 def mc_json(study, analysis: MCAnalysis, extra: dict) -> dict:
+    """A Monte Carlo study's summary for scripts: per metric mean, std, min, max and
+    percentiles in the column's unit, the yields with their intervals, the worst reducer,
+    and the keys of `extra`."""
     a = analysis
     return {
         "study": study.name, "job": "mc", "inputs_hash": study.inputs_hash,
@@ -245,6 +248,9 @@ def order_text(groups) -> str:
 
 def sobol_json(study, analyses: dict, n: int, evaluations: int, second_order: bool,
                extra: dict) -> dict:
+    """A Sobol study's summary for scripts: per metric column of `analyses`, every group's
+    rank, S1 and ST with their intervals and notes, and the keys of `extra`; n base samples,
+    `evaluations` model runs."""
     metrics = {}
     for column, result in analyses.items():
         ind, conv = result.indices, result.convergence
@@ -369,6 +375,8 @@ def plot_convergence(study, analyses: dict, path: Path) -> Path:
 # -- files ------------------------------------------------------------------------------------
 
 def write_json(path: Path, data: dict) -> Path:
+    """Write `data` to `path` as indented JSON (numpy numbers and arrays as plain ones);
+    returns the path."""
     Path(path).write_text(json.dumps(data, indent=1, default=_json_default) + "\n")
     return Path(path)
 
