@@ -176,8 +176,8 @@ def test_the_report_stands_alone_says_it_is_up_to_date_and_is_reproducible(study
         [link[:40] for link in page.links if not link.startswith(("data:", "#"))]
     assert len(page.images) >= 4       # nominal TE, distributions, Sobol bars, convergence
     # the toy study's 64 points alias the pin-passing order: the nominal figure does not
-    assert "at 12480 points per revolution (resolving the pin-passing order; the study&#x27;s " \
-           "metrics use its 64)" in text
+    assert "at 12480 points per revolution (resolving the pin-passing order; the study's " \
+           "metrics use its 64)" in html.unescape(text)
     for src in page.images:
         assert base64.b64decode(src.partition(",")[2])[:8] == b"\x89PNG\r\n\x1a\n"
     assert page.banners[0][0] == "ok" and str(path) in page.banners[0][1]
@@ -188,7 +188,7 @@ def test_the_report_stands_alone_says_it_is_up_to_date_and_is_reproducible(study
                    json.loads((out / "manifest.json").read_text())["model_hash"], "SALib"):
         assert needle in text
     errors_file = (ROOT / "studies" / "seed002_errors.toml").read_text()
-    assert html.escape(errors_file) in text      # the error file as written
+    assert errors_file in html.unescape(text)      # the error file as written (escaped)
     # the software that computed the results, as recorded when the store was made, and now
     recorded = json.loads((out / "manifest.json").read_text())["versions"]
     assert recorded["numpy"] == np.__version__ and "python" in recorded
