@@ -68,6 +68,8 @@ class AliasingCheck:
         return np.max(np.abs(self.full - self.coarse) / scale, axis=0)
 
     def lines(self) -> list[str]:
+        """The check for the printed summary: the largest change per column, in arcsec and
+        %, then the yield at risk per spec line."""
         changes = ", ".join(
             f"{c} by at most {d:.3g} arcsec ({100 * r:.2g} %)"
             for c, d, r in zip(self.columns, self.max_change(), self.max_relative_change()))
@@ -80,6 +82,8 @@ class AliasingCheck:
         return out
 
     def to_json(self) -> dict:
+        """The check for the JSON summary: points, rows, and the largest absolute and relative
+        change and the yield at risk, by column or spec label."""
         return {"points": self.points, "full_points": self.full_points, "rows": self.rows,
                 "columns": list(self.columns),
                 "max_change": dict(zip(self.columns, self.max_change().tolist())),

@@ -61,6 +61,7 @@ class YieldEstimate:
 
     @classmethod
     def of(cls, verified: Verified) -> "YieldEstimate":
+        """The estimate of a Monte Carlo verification of the least-cost search."""
         return cls(verified.estimate, verified.low, verified.high, verified.n)
 
 

@@ -77,9 +77,12 @@ class InProcess:
         return False
 
     def describe(self) -> str:
+        """The backend as the run summary names it: "in-process"."""
         return "in-process"
 
     def map(self, study, tasks):
+        """Evaluate each (batch, X) of `tasks` here, in order; yield (batch, X, Y, converged)
+        with Y (rows, M) and converged (rows,) from `evaluate`."""
         for batch, X in tasks:
             Y, converged = evaluate(study, X)
             yield batch, X, Y, converged
@@ -194,6 +197,7 @@ class Processes:
         self._pool = None
 
     def describe(self) -> str:
+        """The backend as the run summary names it: the number of worker processes."""
         return f"{self.workers} worker processes"
 
     def __enter__(self):
@@ -219,6 +223,9 @@ class Processes:
         return False
 
     def map(self, study, tasks):
+        """Evaluate the (batch, X) of `tasks` on the workers, a few in flight per worker; yield
+        (batch, X, Y, converged) as each finishes (any order).  A worker running other model
+        code, or a dead pool, raises RuntimeError."""
         fingerprint = model_fingerprint()
         try:
             yield from _windowed(tasks, self.workers,
@@ -245,6 +252,8 @@ class DaskBackend:
         self.workers = self.n_local or 1
 
     def describe(self) -> str:
+        """The backend as the run summary names it: the scheduler and its workers, or the
+        LocalCluster's size."""
         if self.scheduler:
             return f"Dask cluster at {self.scheduler} ({self.workers} workers)"
         return f"Dask LocalCluster of {self.n_local} workers"
@@ -288,6 +297,8 @@ class DaskBackend:
         return False
 
     def map(self, study, tasks):
+        """Evaluate the (batch, X) of `tasks` on the Dask workers (the study sent once), a few
+        in flight per worker; yield (batch, X, Y, converged) as each finishes (any order)."""
         from dask.distributed import wait as dask_wait
 
         remote_study = self.client.scatter(study, broadcast=True, hash=False)  # own key per map

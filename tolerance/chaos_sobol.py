@@ -133,6 +133,8 @@ class ChaosIndices(Indices):
                        "not settled, raise n or the degree, or use Saltelli's estimators")
 
     def flags(self) -> list[list[str]]:
+        """Per group, the notes of `SobolIndices.flags`, plus the chaos check line when the
+        check failed (`checked` False)."""
         notes = super().flags()
         if not self.checked:
             for group in notes:

@@ -65,4 +65,5 @@ class ErrorRows:
         return self.vectors.shape
 
     def errors(self) -> ErrorSet:
+        """The rows as an ErrorSet of S reducers, each array (S, ...) [m], laid out as `like`."""
         return error_set(self.vectors, self.like)

@@ -133,6 +133,7 @@ class Limit:
     sense: str
 
     def passes(self, values):
+        """(n,) bool: which of `values` (n,), in the column's unit, meet this spec line."""
         return values <= self.limit if self.sense == "max" else values >= self.limit
 
 

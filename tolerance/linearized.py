@@ -202,6 +202,8 @@ class Check:
         return out
 
     def to_json(self) -> dict:
+        """The check for the JSON summary: rows, solves, the Q2 floor, and Q2 and the largest
+        error per metric column."""
         return {"rows": self.rows, "solves": self.solves, "q2_min": Q2_MIN,
                 "q2": dict(zip(self.columns, map(float, self.q2))),
                 "largest_error": dict(zip(self.columns, map(float, self.largest_error)))}

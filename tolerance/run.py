@@ -57,6 +57,7 @@ class Computed:
         return self.computed_rows / self.seconds if self.computed_rows and self.seconds > 0 else 0.0
 
     def summary(self, job: str) -> str:
+        """One line: reducers, batches, reused and computed, wall time [s], rate and backend."""
         rate = f", {self.rate:.1f} reducers/s" if self.computed else ""
         return (f"{job}: {self.Y.shape[0]} reducers in {self.batches} batches of "
                 f"{self.batch_size} ({self.reused} reused, {self.computed} computed) "
@@ -102,6 +103,8 @@ class RunPlan:
         return self.bytes_first * (self.missing - 1)
 
     def text(self) -> str:
+        """One line: the evaluations still to compute, the estimated time and the store's size
+        against the free disk space."""
         return (f"{self.job}: {self.rows} evaluations in {self.batches} batches of "
                 f"{self.batch_size} ({self.missing} to compute); first batch "
                 f"{self.seconds_first:.2f} s -> about {duration_text(self.seconds)} more on "
@@ -124,6 +127,8 @@ class RunPlan:
 
 
 def duration_text(seconds: float) -> str:
+    """A duration in seconds as text in the largest unit it reaches: "12 s", "3.5 min",
+    "2.0 h", "1.5 days", "1.1 years"."""
     for unit, size in (("years", 365.25 * DAY_SECONDS), ("days", DAY_SECONDS), ("h", 3600.0),
                        ("min", 60.0)):
         if seconds >= size:
@@ -132,6 +137,7 @@ def duration_text(seconds: float) -> str:
 
 
 def size_text(size: float) -> str:
+    """A size in bytes as text in the largest decimal unit it reaches: "512 B" to "1.2 TB"."""
     for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if size >= scale:
             return f"{size / scale:.1f} {unit}"
@@ -281,6 +287,8 @@ class MCResult:
     files: dict = field(default_factory=dict)
 
     def table(self) -> str:
+        """The printed summary: per metric the distribution, the yields, warnings and the
+        aliasing check (`summaries.mc_table`)."""
         return summaries.mc_table(self.study, self.analysis, self.computed, self.aliasing)
 
     def to_df(self, errors: bool = False):
@@ -292,6 +300,8 @@ class MCResult:
         return frames.mc_frame(self.study, self.Y, self.converged, errors)
 
     def to_json(self) -> dict:
+        """The JSON summary (`summaries.mc_json`) with the run's rows, batches, timings,
+        backend, aliasing check and the files written."""
         return summaries.mc_json(self.study, self.analysis, {
             "computed_rows": int(self.computed.Y.shape[0]), "batch_size": self.study.batch_size,
             "aliasing": None if self.aliasing is None else self.aliasing.to_json(),
@@ -390,6 +400,8 @@ class SobolResult:
     rounds: tuple = ()
 
     def table(self) -> str:
+        """The printed summary: the indices of every metric (`summaries.sobol_table`), then the
+        linearized check, the rounds and the aliasing check where they exist."""
         text = summaries.sobol_table(self.study, self.analyses, self.n, self.Y.shape[0],
                                   self.second_order)
         lines = [text, *(self.check.lines() if self.check is not None else ()),
@@ -410,6 +422,8 @@ class SobolResult:
         return frames.s2_frame(self.analyses)
 
     def to_json(self) -> dict:
+        """The JSON summary (`summaries.sobol_json`) with the method, rounds, checks, the
+        files written and the run's batches, timings and backend."""
         return summaries.sobol_json(self.study, self.analyses, self.n, self.Y.shape[0],
                                  self.second_order, {
                                      "method": self.method,
@@ -543,6 +557,8 @@ class SobolRound:
     settled: bool
 
     def text(self, method: str) -> str:
+        """One line: the round's size and solves, the order groups per column and whether they
+        settled; `method` names the sample ('linearized' counts solved base samples)."""
         what = "solved base samples" if method == "linearized" else "base samples"
         groups = "; ".join(f"{column}: {summaries.order_text(g) if g else '-'}"
                            for column, g in self.order_groups.items())
@@ -550,6 +566,7 @@ class SobolRound:
                 f"{groups}" + (" -> settled, stop" if self.settled else ""))
 
     def to_json(self) -> dict:
+        """The round for the JSON summary: size, solved, order_groups, settled."""
         return {"size": self.size, "solved": self.solved, "order_groups": self.order_groups,
                 "settled": self.settled}
 

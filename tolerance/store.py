@@ -54,6 +54,7 @@ def rows_hash(X: np.ndarray) -> str:
 
 
 def values_hash(Y: np.ndarray, converged: np.ndarray) -> str:
+    """sha256 of a batch's outputs: Y (rows, M) as float64 then converged (rows,) as bool."""
     digest = hashlib.sha256(np.ascontiguousarray(Y, dtype="<f8").tobytes())
     digest.update(np.ascontiguousarray(converged, dtype=bool).tobytes())
     return digest.hexdigest()

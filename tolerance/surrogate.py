@@ -145,10 +145,14 @@ class Surrogate:
         return np.clip(2.0 * (Z - self.low) / (self.high - self.low) - 1.0, -1.0, 1.0)
 
     def transform(self, column: int, values):
+        """`values` of metric `column` on the scale the fit uses: log where every value and
+        limit was positive, else as they are (float array, same shape)."""
         log = self.fits[column][0]
         return np.log(values) if log else np.asarray(values, dtype=float)
 
     def mean_sigma(self, column: int, X: np.ndarray):
+        """mean (n,) and sigma (n,) of metric `column` on its fitted scale at the unit inputs
+        X (n, F) (`unit`); sigma never below its floor."""
         log, mean, log_variance, inflate, floor, (lo, hi) = self.fits[column]
         variance = np.exp(np.clip(log_variance(X), lo, hi) + 1.2704) * inflate
         return mean(X), np.maximum(np.sqrt(variance), floor)

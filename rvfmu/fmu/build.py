@@ -206,4 +206,6 @@ SOURCE_PREFIX = "# source: "
 
 
 def source_line(source) -> str:
+    """The first line of a bundled design or error file naming where it came from
+    (`# source: NAME`, read back by `fmu_info`), or "" when it came from no file."""
     return f"{SOURCE_PREFIX}{source}\n" if source else ""

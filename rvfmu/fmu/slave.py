@@ -64,6 +64,9 @@ class FmuInputError(Exception):
 
 
 class RVReducer(Fmi2Slave):
+    """The pythonfmu slave: inputs theta_in [rad] and tau_load [N·m]; outputs theta_out [rad],
+    its speed, the TE, the input torque, the friction loss and the efficiency; the variables
+    and statuses of docs/model.md section 8."""
 
     author = "rvte"
     description = ("RV reducer: transmission error, lost motion and torsional windup of a "
@@ -147,12 +150,15 @@ class RVReducer(Fmi2Slave):
         self._setters = {v.value_reference: v.setter for v in reals}
 
     def get_real(self, vrs):
+        """The values of the Real variables with value references `vrs`, in that order (a
+        direct path for the reads a master makes every step)."""
         getters = self._getters
         if all(vr in getters for vr in vrs):
             return [float(getters[vr]()) for vr in vrs]
         return super().get_real(vrs)
 
     def set_real(self, vrs, values):
+        """Set the Real variables with value references `vrs` to `values` (same length)."""
         setters = self._setters
         if all(vr in setters for vr in vrs):
             for vr, value in zip(vrs, values):
@@ -162,6 +168,8 @@ class RVReducer(Fmi2Slave):
 
     # -- life cycle ---------------------------------------------------------------------
     def exit_initialization_mode(self):
+        """Make the reducer model from the parameters and solve its state at theta_in and
+        tau_load; a failure is logged and every later step is discarded with it."""
         try:
             self._reducer = self._make_reducer()
             message = self._bad_inputs(self.theta_in, self.tau_load)
@@ -176,6 +184,8 @@ class RVReducer(Fmi2Slave):
             self._fail(f"initialisation failed: {_describe(exc)}")
 
     def do_step(self, current_time, step_size):
+        """Advance by `step_size` [s] to the current inputs; False (fmi2Discard, the reason
+        logged) for a bad input or a step after a failed initialisation."""
         if self._reducer is None:
             self._fail(self._failed or "do_step before the end of initialisation")
             return False
