@@ -10,38 +10,18 @@ has no docstring.  Public: no leading underscore and, for a module that
 defines `__all__`, named in it (its names imported from elsewhere are checked
 where they are defined).  A non-empty list stops the build (`PluginError`),
 with or without --strict.
-
-`tolerance.html_report` is not on the API pages for now, so it is not checked.
-NOT_YET lists the objects known to lack a docstring, to be documented and
-removed from it; the build reports them without failing.
 """
 
 from __future__ import annotations
 
-import logging
 import re
 from pathlib import Path
 
 import griffe
 from mkdocs.exceptions import PluginError
 
-log = logging.getLogger("mkdocs.hooks.docstrings")
-
 API_DIR = "api"                                   # under docs_dir
 IDENTIFIER = re.compile(r"^:::\s+([\w.]+)\s*$", re.M)
-
-# Exported by rvfmu.api, defined in rvfmu/jobs/ and still without a docstring.
-NOT_YET = frozenset(
-    ["rvfmu.jobs.common.resolve_design", "rvfmu.jobs.common.resolve_errors",
-     "rvfmu.jobs.presets.PresetInfo", "rvfmu.jobs.modes.ModesReport.excitations",
-     "rvfmu.jobs.te.TEReport.summary"]
-    + [f"rvfmu.jobs.{module}.{report}.{method}"
-       for module, report in (("calibrate", "CalibrateReport"), ("compare", "CompareReport"),
-                              ("efficiency", "EfficiencyReport"),
-                              ("hysteresis", "HysteresisReport"), ("measure", "MeasureReport"),
-                              ("modes", "ModesReport"), ("presets", "CatalogueReport"),
-                              ("simulate", "SimulationReport"), ("stiffness", "StiffnessReport"))
-       for method in ("summary", "to_json")])
 
 
 def api_identifiers(docs_dir) -> list[str]:
@@ -121,11 +101,6 @@ def on_pre_build(config, **kwargs):
     python = config.plugins["mkdocstrings"].config.handlers.get("python", {})
     search_paths = [root / p for p in python.get("paths", ["."])]
     missing = undocumented(api_identifiers(config.docs_dir), search_paths)
-    waiting = [path for path in missing if path in NOT_YET]
-    if waiting:
-        log.info("docs/hooks.py: %d public objects still without a docstring (NOT_YET): %s",
-                 len(waiting), ", ".join(waiting))
-    missing = [path for path in missing if path not in NOT_YET]
     if missing:
         raise PluginError(f"{len(missing)} public function(s)/class(es) of the API pages have no "
                           f"docstring (docs/hooks.py): " + ", ".join(missing))

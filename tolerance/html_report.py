@@ -61,9 +61,12 @@ class StudyReport:
     summary: dict
 
     def to_json(self) -> dict:
+        """What `rvte report --json` prints: the summary's key numbers with the paths of the
+        HTML and Markdown files written."""
         return {**self.summary, "html": str(self.html), "markdown": str(self.markdown)}
 
     def text(self) -> str:
+        """What `rvte report` prints: the study, its status and the two files written."""
         lines = [f"report of study {self.summary['study']!r}: {self.summary['status']}"]
         lines += [f"wrote html          {self.html}", f"wrote markdown      {self.markdown}"]
         return "\n".join(lines)

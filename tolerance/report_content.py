@@ -79,6 +79,8 @@ class Num:
     key: tuple = ()
 
     def text(self) -> str:
+        """The number as the report shows it: value times scale in `fmt` ("d": an integer,
+        the value unscaled), "n/a" if it is None or not finite."""
         if self.value is None or not np.isfinite(self.value):
             return "n/a"
         if self.fmt == "d":
@@ -100,12 +102,17 @@ class Table:
 
 @dataclass(frozen=True)
 class Figure:
+    """A figure: its PNG bytes (at FIGURE_DPI) and caption; HTML only, Markdown leaves it out."""
+
     png: bytes
     caption: str
 
 
 @dataclass(frozen=True)
 class Code:
+    """A file's text shown verbatim under a title (a study file, an error file), as a code
+    block in `language`."""
+
     title: str
     text: str
     language: str = "toml"
@@ -113,12 +120,18 @@ class Code:
 
 @dataclass(frozen=True)
 class Para:
+    """A paragraph of text; level: "" plain, "note" a note, "h3" a heading, "bad", "warn" or
+    "ok" a box."""
+
     text: str
     level: str = ""        # "", "note", "h3" (a heading); boxes: "bad", "warn", "ok"
 
 
 @dataclass(frozen=True)
 class Section:
+    """A section of the report: `id` its HTML anchor (the contents bar links it), `title` its
+    heading, `blocks` its Para, Table, Code and Figure blocks in order."""
+
     id: str
     title: str
     blocks: list
@@ -265,6 +278,8 @@ class Freshness:
 
     @property
     def up_to_date(self) -> bool:
+        """Whether the study file was there and unchanged, the model unchanged and the stored
+        inputs consistent with the manifest."""
         return self.study_changed is False and not self.model_changed and self.inputs_consistent
 
 

@@ -25,6 +25,10 @@ class CalibrateReport:
     output: str | None
 
     def summary(self) -> str:
+        """The table `rvte calibrate` prints: design, data and target, each fitted value with
+        its start, bounds, fitted value, 1-sigma and sensitivity, the misfit per data set
+        before and after [arcsec, or relative for a catalogue], the V index, the optimiser's
+        messages, the warnings and the design file written."""
         from ..bench.calibration_values import describe, setting
 
         cal = self.calibration
@@ -97,6 +101,10 @@ class CalibrateReport:
         return "\n".join(lines)
 
     def to_json(self) -> dict:
+        """The calibration for scripts (`--json`): the fitted values (start, bounds, value,
+        sigma, at_bound, the design fields they set in file units), the misfit, v_index,
+        convergence, warnings, out_of_reach and the output file; floats that are not finite as
+        text ("inf", "nan")."""
         cal = self.calibration
         prob = cal.problem
         v0, v1 = cal.v_index

@@ -22,10 +22,15 @@ class NothingToWrite(InputError):
         self.field, self.value, self.allowed = "output", None, message
 
 def resolve_design(design: str | Path | RVDesign) -> RVDesign:
+    """The design a job is given: an RVDesign as it is, else a preset name or the path of a
+    design TOML file loaded (`rvfmu.core.design.load_design`; InputError if it is neither)."""
     return design if isinstance(design, RVDesign) else load_design(design)
 
 
 def resolve_errors(design: RVDesign, errors: str | Path | ErrorSet | None) -> ErrorSet:
+    """The errors a job is given, for `design`: None gives one reducer without any error, an
+    ErrorSet is checked against the design's shapes (InputError if one does not fit), a path
+    is read as a TOML error file (`rvfmu.core.errors.load_errors`, values in um and deg)."""
     if errors is None:
         return zero_errors(design)
     if isinstance(errors, ErrorSet):

@@ -28,6 +28,9 @@ class CompareReport:
     errors: str | None
 
     def summary(self) -> str:
+        """The table `rvte compare` prints: design, record and model grid, te_pp and RMS
+        [arcsec] measured and model, their correlation and difference, the best shift [deg of
+        output], the BY_ORDER_SHOWN largest orders of either and the warnings."""
         c = self.comparison
         m, d = c.measured, c.design
         pp, rms = c.te_pp_arcsec, c.rms_arcsec
@@ -66,6 +69,9 @@ class CompareReport:
         return "\n".join(lines)
 
     def to_json(self) -> dict:
+        """The comparison for scripts (`--json`): the figures of `summary` under their names
+        with units (te_pp_arcsec and rms_arcsec as {measured, model}, by_order as a list);
+        floats that are not finite as text ("inf", "nan")."""
         c = self.comparison
         pp, rms = c.te_pp_arcsec, c.rms_arcsec
         return _json_safe({"design": c.design.name, "data": self.data, "errors": self.errors,

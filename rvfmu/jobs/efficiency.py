@@ -25,6 +25,10 @@ class EfficiencyReport:
     map: EfficiencyMap
 
     def summary(self) -> str:
+        """The table `rvte efficiency` prints: design and lubricant, forward / backdriving
+        efficiency [%] at each output speed (rows) and resisting torque (columns), where the
+        power goes [W] at the map's first speed and last torque, the no-load running torque,
+        starting and backdriving torque [N*m], and the warnings."""
         m, d = self.map, self.map.design
         lines = [f"design             {d.name} (ratio {d.ratio:g}, rated torque {d.rated_torque:g} N*m)",
                  f"lubricant          {m.temperature_C:g} C, "
@@ -54,6 +58,10 @@ class EfficiencyReport:
         return "\n".join(lines)
 
     def to_json(self) -> dict:
+        """The map for scripts (`--json`): per (output speed, load) point the efficiency,
+        backdriving efficiency, input torque [N*m] and losses [W] by loss; the no-load running
+        torque per speed, the starting and backdriving torque, lubricant, convergence and the
+        warnings."""
         m = self.map
         return {
             "design": m.design.name,

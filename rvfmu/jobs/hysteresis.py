@@ -37,6 +37,10 @@ class HysteresisReport:
     loop: HysteresisLoop
 
     def summary(self) -> str:
+        """The table `rvte hysteresis` prints: design and sweep, lost motion [arcmin],
+        torsional rigidity [N*m/arcmin], hysteresis loss [arcmin], friction torque [N*m], the
+        loop's width [arcsec] at zero and at half the sweep (within the branches' reach), the
+        friction work of a cycle [J] by contact and the warnings."""
         h, d = self.loop, self.loop.design
         top = h.tau_load[-1]
         total = sum(h.friction_work_J.values())
@@ -93,6 +97,9 @@ class HysteresisReport:
         return float(self.width_torques_Nm[np.argmax(self.width_arcmin())])
 
     def to_json(self) -> dict:
+        """The loop for scripts (`--json`): the figures of `summary` (a figure the sweep does
+        not reach as null), friction_work_J by contact and the loop's points as
+        {torque_Nm, angle_arcmin}, up the loading branch and back down the unloading one."""
         h = self.loop
         return {
             "design": h.design.name,

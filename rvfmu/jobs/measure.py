@@ -29,6 +29,10 @@ class MeasureReport:
     units: tuple              # (theta_in, theta_out): deg, rad or counts
 
     def summary(self) -> str:
+        """The table `rvte measure` prints: columns, rows and revolutions used, sampling, the
+        stated and measured ratio, roll-overs, the offset, te_pp and RMS [arcsec] with and
+        without the runout, the runout removed, the largest orders (and lines in Hz with a
+        time column) and the warnings."""
         m = self.measured
         pp, rms = m.te_pp_arcsec, m.te_rms_arcsec
         first, last = m.first_row, m.first_row + m.rows - 1
@@ -71,6 +75,9 @@ class MeasureReport:
         return "\n".join(lines)
 
     def to_json(self) -> dict:
+        """The measured TE for scripts (`--json`): the figures of `summary` under their names
+        with units, each TE figure as {measured, without_runout}; largest_lines_hz null
+        without a time column."""
         m = self.measured
         pp, rms = m.te_pp_arcsec, m.te_rms_arcsec
         both = lambda pair: {"measured": pair[0], "without_runout": pair[1]}  # noqa: E731

@@ -22,11 +22,16 @@ class ModesReport:
     count: int
 
     def excitations(self):
+        """The excitation frequencies [Hz] at `speed_rpm` (`rvfmu.core.excitations.Excitations`):
+        input, output, crank rotation, pin passing and stage-1 mesh."""
         from ..core.excitations import Excitations
 
         return Excitations.at(self.design, self.speed_rpm)
 
     def summary(self) -> str:
+        """The table `rvte modes` prints: the first `count` modes with frequency [Hz], damping
+        ratio [%] and the parts that carry their kinetic energy, the excitations [Hz] at the
+        speed and those within 10 % of a natural frequency."""
         m, ex = self.modes, self.excitations()
         lines = [f"design            {self.design.name}: natural frequencies of the dynamic model "
                  f"linearised at its equilibrium under {-m.tau_load:g} N*m resisting",
@@ -49,6 +54,8 @@ class ModesReport:
         return "\n".join(lines)
 
     def to_json(self) -> dict:
+        """The modes for scripts (`--json`): design, load_Nm, per mode hz, damping_ratio and
+        parts ([part, share of kinetic energy]), speed_rpm and excitations_hz {name: Hz}."""
         m = self.modes
         return {"design": self.design.name, "load_Nm": float(-m.tau_load),
                 "modes": [{"hz": hz, "damping_ratio": float(m.damping_ratios[k]),

@@ -26,6 +26,8 @@ def errors_template(design, output: str | Path | None = None) -> str:
 
 @dataclass(frozen=True)
 class PresetInfo:
+    """A shipped preset: its name, ratio, source (the seeds its first line names) and design."""
+
     name: str
     ratio: float
     source: str
@@ -51,6 +53,9 @@ class CatalogueReport:
     rows: list
 
     def summary(self) -> str:
+        """The table `rvte presets --catalogue` prints: one line a preset, torsional rigidity
+        [N*m/arcmin] and lost motion [arcmin] before calibration, as shipped and in the
+        catalogue, each marked ok or NO; then the fitted values of each calibration."""
         from ..bench import catalogue
 
         head = (f"{'preset':<11} {'frame':<8} {'rated N*m':>9}  {'torsional rigidity N*m/arcmin':>31}"
@@ -83,6 +88,9 @@ class CatalogueReport:
         return "\n".join(lines)
 
     def to_json(self) -> dict:
+        """The comparison for scripts (`--json`): the catalogue's source and per preset its
+        frame, catalogue figures, estimate and preset figures, the two checks and its
+        calibration; floats that are not finite as text ("inf", "nan")."""
         return _json_safe({"source": self.rows[0].frame.source if self.rows else "", "presets": [
             {"name": r.name, "frame": r.frame.name, "rated_torque_Nm": r.rated_torque_Nm,
              "catalogue": {"rated_torque_Nm": r.frame.rated_torque_Nm,

@@ -27,6 +27,10 @@ class SimulationReport:
     peaks: tuple
 
     def summary(self) -> str:
+        """The table `rvte simulate` prints: design, input and load, the interval after the
+        start ramp and the step, the TE range and te_pp [arcsec], the largest peaks [Hz,
+        arcsec], the TE amplitude at each excitation, the mean powers [W] and efficiency, and
+        the warnings."""
         sim = self.simulation
         d = sim.design
         te = sim.steady_te_arcsec()
@@ -66,6 +70,9 @@ class SimulationReport:
         return "\n".join(lines)
 
     def to_json(self) -> dict:
+        """The run for scripts (`--json`): the figures of `summary` under their names with
+        units (load_Nm one number, or [min, max] for a load that changes; an excitation not
+        resolved has amplitude null and says why)."""
         sim = self.simulation
         te = sim.steady_te_arcsec()
         return {"design": sim.design.name, "speed_rpm": sim.speed_rpm, "drive": sim.drive,

@@ -27,6 +27,9 @@ class StiffnessReport:
     lost_motion_arcmin: float
 
     def summary(self) -> str:
+        """The table `rvte stiffness` prints: torsional rigidity [N*m/arcmin], lost motion
+        [arcmin] and the compliance budget, each elastic element with its count, stiffness
+        and share of the windup, largest first, and the warnings."""
         b, d = self.budget, self.budget.design
         lines = [
             f"design             {d.name} (ratio {d.ratio:g}, rated torque {d.rated_torque:g} N*m)",
@@ -51,6 +54,9 @@ class StiffnessReport:
         return "\n".join(lines)
 
     def to_json(self) -> dict:
+        """The figures for scripts (`--json`): torsional rigidity, lost motion, the budget's
+        torques [N*m] and its elements (name, count, stiffness in its unit or null if rigid,
+        unit, share), in the model's order, and whether every equilibrium converged."""
         b = self.budget
         return {
             "design": b.design.name,

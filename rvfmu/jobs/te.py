@@ -29,6 +29,9 @@ class TEReport:
     warnings: tuple[str, ...] = ()
 
     def summary(self) -> str:
+        """The table `rvte te` prints, one figure a line: design, load, points, te_pp, RMS and
+        mean [arcsec], the largest orders above the noise floor (up to HARMONICS_SHOWN), lost
+        motion [arcmin], torsional rigidity [N*m/arcmin] and the warnings."""
         c = self.curve
         d = c.design
         orders, amplitudes = metrics.significant_orders(c.te_arcsec, HARMONICS_SHOWN)
