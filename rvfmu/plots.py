@@ -409,30 +409,70 @@ def plot_comparison(comparison, path: str | Path, title: str | None = None) -> P
 
 
 def plot_efficiency(report, path: str | Path) -> Path:
-    """The catalogue's efficiency chart (`rvfmu.jobs.efficiency.EfficiencyReport`): efficiency
-    against output speed, one curve per resisting torque, forward (solid) and backdriving
-    (dashed) (left); the no-load running torque at the input against output speed (right)."""
+    """`figure_efficiency` of `report` written to `path` (PNG, 120 dpi)."""
+    return _saved(_pyplot(), figure_efficiency(report), path, dpi=120)
+
+
+def figure_efficiency(report):
+    """The catalogue's efficiency charts (`rvfmu.jobs.efficiency.EfficiencyReport`), four panels:
+    efficiency against output speed, one curve per resisting torque, forward (solid) and
+    backdriving (dashed); efficiency against output torque, one curve per speed (light loads
+    included); efficiency against the lubricant's temperature at each of the map's torques and
+    its middle speed; the no-load running torque at the input against input speed at each
+    temperature (the low-temperature characteristic).  Without `report.characteristics` the
+    first panel and the running torque at the report's temperature only.  A matplotlib Figure."""
     plt = _pyplot()
-    m = report.map
-    fig, (chart, running) = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True)
+    m, c = report.map, report.characteristics
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9), constrained_layout=True)
+    (by_speed, by_torque), (by_temperature, running) = axes
     for j, torque in enumerate(m.load_Nm):
-        line, = chart.plot(m.output_speed_rpm, 100 * m.efficiency[:, j], "o-", ms=3,
-                           label=f"{torque:g} N·m")
-        chart.plot(m.output_speed_rpm, 100 * m.backdriving_efficiency[:, j], "--",
-                   color=line.get_color(), lw=1)
-    chart.set_xlabel("output speed [rpm]")
-    chart.set_ylabel("efficiency [%]")
-    chart.set_title(f"{m.design.name}: efficiency (solid forward, dashed backdriving)")
-    chart.grid(alpha=0.3)
-    chart.legend(fontsize=8, title="resisting torque")
-    running.plot(m.output_speed_rpm, m.no_load_running_torque_Nm, "o-", ms=3, color="tab:red")
-    running.set_xlabel("output speed [rpm]")
+        line, = by_speed.plot(m.output_speed_rpm, 100 * m.efficiency[:, j], "o-", ms=3,
+                              label=f"{torque:g} N·m")
+        by_speed.plot(m.output_speed_rpm, 100 * m.backdriving_efficiency[:, j], "--",
+                      color=line.get_color(), lw=1)
+    by_speed.set_xlabel("output speed [rpm]")
+    by_speed.set_title(f"{m.design.name}, {m.temperature_C:g} °C: efficiency "
+                       "(solid forward, dashed backdriving)")
+    by_speed.legend(fontsize=8, title="resisting torque")
+    ratio = m.design.ratio
+    if c is None:
+        for ax in (by_torque, by_temperature):
+            ax.set_visible(False)
+        running.plot(m.output_speed_rpm * ratio, m.no_load_running_torque_Nm, "o-", ms=3,
+                     color="tab:red", label=f"{m.temperature_C:g} °C")
+    else:
+        t = c.by_torque
+        for v, speed in enumerate(t.output_speed_rpm):
+            by_torque.plot(t.load_Nm, 100 * t.efficiency[v], "o-", ms=3, label=f"{speed:g} rpm")
+        by_torque.axvline(m.design.rated_torque, color="0.5", lw=0.8, ls=":")
+        by_torque.set_xlabel("resisting output torque [N·m] (dotted: rated)")
+        by_torque.set_xlim(left=0)
+        by_torque.set_title(f"efficiency against torque, {m.temperature_C:g} °C")
+        by_torque.legend(fontsize=8, title="output speed")
+        temperatures = np.array(list(c.by_temperature))
+        middle = len(m.output_speed_rpm) // 2
+        for j, torque in enumerate(m.load_Nm):
+            by_temperature.plot(temperatures, [100 * x.efficiency[middle, j]
+                                               for x in c.by_temperature.values()],
+                                "o-", ms=3, label=f"{torque:g} N·m")
+        by_temperature.set_xlabel("lubricant temperature [°C]")
+        by_temperature.set_title(f"efficiency against temperature, "
+                                 f"{m.output_speed_rpm[middle]:g} rpm output")
+        by_temperature.legend(fontsize=8, title="resisting torque")
+        for temperature, x in c.by_temperature.items():
+            running.plot(x.output_speed_rpm * ratio, x.no_load_running_torque_Nm, "o-", ms=3,
+                         label=f"{temperature:g} °C")
+    running.set_xlabel("input speed [rpm]")
     running.set_ylabel("no-load running torque at the input [N·m]")
-    running.set_title(f"starting {m.starting_torque_input_Nm:.3g} N·m (input), "
-                      f"backdriving {m.backdriving_torque_output_Nm:.3g} N·m (output)")
+    running.set_title(f"running torque; starting {m.starting_torque_input_Nm:.3g} N·m (input), "
+                      f"backdriving {m.backdriving_torque_output_Nm:.3g} N·m (output)", fontsize=10)
     running.set_ylim(bottom=0)
-    running.grid(alpha=0.3)
-    return _saved(plt, fig, path, dpi=120)
+    running.legend(fontsize=8, title="lubricant")
+    for ax in (by_speed, by_torque, by_temperature):
+        ax.set_ylabel("efficiency [%]")
+    for ax in axes.ravel():
+        ax.grid(alpha=0.3)
+    return fig
 
 
 INSET_FRICTION_TORQUES = 5  # the inset's torque half-span, x the friction torque at zero:

@@ -8,8 +8,10 @@ people, JSON for scripts and a figure like the catalogue's.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+
+import numpy as np
 
 from ..core.friction import (AVERAGE_POINTS, DEFAULT_LOAD_FRACTIONS, LOSS_NAMES, EfficiencyMap,
                             efficiency_map)
@@ -18,11 +20,45 @@ from ..outputs import figure_file
 from ..progress import counter as progress_counter
 
 
+# The figure's charts: the catalogue's efficiency against output torque (light loads included,
+# where the load-free losses weigh most) and its low-temperature characteristic (-10 to 40 C).
+CHART_LOAD_FRACTIONS = (0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
+CHART_TEMPERATURES_C = (-10.0, 0.0, 10.0, 20.0, 30.0, 40.0)
+
+
+@dataclass(frozen=True)
+class Characteristics:
+    """What the figure shows beyond the map, each a `friction.EfficiencyMap` of the same
+    reducer and speeds: `by_torque` at CHART_LOAD_FRACTIONS x rated torque, the lubricant at
+    the report's temperature; `by_temperature` {temperature [C]: map} at CHART_TEMPERATURES_C,
+    at the map's loads."""
+
+    by_torque: EfficiencyMap
+    by_temperature: dict
+
+    def to_json(self) -> dict:
+        """The charts' values: forward efficiency over speed x torque, and per temperature
+        the efficiency at the map's loads and the no-load running torque at the input."""
+        m = self.by_torque
+        return {
+            "efficiency_by_torque": {"output_speed_rpm": m.output_speed_rpm.tolist(),
+                                     "load_Nm": m.load_Nm.tolist(),
+                                     "efficiency": m.efficiency.tolist()},
+            "by_temperature": [{"temperature_C": t, "load_Nm": c.load_Nm.tolist(),
+                                "output_speed_rpm": c.output_speed_rpm.tolist(),
+                                "efficiency": c.efficiency.tolist(),
+                                "no_load_running_torque_Nm": c.no_load_running_torque_Nm.tolist()}
+                               for t, c in self.by_temperature.items()],
+        }
+
+
 @dataclass(frozen=True)
 class EfficiencyReport:
-    """The efficiency map of one reducer (`friction.EfficiencyMap`)."""
+    """The efficiency map of one reducer (`friction.EfficiencyMap`), and the charts of its
+    figure (`Characteristics`, None unless a figure was asked for)."""
 
     map: EfficiencyMap
+    characteristics: Characteristics | None = None
 
     def summary(self) -> str:
         """The table `rvte efficiency` prints: design and lubricant, forward / backdriving
@@ -80,6 +116,8 @@ class EfficiencyReport:
             "backdriving_torque_output_Nm": m.backdriving_torque_output_Nm,
             "converged": m.converged,
             "warnings": list(m.warnings),
+            **({"characteristics": self.characteristics.to_json()}
+               if self.characteristics is not None else {}),
         }
 
 
@@ -111,5 +149,18 @@ def efficiency(design, errors=None, speeds=None, loads=None,
     if plot_path is not None:
         from ..plots import plot_efficiency
 
+        report = replace(report, characteristics=characteristics(design, errors, report.map))
         plot_efficiency(report, plot_path)
     return report
+
+
+def characteristics(design, errors, m: EfficiencyMap) -> Characteristics:
+    """The charts of `m`'s reducer at `m`'s speeds (`Characteristics`): the efficiency over
+    CHART_LOAD_FRACTIONS of rated torque at `m`'s temperature, and the map over
+    CHART_TEMPERATURES_C at `m`'s loads."""
+    loads = design.rated_torque * np.array(CHART_LOAD_FRACTIONS)
+    by_torque = efficiency_map(design, errors, m.output_speed_rpm, loads,
+                               temperature_C=m.temperature_C)
+    by_temperature = {t: efficiency_map(design, errors, m.output_speed_rpm, m.load_Nm,
+                                        temperature_C=t) for t in CHART_TEMPERATURES_C}
+    return Characteristics(by_torque, by_temperature)
