@@ -18,7 +18,7 @@ SEED = 2002
 Z_P, Z_C = 40, 39
 
 
-def main(path=Path(__file__).with_name("seed002_errors.toml")):
+def main(path=Path(__file__).with_name("seed002_errors.toml")):  # noqa: B008 - a Path is immutable
     rng = np.random.default_rng(SEED)
     disc_profile = profile_sequence(rng, Z_C, 8.0, samples=2)
     disc_pitch = cumulative_pitch_sequence(rng, Z_C, 6.0, samples=2)

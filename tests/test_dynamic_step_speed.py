@@ -179,7 +179,7 @@ def test_the_reused_factors_move_the_run_by_far_less_than_the_tolerance(seed002,
     reducer = reducer_after(design, seed002, steps=3)
     worst, counts = 0.0, {True: 0, False: 0}
     steps = 0
-    for k in range(40):
+    for _ in range(40):
         model, g = geometry_of(reducer)
         state = reducer.state
         reused, calls = newton_run(model, g, state, kernels.REUSE_BELOW, monkeypatch)
@@ -230,7 +230,7 @@ def test_the_lobes_kept_over_small_steps_give_the_numpy_geometry(name):
     model = DynamicModel(design, random_errors(design, 5))
     for speed, step, count in ((FAST, 1e-4, 2000), (5 * 2 * np.pi / 60, 1e-4, 600),
                                (2 * np.pi / design.z_c / 3 * design.ratio / 1e-4, 1e-4, 300)):
-        t = 1e-4 * np.arange(count + 1)
+        t = step * np.arange(count + 1)
         model.prepare(Motion(t, 1.234 + speed * t, np.full(t.size, speed), np.zeros(t.size),
                              -0.3 * design.rated_torque))
         compiled, reference = model._chunk(0, t.size), model._chunk_numpy(0, t.size)

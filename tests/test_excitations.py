@@ -52,7 +52,7 @@ def test_a_run_reports_every_excitation_and_its_second_harmonic(run, rv40):
     synthetic = dataclasses.replace(run, te=te - 100.0 * ARCSEC)
     got = synthetic.excitation_amplitudes()
     assert [(name, hz) for name, hz, _ in got] == list(expected.items())
-    for name, hz, amplitude in got:
+    for name, _hz, amplitude in got:
         assert amplitude == pytest.approx(amplitudes[name], rel=0.02), name
     coarse = dataclasses.replace(synthetic, step=1.0 / (1.5 * ex.pin_passing))
     assert dict((n, a) for n, _, a in coarse.excitation_amplitudes())["pin passing x2"] is None

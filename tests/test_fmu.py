@@ -143,7 +143,9 @@ def test_a_load_change_moves_the_output_by_the_core_windup(fmu_path, rv40, seed0
 
 
 def test_results_do_not_depend_on_the_communication_step(fmu_path, rv40):
-    load = lambda t: -rv40.rated_torque * (0.5 + 0.5 * np.sin(20 * t))
+    def load(t):
+        return -rv40.rated_torque * (0.5 + 0.5 * np.sin(20 * t))
+
     coarse = run(fmu_path, 0.1, 1e-3, lambda t: SPEED * t, load)
     fine = run(fmu_path, 0.1, 1e-4, lambda t: SPEED * t, load)
     at = np.searchsorted(fine["time"], coarse["time"] - 1e-9)

@@ -65,7 +65,10 @@ def clean(tmp_path_factory):
 
     path = tmp_path_factory.mktemp("clean") / "clean.fmu"
     which = shutil.which
-    hidden = lambda name: None if name in ("cmake", WIN64_COMPILER) else which(name)
+
+    def hidden(name):
+        return None if name in ("cmake", WIN64_COMPILER) else which(name)
+
     printed = io.StringIO()
     with mock.patch("shutil.which", hidden), contextlib.redirect_stdout(printed):
         assert cli.main(["fmu", "build", "RV-40E-121", "--native", "--points", "624",

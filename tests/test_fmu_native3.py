@@ -137,7 +137,7 @@ def test_bad_inputs_end_the_simulation_with_the_fmi2_fmus_log_lines(native, nati
     for fmu, make in ((native, Instance), (native3, Instance3)):
         inst = make(*fmu)
         capfd.readouterr()
-        for values, size, expected in BAD_STEPS:
+        for values, size, _expected in BAD_STEPS:
             inst.fmu.reset()
             if make is Instance:
                 inst.fmu.setupExperiment(startTime=0.0)
@@ -292,7 +292,10 @@ def test_the_cli_builds_it_and_refuses_other_versions_and_fmi3_without_native(tm
     compiler alone builds x86_64-linux; --fmi-version takes 2 or 3, 3 only with --native."""
     path = tmp_path / "clean3.fmu"
     which = shutil.which
-    hidden = lambda name: None if name in ("cmake", WIN64_COMPILER) else which(name)
+
+    def hidden(name):
+        return None if name in ("cmake", WIN64_COMPILER) else which(name)
+
     printed = io.StringIO()
     with mock.patch("shutil.which", hidden), contextlib.redirect_stdout(printed):
         assert cli.main(["fmu", "build", "RV-40E-121", "--native", "--fmi-version", "3",

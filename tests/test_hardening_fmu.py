@@ -24,7 +24,7 @@ from unittest import mock
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description, simulate_fmu
+from fmpy import extract, read_model_description
 
 from rvfmu import cli
 from rvfmu.core.checks import InputError

@@ -128,7 +128,7 @@ def test_rvte_sobol_runs_n_times_rows_per_base_sample_evaluations(tolerances, se
     assert batches[-1].name.startswith(f"batch-{(8 * per - 1) // 8 * 8:09d}-{8 * per:09d}-")
     assert f"8 base samples, {8 * per} evaluations, {G} factors" in \
         (tmp_path / "toy" / "output" / "sobol_ranking.txt").read_text()
-    for column, entry in doc["metrics"].items():
+    for _column, entry in doc["metrics"].items():
         assert len(entry["groups"]) == G
         if G == 1:
             (group,) = entry["groups"]

@@ -196,11 +196,11 @@ def test_iso6336_mesh_stiffness_by_hand():
 
 
 def test_roller_bearing_stiffness_is_seed_003_formula():
-    l, n, E, nu = 8.0 * MM, 12, 211e9, 0.29
-    expected = math.pi * l * E * n / (8.0 * (1.0 - nu ** 2))
-    assert stiffness.roller_bearing_stiffness(l, n, E, nu) == pytest.approx(expected, rel=1e-12)
+    length, n, E, nu = 8.0 * MM, 12, 211e9, 0.29
+    expected = math.pi * length * E * n / (8.0 * (1.0 - nu ** 2))
+    assert stiffness.roller_bearing_stiffness(length, n, E, nu) == pytest.approx(expected, rel=1e-12)
     assert expected == pytest.approx(8.685e9, rel=1e-3)  # the RV-40E needle value in its preset
-    tapered = stiffness.roller_bearing_stiffness(l, n, E, nu, contact_angle=80.0 * DEG)
+    tapered = stiffness.roller_bearing_stiffness(length, n, E, nu, contact_angle=80.0 * DEG)
     assert tapered == pytest.approx(expected / math.sin(80.0 * DEG), rel=1e-12)
 
 

@@ -73,8 +73,10 @@ def test_disc_1_is_disc_0_turned_by_pi_and_conjugate():
     angles, radius = numerical_envelope(d, 360, poses=1000, disc=1)
     np.testing.assert_allclose(radius, profile_radius_at(d, angles - np.pi), atol=0.1 * UM)
     valley, tip = valley_tip_radii(d)
-    nearest = lambda p, a: np.hypot(p.x, p.y)[np.argmin(np.abs(np.angle(
-        np.exp(1j * (np.arctan2(p.y, p.x) - a)))))]
+
+    def nearest(p, a):
+        return np.hypot(p.x, p.y)[np.argmin(np.abs(np.angle(np.exp(1j * (np.arctan2(p.y, p.x) - a)))))]
+
     assert nearest(p1, np.pi) == pytest.approx(valley, abs=1e-9)
     assert nearest(p1, 0.0) == pytest.approx(tip, abs=1e-9)  # z_c odd: a tip faces valley 0
     with pytest.raises(ValueError, match="disc"):

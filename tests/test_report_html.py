@@ -162,7 +162,7 @@ def test_the_html_tables_show_the_numbers_of_the_json_outputs(study, written):
         assert line in written.html.read_text() and line in markdown
     # The Markdown summary shows the same numbers, in the same digits, and no figure.
     assert written.markdown == out / "report.md" and "data:image" not in markdown
-    for src, key, scale, text in page.cells:
+    for src, key, _scale, text in page.cells:
         if src is not None:
             assert f"| {text} |" in markdown, (key, text)
 

@@ -38,7 +38,7 @@ _WHERE = {
     "allocate": ("allocation", "allocate"), "AllocationResult": ("allocation", "AllocationResult"),
 }
 
-__all__ = ["evaluate", *_WHERE]
+__all__ = ["evaluate", *_WHERE]  # noqa: PLE0604 - _WHERE's keys are the lazily loaded names (str)
 
 
 def __getattr__(name):

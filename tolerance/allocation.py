@@ -257,8 +257,8 @@ class _StudyWiring:
 
     def model(self) -> ScaledModel:
         study = self.study
-        limits = tuple(Limit(study.metric_columns.index(l.column), l.limit, l.sense)
-                       for l in study.spec)
+        limits = tuple(Limit(study.metric_columns.index(limit.column), limit.limit, limit.sense)
+                       for limit in study.spec)
         return ScaledModel(
             names=tuple(f"{f.name}.{costs.ALLOCATED[f.kind]}" for f in self.factors),
             current=self.current, costs=self.models, limits=limits,
@@ -399,7 +399,7 @@ class _StudyWiring:
                                             float(model.cost(t)), binding))
         current, allocated = result.current, result.allocated
         header = (f"Allocated by `rvte allocate` from {study.path or study.name} for a yield >= "
-                  f"{target:g} against {', '.join(str(l) for l in study.spec)} (all at once).\n"
+                  f"{target:g} against {', '.join(str(limit) for limit in study.spec)} (all at once).\n"
                   + (f"Verified: yield {allocated.estimate:.5f} ({100 * study.mc_confidence:g} % "
                      f"interval {allocated.low:.5f} - {allocated.high:.5f}) of {allocated.n} "
                      "reducers" if result.feasible else
@@ -421,7 +421,7 @@ class _StudyWiring:
             yield_current=YieldEstimate.of(current), yield_allocated=YieldEstimate.of(allocated),
             surrogate_kind=SURROGATE_KIND, surrogate_samples=result.samples,
             surrogate_validation=result.validation, model_evaluations=result.evaluations,
-            spec=tuple(str(l) for l in study.spec), confidence=study.mc_confidence,
+            spec=tuple(str(limit) for limit in study.spec), confidence=study.mc_confidence,
             rounds=result.rounds,
             unconfirmed=not result.feasible and bool(result.confirmations),
             files={"allocated_study": path, "allocation": self.folder / "allocation.json"})
@@ -459,7 +459,7 @@ def allocated_text(study, factors, output: str, header: str = "") -> str:
                   "output": output},
         "operating": {"load_Nm": study.load_Nm, "points": study.points,
                       "windup_positions": study.windup_positions},
-        "spec": {l.column: l.limit for l in study.spec},
+        "spec": {limit.column: limit.limit for limit in study.spec},
         "montecarlo": {"n": study.mc_n, "confidence": study.mc_confidence},
         "sobol": {"n": study.sobol_n, "second_order": study.second_order,
                   "resamples": study.resamples, "confidence": study.sobol_confidence},

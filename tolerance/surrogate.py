@@ -127,7 +127,7 @@ class Surrogate:
         self.fits = {}
         for column in sorted({limit.column for limit in limits}):
             y = Y[:, column]
-            log = bool(np.all(y > 0) and all(l.limit > 0 for l in limits if l.column == column))
+            log = bool(np.all(y > 0) and all(limit.limit > 0 for limit in limits if limit.column == column))
             g = np.log(y) if log else y
             spread = float(g.std()) or 1.0
             mean = Chaos(X, g, degree)

@@ -152,7 +152,7 @@ def main() -> None:
                     check=True, cwd=Path(__file__).parent)
                 timing = json.loads(child.stdout.strip().splitlines()[-1])
                 if forms in runs:       # the least time of the rounds
-                    for what, (seconds, size) in runs[forms][0]["times"].items():
+                    for what, (seconds, _size) in runs[forms][0]["times"].items():
                         timing["times"][what][0] = min(timing["times"][what][0], seconds)
                 with np.load(out) as saved:
                     runs[forms] = (timing, {k: saved[k] for k in saved.files})

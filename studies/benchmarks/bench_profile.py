@@ -74,7 +74,7 @@ def profiled(work):
     stats = pstats.Stats(profiler).stats
     total = sum(v[2] for v in stats.values()) or 1.0
     shares = dict.fromkeys(GROUPS, 0.0)
-    for (filename, line, name), values in stats.items():
+    for (filename, _line, name), values in stats.items():
         shares[group_of(filename, name)] += values[2] / total
     top = sorted(stats.items(), key=lambda item: -item[1][2])
     labels = [(values[2] / total, f"{name} ({Path(filename).name}:{line})")

@@ -107,7 +107,7 @@ SERVO = dict(servo_module.DEFAULTS, substeps=servo_module.DEFAULT_SUBSTEPS)
 ARM = dict(arm_module.DEFAULTS, substeps=arm_module.DEFAULT_SUBSTEPS)
 
 
-def reference(t, move=math.radians(MOVE_DEG), duration=MOVE_TIME):
+def reference(t, move=math.radians(MOVE_DEG), duration=MOVE_TIME):  # noqa: B008 - a float, immutable
     """Arm reference [rad] at times t [s]: quintic 0 -> move over `duration`, then held."""
     s = np.clip(np.asarray(t, float) / duration, 0.0, 1.0)
     return move * s ** 3 * (10.0 - 15.0 * s + 6.0 * s ** 2)
