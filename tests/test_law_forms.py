@@ -375,3 +375,42 @@ def test_the_laws_no_load_solve_from_the_kinematic_pose_is_the_one_from_the_elas
     assert np.max(np.abs(poses[0] - poses[1])) > 1e-9
     with pytest.raises(ValueError, match="law_start"):
         solver.solve_pairs(model, errors, s, a, zero, no_load_probe=probe, law_start="newton")
+
+
+def test_the_laws_no_load_release_by_one_step_is_the_release_solved():
+    """The weak springs let go of the roller law's no-load solution by one Newton step at the
+    end of the solve (`newton.release_step`) instead of a solve with the springs re-centred
+    (the reference): the TE within 1e-4 arcsec, te_pp within 1e-6 arcsec; the compiled step,
+    from the Hessian it factored, and the numpy one, from the Hessian at the solution, agree."""
+    from rvfmu.core.equivalent import EquivalentModel
+    from rvfmu.core.quasistatic import NO_LOAD_PROBE
+    from tolerance.montecarlo import sample
+    from tolerance.sampling import errors_from_unit
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / "quick_mc.toml")
+    design = study.design
+    errors = stack([load_errors(ROOT / "studies" / "seed002_errors.toml", design),
+                    errors_from_unit(study, sample(study, 3))])
+    points = 90
+    model = EquivalentModel(design, input_angles(design, points), flank=1)
+    s, a = (g.ravel() for g in np.meshgrid(np.arange(errors.samples), np.arange(points),
+                                           indexing="ij"))
+    probe = NO_LOAD_PROBE * design.rated_torque
+    zero = np.zeros(s.size)
+
+    def te(release):
+        eq = solver.solve_pairs(model, errors, s, a, zero, no_load_probe=probe, law_release=release)
+        assert eq.converged.all()
+        return (model.output_angle(eq.q, zero) / ARCSEC).reshape(errors.samples, points)
+
+    solved, stepped = te("solve"), te("step")
+    assert 0.0 < np.max(np.abs(stepped - solved)) < 1e-4       # the step is not the solve ...
+    np.testing.assert_allclose(np.ptp(stepped, axis=1), np.ptp(solved, axis=1), rtol=0, atol=1e-6)
+    with pytest.MonkeyPatch.context() as patch:
+        for module in (kernels, pin_law, roller_law):
+            patch.setattr(module, "COMPILED", False)
+        in_numpy = te("step")
+    np.testing.assert_allclose(in_numpy, stepped, rtol=0, atol=1e-6)
+    with pytest.raises(ValueError, match="law_release"):
+        solver.solve_pairs(model, errors, s, a, zero, no_load_probe=probe, law_release="twice")

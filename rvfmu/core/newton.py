@@ -32,7 +32,7 @@ SHRINK_FRACTION = 0.25   # drop converged pairs from the work arrays once a quar
 MIN_PAIRS_PER_THREAD = 64  # a thread of the compiled iteration gets at least this many pairs
 
 
-def newton(work, first_active, q0=None, chain=None):
+def newton(work, first_active, q0=None, chain=None, release=False):
     """Active-set Newton on the reduced energy; returns (q (B, nN), converged (B,), iterations).
 
     Compiled one pair at a time (`newton_kernel`) when numba is there, otherwise
@@ -41,11 +41,36 @@ def newton(work, first_active, q0=None, chain=None):
     iteration starts each pair marked from the solution of the pair before it (its
     neighbouring angle: `chain_links`) instead of its own start; the energy is the same,
     so is its minimiser, and the numpy iteration, which solves the pairs together,
-    ignores it.
+    ignores it.  release: the converged pairs then let go of the weak springs by one Newton
+    step (`release_step`), in the compiled kernel from the Hessian it
+    has factored there, in numpy from the Hessian at the solution.
     """
     if kernels.COMPILED:
-        return newton_compiled(work, first_active, q0, chain)
-    return newton_batched(work, first_active, q0)
+        return newton_compiled(work, first_active, q0, chain, release)
+    q, converged, iterations = newton_batched(work, first_active, q0)
+    if release:
+        q = release_step(work, q)
+    return q, converged, iterations
+
+
+def release_step(work, q):
+    """(B, nN) the pairs of `work` at their solutions q moved by one Newton step to where the
+    weak springs, re-centred on q, pull on nothing.
+
+    At the solution q of a solve with the springs centred at zero they pull with -R q (R =
+    `solver.ReducedSystem.reg_matrix`, 1e-6 of the softest element); re-centred on q they pull
+    on nothing there, and the step q + H(q)^-1 R q reaches the released equilibrium to second
+    order in that pull.  The compiled iteration takes it at the end of each pair's solve with
+    the Hessian it has factored there, for one substitution (`newton_kernel.newton_pairs`,
+    release); this is the numpy iteration's.  The reference is a solve from q with the
+    springs re-centred (`solver.ReducedSystem._release`), which takes this step and one more
+    to find it has arrived: the step alone is within 3e-5 arcsec of it on quick_mc's
+    reducers, te_pp within 2e-8 arcsec (`bench_no_load_start.py`, tests/test_law_forms.py).
+    """
+    sys = work.system
+    m = sys.mode_unit[work.angle]
+    pull = sys.reg * (q - m * np.einsum("bi,bi->b", m, q)[:, None])
+    return q + np.linalg.solve(work.hessian(q, None), pull[..., None])[..., 0]
 
 
 CHAIN_LENGTH = 32  # pairs per chain of warm starts; thread batches are whole chains
@@ -119,7 +144,7 @@ def kernel_threads() -> int:
     return os.cpu_count() or 1
 
 
-def newton_compiled(work, first_active, q0=None, chain=None):
+def newton_compiled(work, first_active, q0=None, chain=None, release=False):
     """`newton` by the compiled kernel (`newton_kernel.newton_pairs`), the pairs split over
     `kernel_threads` threads (the kernel releases the GIL) in batches of at least
     MIN_PAIRS_PER_THREAD, each a whole number of warm-start chains (`chain_links`)."""
@@ -136,13 +161,15 @@ def newton_compiled(work, first_active, q0=None, chain=None):
     iterations = np.zeros(B, dtype=np.int64)
     toward, guess = c(toward, dtype=float), c(guess, dtype=np.bool_)
     chain = np.zeros(B, dtype=bool) if chain is None else c(chain, dtype=np.bool_)
+    sys = work.system
+    mode_unit = c(sys.mode_unit, dtype=float)
 
     def solve(lo, hi):
         newton_pairs(angle[lo:hi], *stiffness, *(a[lo:hi] for a in pairs), *shared,
                      *(a[lo:hi] for a in bearings), *law,
                      toward[lo:hi], work.toward is not None, guess[lo:hi], q[lo:hi], q0 is not None,
-                     chain[lo:hi], MAX_ITERATIONS, STEP_TOLERANCE, GAP_TOLERANCE, converged[lo:hi],
-                     iterations[lo:hi])
+                     chain[lo:hi], sys.reg if release else 0.0, mode_unit, MAX_ITERATIONS,
+                     STEP_TOLERANCE, GAP_TOLERANCE, converged[lo:hi], iterations[lo:hi])
 
     threads = min(kernel_threads(), B // MIN_PAIRS_PER_THREAD)
     if threads <= 1:

@@ -291,6 +291,22 @@ def _solve_spd(A, b, L, x):
 
 
 @kernel
+def _solve_factored(L, b, x):
+    """x = (L L^T)^-1 b with the Cholesky factor L (n, n) that `_solve_spd` left."""
+    n = b.size
+    for i in range(n):
+        v = b[i]
+        for k in range(i):
+            v -= L[i, k] * x[k]
+        x[i] = v / L[i, i]
+    for i in range(n - 1, -1, -1):
+        v = x[i]
+        for k in range(i + 1, n):
+            v -= L[k, i] * x[k]
+        x[i] = v / L[i, i]
+
+
+@kernel
 def _slope(alpha, quad, lin, delta0, ddelta, pin_law, d0, dd, c_half, brg_law, table):
     """(first, second) derivative of one pair's energy along its line at alpha."""
     d1 = quad * alpha + lin
@@ -359,8 +375,8 @@ def _line_search(K, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg_
 @kernel
 def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pin_law, brg_off, c_half,
                  brg_law, table,
-                 toward, has_toward, guess, q, warm, chain, max_iterations, step_tolerance,
-                 gap_tolerance, converged, iterations):
+                 toward, has_toward, guess, q, warm, chain, release, mode_unit, max_iterations,
+                 step_tolerance, gap_tolerance, converged, iterations):
     """Solve every pair; q (B, nN) holds the starts and receives the solutions, converged (B,)
     bool whether each pair converged, iterations (B,) how many Newton steps it took.
 
@@ -369,7 +385,10 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
     solution just found for the pair before it (its neighbouring angle, `newton.chain_links`),
     or, where that pair was itself linked, from the line through the two solutions before
     it (their linear extrapolation to its angle), except where the energy is piecewise
-    quadratic (`smooth`)."""
+    quadratic (`smooth`).  release > 0: each converged pair then lets go of the weak springs
+    of stiffness `release` about it (`solver.ReducedSystem.reg_matrix`, their direction
+    across the unit mode mode_unit (A, n) at its angle): one Newton step, q += H^-1 R q,
+    with the Hessian H already factored at the solution (`newton.release_step`)."""
     B, n = q.shape
     p = brg_rows.shape[1]
     Kp = rows.shape[2]
@@ -383,6 +402,7 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
     zero_b, zero_d = np.zeros((2, Kp)), np.zeros((p, 2))
     trial_q, step = np.empty(n), np.empty(n)
     factor, Kts = np.empty((n, n)), np.empty((n, n))
+    pull = np.empty(n)
     for s in range(B):
         qs = q[s]
         # piecewise quadratic, the primal-dual first step lands at once, and where a pin ends
@@ -419,7 +439,8 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
                                   brg_law, table, toward[s], has_toward, gap_tolerance, qs, guess[s],
                                   first, first, grad, hess, true_grad, used, delta, d)
             slope_grad = grad if ready else true_grad
-            if _solve_spd(hess, grad, factor, step):
+            factored = _solve_spd(hess, grad, factor, step)
+            if factored:
                 for i in range(n):
                     step[i] = -step[i]
             else:
@@ -464,6 +485,19 @@ def newton_pairs(angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pi
                 energy = _evaluate(Ks, Kts, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs,
                                    brg_law, table, gap_tolerance, qs, grad, hess, used, delta, d)
             ready = True
+        if release > 0.0 and done:
+            m = mode_unit[angle[s]]
+            along = 0.0
+            for i in range(n):
+                along += m[i] * qs[i]
+            for i in range(n):
+                pull[i] = release * (qs[i] - m[i] * along)
+            if factored:
+                _solve_factored(factor, pull, step)
+            else:
+                step[:] = np.linalg.solve(hess, pull)
+            for i in range(n):
+                qs[i] += step[i]
         converged[s] = done
         iterations[s] = it
 

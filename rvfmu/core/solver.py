@@ -215,7 +215,7 @@ class ReducedSystem:
     # -- one chunk -------------------------------------------------------------------------
     def solve(self, errors: ErrorSet, sample, angle, tau_load, half_clearance, probe,
               first_count=None, bearing_direction=None, start=None,
-              start_only=False) -> Equilibrium:
+              start_only=False, release_step=True) -> Equilibrium:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
         tau_load == 0 gives the no-load limit from the side of the signed probe
@@ -239,6 +239,8 @@ class ReducedSystem:
         of the roller law's solve, whose minimiser does not depend on where it starts, so
         the elastic solve with the stated stiffnesses that would remove the interference
         first is skipped (it changes the law's result by the Newton tolerance alone).
+        release_step: after the roller law's no-load solve (`start`), the weak springs let
+        go by one Newton step (`newton.release_step`) instead of LAW_RELEASE_ROUNDS solves.
         """
         model = self.model
         B = len(angle)
@@ -280,16 +282,20 @@ class ReducedSystem:
                 for k, scale in enumerate(steps):
                     loads = np.full(group.size, probe * scale)
                     cold = q_start is None
+                    # the roller law's solve lets go of the weak springs by one Newton step
+                    # at its end (`newton.newton`, release)
+                    step_release = start is not None and release_step
                     q_start, conv, its = self._solve_group(
                         group, angle, f0, pin_b, brg_off, c_half, loads,
                         first_count if cold else None, bearing_direction if cold else None,
                         q_start, chain=chain if cold else None,
-                        every_pin=bool(self.nl_bearings.size))
+                        every_pin=bool(self.nl_bearings.size), release=step_release)
                     iterations += its
-                    if self.nl_bearings.size and k >= len(steps) - 2:
-                        q_start, conv, its = self._release(
+                    if self.nl_bearings.size and k >= len(steps) - 2 and not step_release:
+                        q_start, released, its = self._release(
                             group, angle, f0, pin_b, brg_off, c_half, loads, q_start,
                             LAW_RELEASE_ROUNDS if start is not None else RELEASE_ROUNDS)
+                        conv = conv & released
                         iterations += its
                     path.append((probe * scale, q_start))
                 if start is not None:
@@ -329,7 +335,7 @@ class ReducedSystem:
         return CONTINUATION if self.nl_bearings.size else (1.0,)
 
     def _solve_group(self, group, angle, f0, pin_b, brg_off, c_half, loads, first_count,
-                     bearing_direction, q0, centre=None, chain=None, every_pin=False):
+                     bearing_direction, q0, centre=None, chain=None, every_pin=False, release=False):
         a = angle[group]
         f = f0[group] - loads[:, None] * self.g_red[a]
         if centre is not None:
@@ -339,7 +345,7 @@ class ReducedSystem:
         toward = None if bearing_direction is None else bearing_direction[group]
         return self._elastic(a, f, pin_b[group], brg_off[group], c_half[group], direction, count, q0,
                              f_errors=f0[group], bearing_direction=toward, chain=chain,
-                             every_pin=every_pin)
+                             every_pin=every_pin, release=release)
 
     def reg_pull(self, angle, centre):
         """(B, nN) the weak springs' force at zero displacement when centred on `centre` (B, nN):
@@ -424,7 +430,7 @@ class ReducedSystem:
         return q + np.where(agree[:, None], tangent, chord), agree
 
     def _elastic(self, angle, f, pin_b, brg_off, c_half, direction, count, q0=None, f_errors=None,
-                 bearing_direction=None, chain=None, every_pin=False):
+                 bearing_direction=None, chain=None, every_pin=False, release=False):
         """Newton solve of the pairs on their candidate pins, then on all pins where needed (on
         all pins at once with `every_pin` or a start q0); chain (B,) bool: the pairs the
         compiled iteration starts from the pair before's solution (`newton.newton`).
@@ -436,6 +442,8 @@ class ReducedSystem:
         loads them (`bearing_direction`, when known).
         """
         model = self.model
+        if release and q0 is None:
+            raise ValueError("the weak springs' release step needs a start q0 near the solution")
         if q0 is not None or every_pin:
             # From a nearby equilibrium every pin: left out, the other side's pins would let
             # the discs swing away from where they touch, and the solve would take them back.
@@ -443,7 +451,7 @@ class ReducedSystem:
             guess = None if q0 is not None else self._guess(angle, rows, pin_b, self.pin_rate[angle],
                                                             direction, count, f_errors)
             work = Work(self, angle, f, rows, pin_b, brg_off, c_half, bearing_direction)
-            return newton(work, guess, q0, chain)
+            return newton(work, guess, q0, chain, release)
         forward = direction > 0
         cand = self.candidates[-1.0][angle]                                         # (B, 2, Kc)
         rows = self.candidate_rows[-1.0][angle]                                     # (B, 2, Kc, 3)
@@ -522,11 +530,12 @@ def pin_forces(delta, law):
 
 
 LAW_STARTS = ("kinematic", "elastic")
+LAW_RELEASES = ("step", "solve")
 
 
 def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_load,
                 no_load_probe: float, progress=None, zero_side: int = -1,
-                law_start: str = "kinematic") -> Equilibrium:
+                law_start: str = "kinematic", law_release: str = "step") -> Equilibrium:
     """Equilibria of many (reducer, angle) pairs, in chunks.
 
     sample, angle: (B,) indices into `errors` and `model.pose`; tau_load: (B,) [N*m].
@@ -540,9 +549,14 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     "elastic", that pose with the interference first removed by an elastic solve with
     the stated stiffnesses (the reference: the same minimiser, within the Newton
     tolerance, at about twice the Newton steps; tests/test_law_forms.py).
+    law_release: how the weak springs then let go: "step", one Newton step at the end of
+    the law's solve (`newton.release_step`); "solve", LAW_RELEASE_ROUNDS solves
+    (`ReducedSystem._release`, the reference).
     """
     if law_start not in LAW_STARTS:
         raise ValueError(f"law_start {law_start!r}: must be one of {LAW_STARTS}")
+    if law_release not in LAW_RELEASES:
+        raise ValueError(f"law_release {law_release!r}: must be one of {LAW_RELEASES}")
     probe = no_load_probe if zero_side > 0 else -no_load_probe
     sample, angle = np.asarray(sample), np.asarray(angle)
     tau_load = np.broadcast_to(np.asarray(tau_load, dtype=float), sample.shape)
@@ -571,7 +585,7 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
                 # the kinematic limit with the stated stiffnesses is within a fraction of an
                 # arcsec of that with the roller law, which starts there
                 eq = law.solve(errors, sample[at], angle[at], tau_load[at], half, probe,
-                               start=eq.q)
+                               start=eq.q, release_step=law_release == "step")
             return at, eq
 
         for at, eq in map_chunks(chunk, range(0, pairs.size, CHUNK)):
