@@ -215,7 +215,7 @@ class ReducedSystem:
     # -- one chunk -------------------------------------------------------------------------
     def solve(self, errors: ErrorSet, sample, angle, tau_load, half_clearance, probe,
               first_count=None, bearing_direction=None, start=None,
-              start_only=False, release_step=True) -> Equilibrium:
+              start_only=False, release_step=True, offsets=None) -> Equilibrium:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
         tau_load == 0 gives the no-load limit from the side of the signed probe
@@ -241,10 +241,11 @@ class ReducedSystem:
         first is skipped (it changes the law's result by the Newton tolerance alone).
         release_step: after the roller law's no-load solve (`start`), the weak springs let
         go by one Newton step (`newton.release_step`) instead of LAW_RELEASE_ROUNDS solves.
+        offsets: `model.offsets(errors, sample, angle)` when the caller has them already.
         """
         model = self.model
         B = len(angle)
-        lin_b, brg_b, pin_b = model.offsets(errors, sample, angle)
+        lin_b, brg_b, pin_b = model.offsets(errors, sample, angle) if offsets is None else offsets
         b_lin = np.concatenate([lin_b, brg_b[:, self.linear_bearings].reshape(B, -1)], axis=1)
         tau = np.array(tau_load, dtype=float)
         zero = tau == 0.0
@@ -577,15 +578,17 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
         def chunk(start, pairs=pairs, system=system, law=law, count=count, toward=toward):
             part = slice(start, min(start + CHUNK, pairs.size))
             at = pairs[part]
+            offsets = model.offsets(errors, sample[at], angle[at])    # the two solves' both
             eq = system.solve(errors, sample[at], angle[at], tau_load[at], half, probe,
                               None if count is None else count[part],
                               None if toward is None else toward[part],
-                              start_only=law is not None and law_start == "kinematic")
+                              start_only=law is not None and law_start == "kinematic",
+                              offsets=offsets)
             if law is not None:
                 # the kinematic limit with the stated stiffnesses is within a fraction of an
                 # arcsec of that with the roller law, which starts there
                 eq = law.solve(errors, sample[at], angle[at], tau_load[at], half, probe,
-                               start=eq.q, release_step=law_release == "step")
+                               start=eq.q, release_step=law_release == "step", offsets=offsets)
             return at, eq
 
         for at, eq in map_chunks(chunk, range(0, pairs.size, CHUNK)):
