@@ -258,6 +258,22 @@ def _evaluate(K, Kt, f, rows, pin_b, pin_local, pin_law, brg_rows, brg_cols, brg
 
 
 @kernel
+def _solve_factored(L, b, x):
+    """x = (L L^T)^-1 b with the Cholesky factor L (n, n) that `_solve_spd` left."""
+    n = b.size
+    for i in range(n):
+        v = b[i]
+        for k in range(i):
+            v -= L[i, k] * x[k]
+        x[i] = v / L[i, i]
+    for i in range(n - 1, -1, -1):
+        v = x[i]
+        for k in range(i + 1, n):
+            v -= L[k, i] * x[k]
+        x[i] = v / L[i, i]
+
+
+@kernel
 def _solve_spd(A, b, L, x):
     """x = A^-1 b for the symmetric positive definite Hessian A (n, n) of one pair, by Cholesky
     into L (n, n); False where a pivot is not positive (the caller then solves by LU).
@@ -277,33 +293,8 @@ def _solve_spd(A, b, L, x):
             for k in range(j):
                 v -= L[i, k] * L[j, k]
             L[i, j] = v / pivot
-    for i in range(n):
-        v = b[i]
-        for k in range(i):
-            v -= L[i, k] * x[k]
-        x[i] = v / L[i, i]
-    for i in range(n - 1, -1, -1):
-        v = x[i]
-        for k in range(i + 1, n):
-            v -= L[k, i] * x[k]
-        x[i] = v / L[i, i]
+    _solve_factored(L, b, x)
     return True
-
-
-@kernel
-def _solve_factored(L, b, x):
-    """x = (L L^T)^-1 b with the Cholesky factor L (n, n) that `_solve_spd` left."""
-    n = b.size
-    for i in range(n):
-        v = b[i]
-        for k in range(i):
-            v -= L[i, k] * x[k]
-        x[i] = v / L[i, i]
-    for i in range(n - 1, -1, -1):
-        v = x[i]
-        for k in range(i + 1, n):
-            v -= L[k, i] * x[k]
-        x[i] = v / L[i, i]
 
 
 @kernel
