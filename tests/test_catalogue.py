@@ -212,10 +212,23 @@ def test_rvte_presets_catalogue_prints_model_beside_catalogue(tmp_path, capsys):
         assert row["rigidity_within"] and row["lost_motion_within"]
         assert row["preset"]["torsional_rigidity_Nm_per_arcmin"] == pytest.approx(
             catalogue.figures(preset(name)).torsional_rigidity_Nm_per_arcmin, rel=1e-12)
+    # the friction figures beside the catalogue's, which gives none: the model's alone
+    from rvfmu.core.friction import efficiency_map
+
+    for name, row in rows.items():
+        losses = row["losses"]
+        assert losses["catalogue"] is None and losses["output_speed_rpm"] == 15.0
+        design = preset(name)
+        m = efficiency_map(design, None, [15.0], [design.rated_torque])
+        assert losses["starting_torque_input_Nm"] == m.starting_torque_input_Nm > 0.0
+        assert losses["running_torque_input_Nm"] == m.no_load_running_torque_Nm[0] > 0.0
+        assert losses["efficiency_at_rated"] == m.efficiency[0, 0]
     main(["presets", "--catalogue"])
     text = capsys.readouterr().out
     assert "RV-40E-121  RV-40E" in text and "Nabtesco" in text
     assert text.count(" ok") == 2 * len(PRESET_NAMES)
+    assert "catalogue: no starting torque, running torque or efficiency" in text
+    assert text.count(" %\n") == len(PRESET_NAMES)
 
 
 def test_a_figure_of_an_unknown_format_is_refused_before_any_work(tmp_path, capsys):

@@ -46,11 +46,28 @@ def presets() -> list[PresetInfo]:
     return infos
 
 
+# The operating point of the friction figures beside the catalogue's: its rated output speed,
+# the lubricant at its grade's temperature, no errors.
+CATALOGUE_SPEED_RPM = 15.0
+
+
+@dataclass(frozen=True)
+class Losses:
+    """A preset's friction figures at CATALOGUE_SPEED_RPM output, 40 C, no errors: the starting
+    torque and the no-load running torque at the input [N*m], the efficiency at rated torque."""
+
+    starting_torque_input_Nm: float
+    running_torque_input_Nm: float
+    efficiency_at_rated: float
+
+
 @dataclass(frozen=True)
 class CatalogueReport:
-    """The presets against their frames' catalogue figures (`rvfmu.bench.catalogue`)."""
+    """The presets against their frames' catalogue figures (`rvfmu.bench.catalogue`), and
+    their friction figures (`Losses`, by preset name), which the catalogue table gives none of."""
 
     rows: list
+    losses: dict
 
     def summary(self) -> str:
         """The table `rvte presets --catalogue` prints: one line a preset, torsional rigidity
@@ -79,6 +96,15 @@ class CatalogueReport:
             "lost motion within its bound (docs/model.md section 5 test, no errors)",
             f"catalogue: {catalogue.source()}",
         ]
+        lines.append(f"{'preset':<11} {'starting N*m':>13} {'running N*m':>12} "
+                     f"{'efficiency':>11}   at the input; {CATALOGUE_SPEED_RPM:g} rpm output, "
+                     "rated torque, 40 C, no errors")
+        for r in self.rows:
+            m = self.losses[r.name]
+            lines.append(f"{r.name:<11} {m.starting_torque_input_Nm:>13.4g} "
+                         f"{m.running_torque_input_Nm:>12.4g} {100 * m.efficiency_at_rated:>10.1f} %")
+        lines.append("catalogue: no starting torque, running torque or efficiency in the table held "
+                     f"({catalogue.CATALOGUE_FILE}): the model's are shown alone, not compared")
         for r in self.rows:
             c = r.calibration
             if c:
@@ -99,7 +125,18 @@ class CatalogueReport:
                            "backlash_max_arcmin": r.frame.backlash_max_arcmin},
              "estimate": vars(r.estimate), "preset": vars(r.calibrated),
              "rigidity_within": r.rigidity_within, "lost_motion_within": r.lost_motion_within,
-             "calibration": r.calibration} for r in self.rows]})
+             "calibration": r.calibration,
+             "losses": {**vars(self.losses[r.name]), "output_speed_rpm": CATALOGUE_SPEED_RPM,
+                        "catalogue": None}} for r in self.rows]})
+
+
+def losses_of(design: RVDesign) -> Losses:
+    """`Losses` of `design` (`friction.efficiency_map` at CATALOGUE_SPEED_RPM and rated torque)."""
+    from ..core.friction import efficiency_map
+
+    m = efficiency_map(design, None, [CATALOGUE_SPEED_RPM], [design.rated_torque])
+    return Losses(float(m.starting_torque_input_Nm), float(m.no_load_running_torque_Nm[0]),
+                  float(m.efficiency[0, 0]))
 
 
 def presets_catalogue(plot_path: str | Path | None = None) -> CatalogueReport:
@@ -108,7 +145,8 @@ def presets_catalogue(plot_path: str | Path | None = None) -> CatalogueReport:
     from ..bench import catalogue
 
     plot_path = None if plot_path is None else figure_file("plot", plot_path)
-    report = CatalogueReport(catalogue.against_catalogue())
+    rows = catalogue.against_catalogue()
+    report = CatalogueReport(rows, {r.name: losses_of(preset(r.name)) for r in rows})
     if plot_path is not None:
         from ..plots import plot_catalogue
 
