@@ -23,6 +23,7 @@ taken back to zero load along its tangent.  The probe resists by default
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -38,6 +39,7 @@ from .units import ARCMIN, rad_to_arcsec
 # Probe torque of the elastic no-load solves, x rated torque: 0.04 N*m on an RV-40E, pin
 # deflections of ~1e-3 um, small enough that its contacts are those of zero load.
 NO_LOAD_PROBE = 1e-4
+MODELS_KEPT = 4          # equivalent models kept for the next call (`equivalent_model`)
 POINTS_PER_PIN_PASS = 8  # default sampling: 8 points per pin-passing period (order z_p*z_c)
 LOST_MOTION_FRACTION = 0.03                      # catalogue: windup span at +-3 % rated torque
 RIGIDITY_FRACTIONS = (0.5, 1.0)                  # catalogue: slope between 50 % and 100 %
@@ -119,6 +121,19 @@ class Equilibria:
     converged: np.ndarray
 
 
+@lru_cache(maxsize=MODELS_KEPT)
+def _equivalent_model(design: RVDesign, theta_in: bytes, flank: int) -> EquivalentModel:
+    return EquivalentModel(design, np.frombuffer(theta_in), flank=flank)
+
+
+def equivalent_model(design: RVDesign, theta_in: np.ndarray, flank: int) -> EquivalentModel:
+    """The equivalent model of `design` at the input angles theta_in (A,) [rad] on `flank`,
+    kept for the next call with the same three (a study's batches all solve the same angles):
+    with it the reduced systems its solves build (`solver.reduced_system`) and the
+    error-free reducer's first guess (`solver._nominal_guess`)."""
+    return _equivalent_model(design, np.ascontiguousarray(theta_in, dtype=float).tobytes(), flank)
+
+
 def equilibria(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None,
                zero_side: int = -1) -> Equilibria:
     """Quasi-static equilibrium at every (sample, load, angle) of the grid.
@@ -144,7 +159,7 @@ def equilibria(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=
         loads = np.flatnonzero(mask)
         if loads.size == 0:
             continue
-        model = EquivalentModel(design, theta_in, flank=flank)
+        model = equivalent_model(design, theta_in, flank)
         s, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
         eq = solve_pairs(model, errors, s, a, tau_load[t], no_load_probe=probe, progress=progress,
                          zero_side=zero_side)

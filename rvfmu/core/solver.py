@@ -570,8 +570,8 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     converged = np.empty(B, dtype=bool)
     iterations = 0
     for pairs, nonlinear, rollers, then_law in _routes(model, clearance, tau_load):
-        system = ReducedSystem(model, nonlinear, rollers)
-        law = ReducedSystem(model, model.bearing_law_a > 0.0, True) if then_law else None
+        system = reduced_system(model, nonlinear, rollers)
+        law = reduced_system(model, model.bearing_law_a > 0.0, True) if then_law else None
         count, toward = _nominal_guess(system, errors, sample[pairs], angle[pairs], tau_load[pairs],
                                        probe)
 
@@ -600,6 +600,17 @@ def solve_pairs(model: EquivalentModel, errors: ErrorSet, sample, angle, tau_loa
     return Equilibrium(q, pin_force, mesh_force, converged, iterations)
 
 
+def reduced_system(model: EquivalentModel, nonlinear, rollers: bool) -> ReducedSystem:
+    """`ReducedSystem(model, nonlinear, rollers)`, kept on the model for its next solves (a
+    study's batches solve the same model: `quasistatic.equivalent_model`)."""
+    kept = model.__dict__.setdefault("_reduced_systems", {})
+    key = (np.asarray(nonlinear, dtype=bool).tobytes(), bool(rollers))
+    system = kept.get(key)
+    if system is None:
+        system = kept[key] = ReducedSystem(model, nonlinear, rollers)
+    return system
+
+
 def _routes(model, clearance, tau_load):
     """[(pairs, nonlinear bearings, rollers, then_law)]: how to solve which pairs.
 
@@ -622,6 +633,7 @@ def _routes(model, clearance, tau_load):
 
 
 NOMINAL_GUESS_MIN_SAMPLES = 4  # below this, solving the error-free reducer first costs more than it saves
+NOMINAL_GUESSES_KEPT = 4       # first guesses kept per reduced system for the next batch
 
 
 def _nominal_guess(system, errors, sample, angle, tau_load, probe):
@@ -633,6 +645,20 @@ def _nominal_guess(system, errors, sample, angle, tau_load, probe):
         return None, None
     first_probe = probe * system._probe_steps()[0]
     tau_load = np.where(tau_load == 0.0, first_probe, tau_load)
+    # kept on the system for the next batch of the same pairs (`reduced_system`)
+    kept = system.__dict__.setdefault("_nominal_guesses", {})
+    key = (np.ascontiguousarray(angle).tobytes(), tau_load.tobytes(), float(probe))
+    guess = kept.get(key)           # one lookup: another thread may clear the dict meanwhile
+    if guess is None:
+        guess = _solve_nominal_guess(system, angle, tau_load, probe)
+        if len(kept) >= NOMINAL_GUESSES_KEPT:
+            kept.clear()
+        kept[key] = guess
+    return guess
+
+
+def _solve_nominal_guess(system, angle, tau_load, probe):
+    """`_nominal_guess` solved: the error-free reducer at each distinct (angle, load)."""
     keys, inverse = np.unique(np.stack([angle, tau_load]), axis=1, return_inverse=True)
     a_u, t_u = keys[0].astype(int), keys[1]
     nominal = zero_errors(system.model.design, 1)
