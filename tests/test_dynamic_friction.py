@@ -16,13 +16,15 @@ from rvfmu.core.simulation import simulate, static_start
 
 FRICTIONLESS = dict(pin_disc_friction=0.0, pin_groove_friction=0.0, mesh_friction=0.0,
                     needle_friction=0.0, tapered_friction=0.0, main_bearing_friction=0.0,
-                    bearing_drag_factor=0.0, seal_torque=0.0)
+                    bearing_drag_factor=0.0, seal_torque=0.0, output_seal_diameter=0.0,
+                    input_seal_diameter=0.0, lubricant_fill=0.0)
 
 
 @pytest.fixture(scope="module")
 def rv40f(rv40):
-    """The estimate with the preset's bearing pitch diameters, its output seal at 0.5 N*m:
-    every kind of contact of the table resists."""
+    """The estimate with the preset's bearing pitch diameters, its output seal stated at
+    0.5 N*m, its input seal, lubricant fill and static friction factor the preset's: every
+    kind of contact of the table resists, and every load-free loss."""
     from rvfmu.core.design import preset
 
     d = preset("RV-40E-121")

@@ -172,8 +172,9 @@ def newton_run(model, g, state, reuse_below, monkeypatch):
 
 def test_the_reused_factors_move_the_run_by_far_less_than_the_tolerance(seed002, monkeypatch):
     """Over 40 communication steps of the RV-40E-121 with its friction at 1600 rpm, the steps
-    that reuse the factors for their last update reach Newton's own states within 1e-3 of
-    the integrator's tolerance (TOLERANCE, 1e-13 m), with a third fewer eliminations; the
+    that reuse the factors for their last update reach Newton's own states within 2e-3 of
+    the integrator's tolerance (TOLERANCE, 1e-13 m: 1.12e-3 with the output seal's 0.50 N*m
+    from its law on the carrier, 3.9e-4 without it), with a third fewer eliminations; the
     compiled loop is the Python one's to round-off."""
     design = preset("RV-40E-121")
     reducer = reducer_after(design, seed002, steps=3)
@@ -195,7 +196,7 @@ def test_the_reused_factors_move_the_run_by_far_less_than_the_tolerance(seed002,
                               TOLERANCE, CYCLE_TOLERANCE, MAX_ITERATIONS, out_q, out_v, power)
         np.testing.assert_allclose(out_q[1:], reused, rtol=0, atol=1e-20)
         reducer.step(reducer.time, 1e-3, reducer.theta_in + FAST * 1e-3, reducer.tau_load)
-    assert 0.0 < worst < 1e-3 * TOLERANCE
+    assert 0.0 < worst < 2e-3 * TOLERANCE
     assert counts[False] >= 3 * steps                       # Newton: three eliminations a step
     assert counts[True] <= counts[False] - 0.75 * steps     # reused: one fewer in most steps
 

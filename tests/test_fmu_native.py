@@ -20,8 +20,8 @@ from rvfmu.core.reducer_model import friction_step
 from rvfmu.core.units import ARCSEC
 from rvfmu.fmu.api import fmu_build, fmu_info
 from rvfmu.fmu.build import build_fmu
-from rvfmu.fmu.native import (TABLE_HEADER, TABLE_NAME, VARIABLES, WIN64_COMPILER, native_platforms,
-                              read_table)
+from rvfmu.fmu.native import (PARAMETERS, TABLE_HEADER, TABLE_NAME, VARIABLES, WIN64_COMPILER,
+                              native_platforms, read_table)
 from test_fmu import Instance
 from test_fmu import free_instances  # noqa: F401 - frees every instance after a test
 
@@ -187,7 +187,8 @@ def test_interpolation_is_te_map_evaluate_one_to_the_bit(native, unzipped, rv40)
         _, tau_map, coulomb = te_map.evaluate_one(float(a + omega_in * STEP), float(b))
         omega = (float(a + omega_in * STEP) - float(a)) / STEP
         expected = friction_step(tau_map, coulomb + te_map.load_free_one(omega / te_map.ratio),
-                                 te_map.ratio, omega)
+                                 te_map.ratio, omega, coulomb + te_map.seal,
+                                 te_map.static_friction_factor)
         assert (tau_in, p_loss, efficiency) == expected, (a, b, omega_in)
 
 
@@ -199,9 +200,10 @@ def test_validates_declares_its_sources_and_carries_its_binaries(native, python_
     assert md.buildConfigurations[0].sourceFileSets[0].sourceFiles == ["model.c", "instance.c",
                                                                   "fmi2Functions.c"]
     assert float(md.defaultExperiment.stepSize) == STEP
-    # the pythonfmu FMU's inputs and outputs, to the unit and the description; no parameter
+    # the pythonfmu FMU's inputs and outputs, to the unit and the description; of its
+    # parameters temperature_C only
     theirs = {v.name: v for v in python_fmu[1].modelVariables}
-    assert [v.name for v in md.modelVariables] == list(VARIABLES)
+    assert [v.name for v in md.modelVariables] == list(VARIABLES) + list(PARAMETERS)
     for v in md.modelVariables:
         t = theirs[v.name]
         assert (v.valueReference, v.causality, v.unit, v.description) == \
@@ -330,8 +332,8 @@ def corrupt(data: bytearray, how: str) -> bytes:
 @pytest.mark.parametrize("how, reason", [
     ("nan", "non-finite values in the torque levels, te, tau_in or the friction"),
     ("magic", "not a TE map table (no RVTEMAP magic)"),
-    ("version", "format version 2, this FMU reads version 3"),
-    ("truncated", "6240 angle points x 16 torque levels and 67 speeds do not fit its"),
+    ("version", "format version 2, this FMU reads version 4"),
+    ("truncated", "6240 angle points x 16 torque levels, 259 speeds and 49 temperatures do not fit its"),
     ("levels", "the torque levels must be strictly ascending"),
     ("empty", "not a TE map table"),
     ("missing", "cannot be opened"),

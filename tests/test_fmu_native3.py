@@ -30,7 +30,7 @@ from rvfmu import cli
 from rvfmu.core.checks import InputError
 from rvfmu.fmu.api import check_fmi_version, fmu_build, fmu_info
 from rvfmu.fmu.fmi3 import FMI3_SOURCE_FILES
-from rvfmu.fmu.native import TABLE_NAME, VARIABLES, WIN64_COMPILER, native_platforms
+from rvfmu.fmu.native import PARAMETERS, TABLE_NAME, VARIABLES, WIN64_COMPILER, native_platforms
 from test_fmu import Instance
 from test_fmu import free_instances  # noqa: F401 - frees every instance after a test
 from test_fmu_native import BAD_STEPS, MAP_POINTS, OUTPUTS, STEP, corrupt, drive, varying_run
@@ -218,7 +218,7 @@ def test_step_results_say_a_refused_input_ends_the_simulation(native3, capfd):
 @pytest.mark.parametrize("how, reason", [
     ("nan", "non-finite values in the torque levels, te, tau_in or the friction"),
     ("magic", "not a TE map table (no RVTEMAP magic)"),
-    ("truncated", "6240 angle points x 16 torque levels and 67 speeds do not fit its"),
+    ("truncated", "6240 angle points x 16 torque levels, 259 speeds and 49 temperatures do not fit its"),
     ("missing", "cannot be opened"),
 ])
 def test_a_corrupt_table_fails_instantiation_with_the_reason_logged(native3, unzipped3, tmp_path,
@@ -253,7 +253,8 @@ def test_validates_with_the_fmi2_fmus_variables_units_and_value_references(nativ
     assert (time.name, time.causality, time.unit, time.valueReference) == \
         ("time", "independent", "s", len(VARIABLES))
     two = native[1]
-    assert [v.name for v in variables] == [v.name for v in two.modelVariables] == list(VARIABLES)
+    assert [v.name for v in variables] == [v.name for v in two.modelVariables] == \
+        list(VARIABLES) + list(PARAMETERS)
     for v, t in zip(variables, two.modelVariables):
         assert v.type == "Float64"
         assert (v.valueReference, v.causality, v.variability, v.initial, v.unit, v.description) == \

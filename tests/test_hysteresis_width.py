@@ -110,8 +110,8 @@ def test_torques_the_branches_do_not_both_reach_are_refused(report):
 def test_rv40_width_is_the_path_read_at_plus_and_minus_the_friction_torque(report):
     """Where an interval's shifted segments hold torque tau on both branches (tau +- T_f inside
     the interval, the neighbours' segments not reaching over it), the width there is the
-    frictionless path at tau + T_f less the path at tau - T_f: 90 torques of the default
-    sweep, exact to round-off."""
+    frictionless path at tau + T_f less the path at tau - T_f: 84 torques of the default
+    sweep (the output seal's 0.5 N*m from its law widens T_f near zero), exact to round-off."""
     h = report.loop
     tau, path, t_f = h.tau_load, h.windup, h.friction_torque
     mid = 0.5 * (tau[1:] + tau[:-1])
@@ -119,7 +119,7 @@ def test_rv40_width_is_the_path_read_at_plus_and_minus_the_friction_torque(repor
     after = np.concatenate([t_f[1:], [np.inf]])
     held = ((mid - t_f >= tau[:-1]) & (mid + t_f <= tau[1:])
             & (tau[:-1] + before <= mid) & (tau[1:] - after >= mid))
-    assert held.sum() == 90
+    assert held.sum() == 84
     expected = (np.interp(mid[held] + t_f[held], tau, path)
                 - np.interp(mid[held] - t_f[held], tau, path)) / ARCMIN
     np.testing.assert_allclose(report.width_arcmin(mid[held]), expected, rtol=1e-12)
@@ -141,7 +141,8 @@ def test_rv40_width_is_positive_and_of_the_size_of_the_loops_friction(report):
     # the widest is where the branches cross the clearance, within T_f of zero
     assert report.width_max_arcmin == width.max() >= report.width_at_zero_arcmin
     assert abs(report.width_max_torque_Nm) <= h.friction_torque.max()
-    assert 60.0 * report.width_arcmin(206.0)[0] == pytest.approx(1.35, abs=0.005)
+    # 1.35 arcsec before the output seal's law (0.496 N*m) joined the loop's friction
+    assert 60.0 * report.width_arcmin(206.0)[0] == pytest.approx(1.91, abs=0.005)
 
 
 def test_without_friction_the_branches_are_one_line(rv40_121):

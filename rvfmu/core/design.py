@@ -25,6 +25,7 @@ import numpy as np
 
 from .checks import InputError, finite_number, integer, non_negative, positive
 from .lubricant import check_lubricant
+from .seals import check_seals
 from .units import ARCMIN, ARCSEC, DEG, GPA, MM, RPM
 
 
@@ -138,6 +139,10 @@ DESIGN_FIELDS = (
     FieldSpec("lubricant_viscosity_index", "lubricant_viscosity_index", 1.0, "signed",
               "viscosity index of the lubricant (ASTM D2270), 0 to 400; 95: a typical mineral "
               "gear oil", 95.0),
+    FieldSpec("lubricant_fill", "lubricant_fill", 1.0, "non_negative",
+              "share of the housing's free volume the lubricant fills, 0 to 1: the dip factor "
+              "of the churning of the discs and gears (rvfmu/core/churning.py); 0 = dry, none",
+              0.0),
     FieldSpec("needle_pitch_diameter", "needle_pitch_diameter_mm", MM, "non_negative",
               "pitch diameter of a crank-disc needle bearing; 0 = its friction left out", 0.0),
     FieldSpec("tapered_pitch_diameter", "tapered_pitch_diameter_mm", MM, "non_negative",
@@ -147,7 +152,23 @@ DESIGN_FIELDS = (
               "non_negative", "pitch diameter of the main bearings; 0 = their friction left out",
               0.0),
     FieldSpec("seal_torque", "seal_torque_Nm", 1.0, "non_negative",
-              "friction torque of the output's lip seal", 0.0),
+              "friction torque of the output's lip seal when stated (> 0), instead of its law; "
+              "0 = its law (rvfmu/core/seals.py)", 0.0),
+    # The seals (`seals.py`): SKF's M = K_S1 d_s^beta + K_S2 on each seal's counterface, the
+    # constants of its LS row by default; breakaway = static factor x running friction.
+    FieldSpec("output_seal_diameter", "output_seal_diameter_mm", MM, "non_negative",
+              "counterface diameter of the output's lip seal; 0 = no seal law", 0.0),
+    FieldSpec("input_seal_diameter", "input_seal_diameter_mm", MM, "non_negative",
+              "counterface diameter of the input shaft's lip seal; 0 = no input seal", 0.0),
+    FieldSpec("seal_friction_exponent", "seal_friction_exponent", 1.0, "non_negative",
+              "SKF's seal exponent beta, 0 to 3", 2.0),
+    FieldSpec("seal_friction_K_S1", "seal_friction_K_S1", 1.0, "non_negative",
+              "SKF's seal constant K_S1 [N*mm / mm^beta]", 0.032),
+    FieldSpec("seal_friction_K_S2", "seal_friction_K_S2_Nmm", 1.0, "non_negative",
+              "SKF's seal constant K_S2 [N*mm]", 50.0),
+    FieldSpec("static_friction_factor", "static_friction_factor", 1.0, "positive",
+              "breakaway over running friction of the Coulomb contacts and the seals, 1 to 3 "
+              "(SKF's mu_bl 0.15 / 0.12)", 1.25),
 )
 
 _BY_KEY = {spec.file_key: spec for spec in DESIGN_FIELDS}
@@ -242,10 +263,17 @@ class RVDesign:
     lubricant_viscosity: float = 0.0
     lubricant_iso_vg: int = 100
     lubricant_viscosity_index: float = 95.0
+    lubricant_fill: float = 0.0
     needle_pitch_diameter: float = 0.0
     tapered_pitch_diameter: float = 0.0
     main_bearing_pitch_diameter: float = 0.0
     seal_torque: float = 0.0
+    output_seal_diameter: float = 0.0
+    input_seal_diameter: float = 0.0
+    seal_friction_exponent: float = 2.0
+    seal_friction_K_S1: float = 0.032
+    seal_friction_K_S2: float = 50.0
+    static_friction_factor: float = 1.25
     allowable_output_speed: float = 100.0 * RPM
 
     def __post_init__(self):
@@ -394,6 +422,10 @@ def _check_relations(d: RVDesign) -> None:
         raise InputError("pressure_angle_deg", math.degrees(d.pressure_angle),
                          "must be between 0 and 45 deg", where)
     check_lubricant(d.lubricant_iso_vg, d.lubricant_viscosity_index, where)
+    check_seals(d, where)
+    if d.lubricant_fill > 1.0:
+        raise InputError("lubricant_fill", d.lubricant_fill, "must be from 0 to 1: the share of "
+                         "the housing's free volume the lubricant fills (1 = full)", where)
     _check_stiffnesses(d)
 
 

@@ -40,7 +40,21 @@ angular accelerations during a speed ramp) times its mass.
   slides along its tangent (the smaller coefficient of its two contacts); a bearing's
   slip is its parts' relative turn at its pitch radius (its drag Palmgren's moment at
   the nominal speed); a mesh's is H_V times the sun's base-circle speed against the
-  carrier (its loss mu H_V |tau_sun| times that speed); the seal's, the carrier's at R_p.
+  carrier (its loss mu H_V |tau_sun| times that speed); the output seal's, the
+  carrier's at R_p.
+- The load-free losses, those of the quasi-static model (`friction.load_free_torques`), each
+  a resistance at the contact's nominal speed: the output seal's torque on the carrier
+  (`seals.seal_torques`: a stated `seal_torque` > 0, else its law), the input seal's on the
+  sun's turn at its counterface radius (through the shaft, the input torque carries it),
+  and the churning of the lubricant (`churning.py`, ISO/TR 14179-2), each part's torque
+  c n^2 at its own speed n on its own turn: the sun's on the sun, the planets' on their
+  cranks, the discs' on the discs.  The lubricant is at the model's `temperature_C` (40 C
+  by default).
+- Breakaway: the Coulomb contacts and the seals resist with their running R times the
+  regularised Stribeck law 1 + (f_s - 1) exp(-(w / STRIBECK_SPEED)^2), f_s the design's
+  `static_friction_factor` (`seals.py`): f_s at rest, the running friction beyond a few
+  STRIBECK_SPEED; f_s = 1 is the regularised Coulomb law itself.  Palmgren's drag and the
+  churning are viscous: no breakaway.
 
 Nothing here integrates: `DynamicModel` gives the mass matrix, the loads and
 the element forces with their tangent stiffness and damping at a time step;
@@ -54,6 +68,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .churning import churning_parts, gear_churning_power
 from .compiled import COMPILED
 from .design import RVDesign
 from .dynamic_geometry import build_geometry, geometry_constants
@@ -61,10 +76,11 @@ from .equivalent import EquivalentModel
 from .errors import ErrorSet
 from .friction import RPM, drag_moments, mesh_loss_factor
 from .kernels import Elements, Geometry, element_forces, gather, touched_columns
-from .lubricant import viscosity_cSt
+from .lubricant import REFERENCE_TEMPERATURE_C, check_temperature, viscosity_cSt
 from .pin_law import contacts
 from .stiffness import transverse_contact_ratio
 from .roller_law import TABLE_DE, TABLE_E, radial_law
+from .seals import seal_torques
 
 INPUT_SHAFT_FACTOR = 10.0  # input shaft torsional stiffness / torsional mesh stiffness at the sun
 DOUBLE_PAIR = 1.75         # double-pair / single-pair mesh stiffness: ISO 6336-1's c_gamma = c'(0.75 eps + 0.25)
@@ -74,6 +90,16 @@ CHUNK = 512                # time steps whose geometry is built at once
 FLOATING_HZ = 1e-3         # a mode below this is a part floating in a clearance: not damped
 SLIP_SCALE = 1e-5          # [m/s] friction's regularised sign: a contact slipping at 10 um/s
                            # carries 71 % of its Coulomb force, at 0.1 mm/s 99.5 %
+# [m/s] the Stribeck speed: below it the friction rises toward its breakaway value.  An
+# estimate inside the 1e-5 to 1e-1 m/s of lubricated contacts (Armstrong-Helouvry, Dupont,
+# Canudas de Wit, Automatica 30 (1994) 1083), the same 0.01 m/s the quasi-static map's step
+# takes (`reducer_model.STRIBECK_SPEED`); 1000 x SLIP_SCALE, so the regularisation does not
+# hide the peak.  1 mm/s (the LuGre model's example, Canudas de Wit et al., IEEE Trans.
+# Autom. Control 40 (1995) 419), tried first, puts a lightly loaded reducer at a crawl on the
+# law's falling slope: the robot joint's arm, stopping after its move, then sticks and slips
+# and the iterated coupling of studies/robot_joint fails to converge at t = 1.536 s.
+STRIBECK_SPEED = 1e-2
+SEALS = ("output seal", "input seal")
 CONTACT_LAWS = ("linear", "hertz", "impact")
 MESH_MODELS = ("varying", "constant")
 
@@ -156,16 +182,21 @@ class DynamicModel:
     errors: one reducer (an ErrorSet of one sample); tau_load: [N*m] constant or a
     function of time (docs/model.md section 2 sign); flank: the loaded flank of the
     meshes (+1: the sun drives, -1: the load drives; default from the load's sign);
-    friction: False leaves out the contacts' friction and drag (a frictionless reducer).
+    friction: False leaves out the contacts' friction and drag (a frictionless reducer);
+    temperature_C: the lubricant's [C] (the viscosity of the bearings' drag and the churning).
     """
 
     compiled_geometry = True   # False: the element geometry in numpy (`_chunk_numpy`) even with numba
 
     def __init__(self, design: RVDesign, errors: ErrorSet, contact: str | None = None,
-                 mesh: str = "varying", flank: int = 1, friction: bool = True):
+                 mesh: str = "varying", flank: int = 1, friction: bool = True,
+                 temperature_C: float = REFERENCE_TEMPERATURE_C):
         if errors.samples != 1:
             raise ValueError("the dynamic model simulates one reducer at a time")
         contact = contact_law(design, contact)
+        self.temperature_C = check_temperature(temperature_C)
+        self.viscosity = viscosity_cSt(design, self.temperature_C)     # [mm^2/s]
+        self.seal_torques = seal_torques(design)                       # [N*m]
         self.design, self.errors = design, errors
         self.contact, self.mesh, self.flank = contact, mesh, flank
         # a few generic input angles, to find which unknowns each element touches
@@ -210,10 +241,13 @@ class DynamicModel:
             min(design.pin_disc_friction, design.pin_groove_friction) if friction else 0.0,
             turning["cols"], turning["rows"], turning["source"],
             turning["friction"] if friction else np.zeros(turning["friction"].size),
-            SLIP_SCALE, friction and self._resists(turning), np.zeros((self.n, self.n)))
+            SLIP_SCALE, friction and self._resists(turning), np.zeros((self.n, self.n)),
+            float(design.static_friction_factor) if friction else 1.0, STRIBECK_SPEED,
+            np.array([1.0 if kind in SEALS else 0.0 for kind in turning["kind"]]))
         self.modal_frequencies, self.modal_shapes = np.empty(0), np.empty((self.n, 0))
         self.floating = 0
         self._drag_radius, self._drag_kind = turning["radius"], turning["kind"]
+        self._churning = turning["churning"]
         counts = {"crank": design.n_c, "disc": 2}
         self._nominal_index = tuple({body: [self.index[f"{body}{k}_{axis}"] for k in range(count)]
                                      for body, count in counts.items()} for axis in ("x", "y", "rot"))
@@ -247,31 +281,36 @@ class DynamicModel:
         one to the bit)."""
         d = self.design
         pins = min(d.pin_disc_friction, d.pin_groove_friction) > 0.0
-        drag = d.bearing_drag_factor > 0.0 and viscosity_cSt(d) > 0.0 and \
+        drag = d.bearing_drag_factor > 0.0 and self.viscosity > 0.0 and \
             any(r > 0.0 for r, kind in zip(turning["radius"], turning["kind"])
-                if kind not in (None, "output seal"))
+                if kind not in (None, "churning") + SEALS)
+        seals = any(r > 0.0 and self.seal_torques[kind] > 0.0
+                    for r, kind in zip(turning["radius"], turning["kind"]) if kind in SEALS)
         return bool(pins or np.any(turning["friction"] * np.abs(turning["rows"]).sum(axis=1) > 0.0)
-                    or drag or d.seal_torque > 0.0)
+                    or drag or seals or np.any(turning["churning"] > 0.0))
 
     def _turning_contacts(self, probe) -> dict:
         """The contacts whose slip is a turn: each crank's bearing pair in the carrier, each
-        needle bearing, the main bearings, each sun-planet mesh and the output seal, in
-        that order.  {"cols" (E, 2), "rows" (E, 2): the slip [m/s] per unknown velocity;
-        "source" (E,): the element pressing it (`Elements.turn_source`); "friction" (E,);
-        "radius" (E,) [m]: the arm its drag moment acts at (0: no drag); "kind": the
-        `friction.drag_moments` key of its drag, or None}."""
+        needle bearing, the main bearings, each sun-planet mesh, the output seal, the input
+        seal, and the churning of each disc, each crank and the sun, in that order.  {"cols"
+        (E, 2), "rows" (E, 2): the slip [m/s] per unknown velocity; "source" (E,): the
+        element pressing it (`Elements.turn_source`); "friction" (E,); "radius" (E,) [m]:
+        the arm its drag moment acts at (0: no drag); "kind": the `friction.drag_moments`
+        key of its drag, a seal's name (`SEALS`), "churning" or None; "churning" (E,)
+        [N*m/rpm^2]: a churning drag's torque over the square of its speed}."""
         d, idx, s = self.design, self.index, self.scale
         nb = self.bearing_k.size
         carrier = idx["carrier_rot"]
-        cols, rows, source, mu, radius, kind = [], [], [], [], [], []
+        cols, rows, source, mu, radius, kind, churn = [], [], [], [], [], [], []
 
-        def add(c, r, src, coefficient, arm, drag):
+        def add(c, r, src, coefficient, arm, drag, churning=0.0):
             cols.append(c + [-1] * (2 - len(c)))
             rows.append(r + [0.0] * (2 - len(r)))
             source.append(src)
             mu.append(coefficient)
             radius.append(arm)
             kind.append(drag)
+            churn.append(churning)
 
         r = 0.5 * d.tapered_pitch_diameter
         for i in range(d.n_c):
@@ -288,9 +327,42 @@ class DynamicModel:
         for i in range(d.n_c):
             add([idx["sun_rot"], carrier], [arm / s, -arm / s], nb + i, d.mesh_friction, 0.0, None)
         add([carrier], [1.0], -1, 0.0, s, "output seal")
+        r = 0.5 * d.input_seal_diameter         # the lip slides on the shaft at its radius
+        add([idx["sun_rot"]], [r / s], -1, 0.0, r, "input seal")
+        # churning: a drag on each part's turn, its slip at R_p (`_churning_coefficients`)
+        churning = self._churning_coefficients()
+        for body, turns in (("disc", [f"disc{j}_rot" for j in range(2)]),
+                            ("crank", [f"crank{i}_rot" for i in range(d.n_c)]),
+                            ("sun", ["sun_rot"])):
+            for name in turns:
+                add([idx[name]], [1.0], -1, 0.0, s, "churning", churning[body])
         return {"cols": np.array(cols, dtype=np.int64), "rows": np.array(rows),
                 "source": np.array(source, dtype=np.int64), "friction": np.array(mu),
-                "radius": np.array(radius), "kind": kind}
+                "radius": np.array(radius), "kind": kind, "churning": np.array(churn)}
+
+    def _churning_coefficients(self) -> dict:
+        """{"disc", "crank", "sun": [N*m/rpm^2]} the churning torque on each disc, crank and
+        the sun over the square of its speed against the housing [rpm], from
+        `churning.churning_parts` and `gear_churning_power` (ISO/TR 14179-2: the power grows
+        as n^3, so the torque at the part's own speed is P(1 rpm) / (1 rpm) x n^2).  Each
+        part goes to the bodies that turn at its speed, shared evenly: the output's (the
+        discs, which turn with the carrier), the cranks' (the planets) or the input's (the
+        sun).  All zero without a fill or without friction."""
+        d = self.design
+        out = {"disc": 0.0, "crank": 0.0, "sun": 0.0}
+        if not self.friction or d.lubricant_fill == 0.0:
+            return out
+        bodies = {1.0: ("disc", 2), float(d.z_c): ("crank", d.n_c), float(d.ratio): ("sun", 1)}
+        for parts in churning_parts(d).values():
+            for count, diameter, width, module, ratio in parts:
+                if float(ratio) not in bodies:
+                    raise ValueError(f"a churning part turns at {ratio:g} x the output's speed: "
+                                     "the dynamic model carries those at the discs' (1), the "
+                                     f"cranks' ({d.z_c}) and the input's ({d.ratio:g})")
+                body, share = bodies[float(ratio)]
+                out[body] += count * float(gear_churning_power(
+                    d.lubricant_fill, self.viscosity, 1.0, diameter, width, module)) / RPM / share
+        return out
 
     def _bodies(self) -> dict:
         """{body: (mass [kg], inertia [kg m^2])} of the sun, a crank, a disc and the carrier."""
@@ -388,19 +460,27 @@ class DynamicModel:
 
     def _drag(self, turn_slip: np.ndarray) -> np.ndarray:
         """(A, E) load-free resistance [N] of the turning contacts at their nominal slips
-        (A, E): a bearing's Palmgren moment at its speed over its pitch radius, the seal's
-        torque over R_p; zero without friction."""
+        (A, E): a bearing's Palmgren moment at its speed over its pitch radius, a seal's
+        torque over its radius, a part's churning c n^2 at its speed n [rpm] over its arm;
+        zero without friction.  (`dynamic_geometry.fill_geometry` computes the same, in the
+        same order.)"""
         drag = np.zeros(turn_slip.shape)
         if not self.friction:
             return drag
         radius = np.asarray(self._drag_radius, dtype=float)
         for kind in set(self._drag_kind) - {None}:
             cols = [e for e, k in enumerate(self._drag_kind) if k == kind and radius[e] > 0.0]
-            if kind == "output seal":
-                drag[:, cols] = self.design.seal_torque / self.scale
-            elif cols:      # one Palmgren moment per kind, over all its contacts and steps
+            if not cols:
+                continue
+            if kind in SEALS:
+                drag[:, cols] = self.seal_torques[kind] / radius[cols]
+            elif kind == "churning":
                 speed_rpm = np.abs(turn_slip[:, cols]) / radius[cols] / RPM
-                drag[:, cols] = drag_moments(self.design, speed_rpm)[kind] / radius[cols]
+                drag[:, cols] = self._churning[cols] * speed_rpm * speed_rpm / radius[cols]
+            else:           # one Palmgren moment per kind, over all its contacts and steps
+                speed_rpm = np.abs(turn_slip[:, cols]) / radius[cols] / RPM
+                drag[:, cols] = drag_moments(self.design, speed_rpm,
+                                             self.temperature_C)[kind] / radius[cols]
         return drag
 
     def external(self, step: int) -> np.ndarray:

@@ -24,10 +24,9 @@ from .compiled import kernel
 from .equivalent import _layout, _unit
 from .friction import DRAG_FLOOR, RPM, drag_moments
 from .kernels import Geometry
-from .lubricant import viscosity_cSt
 from .stiffness import transverse_contact_ratio
 
-DRAG_NONE, DRAG_BEARING, DRAG_CONSTANT = 0, 1, 2
+DRAG_NONE, DRAG_BEARING, DRAG_CONSTANT, DRAG_CHURNING = 0, 1, 2, 3
 # a pin's disc lobe is kept from the step before while its contact point lies inside that
 # lobe by more than this share of its distance from the disc centre (`_same_lobe`): some
 # 1e-9 rad, where the angle atan2 gives carries a few 1e-16 rad of round-off
@@ -59,8 +58,9 @@ GeometryConstants = namedtuple("GeometryConstants", [
     "sun_inertia", "carrier_inertia", "crank_mass", "crank_inertia", "disc_mass", "disc_inertia",
     # friction
     "pin_dofs", "turn_cols", "turn_rows",
-    "drag_kind", "drag_coefficient", "drag_radius",  # (E,): DRAG_*, [N*m] (or [N]), [m]
-    "viscosity",
+    "drag_kind", "drag_coefficient", "drag_radius",  # (E,): DRAG_*; [N*m] (bearing), [N]
+                                   # (constant), [N*m/rpm^2] (churning); [m]
+    "viscosity",                   # [mm^2/s] at the model's temperature
 ])
 
 
@@ -80,12 +80,15 @@ def geometry_constants(model) -> GeometryConstants:
     drag_kind = np.zeros(len(kinds), dtype=np.int64)
     coefficient = np.zeros(len(kinds))
     if model.friction:
-        at_floor = drag_moments(d, 0.0)        # Palmgren's moment on his floor: coefficient x floor
+        # Palmgren's moment on his floor: coefficient x floor
+        at_floor = drag_moments(d, 0.0, model.temperature_C)
         for e, kind in enumerate(kinds):
             if kind is None or not radius[e] > 0.0:
                 continue
-            if kind == "output seal":
-                drag_kind[e], coefficient[e] = DRAG_CONSTANT, d.seal_torque / model.scale
+            if kind in model.seal_torques:         # a seal: its torque over its radius
+                drag_kind[e], coefficient[e] = DRAG_CONSTANT, model.seal_torques[kind] / radius[e]
+            elif kind == "churning":
+                drag_kind[e], coefficient[e] = DRAG_CHURNING, model._churning[e]
             else:
                 drag_kind[e], coefficient[e] = DRAG_BEARING, float(at_floor[kind]) / DRAG_FLOOR
     from .dynamic import DOUBLE_PAIR
@@ -115,7 +118,7 @@ def geometry_constants(model) -> GeometryConstants:
         ints(rot["disc"]), float(d.sun_inertia), float(d.carrier_inertia), float(d.crank_mass),
         float(d.crank_inertia), float(d.disc_mass), float(d.disc_inertia),
         ints(el.pin_dofs), ints(el.turn_cols), floats(el.turn_rows), drag_kind, coefficient,
-        floats(radius), viscosity_cSt(d),     # at 40 C: the dynamic model has no temperature yet
+        floats(radius), float(model.viscosity),
     )._replace(double_pair=DOUBLE_PAIR * single, single_pair=single)
 
 
@@ -298,7 +301,8 @@ def fill_geometry(c, theta, omega, alpha, tau_load, L, k_lin, lin, B, brg, P, pi
                 for x in range(3):
                     slip += tangent[t, j, k, x] * nominal[c.pin_dofs[j, x]]
                 pin_slip[t, j, k] = slip
-        # turning contacts: nominal slip, load-free drag (Palmgren's moment over the arm)
+        # turning contacts: nominal slip, load-free drag (Palmgren's moment, a seal's torque
+        # or a part's churning over the arm; `DynamicModel._drag`, in the same order)
         for e in range(c.turn_cols.shape[0]):
             slip = 0.0
             for x in range(c.turn_cols.shape[1]):
@@ -312,6 +316,9 @@ def fill_geometry(c, theta, omega, alpha, tau_load, L, k_lin, lin, B, brg, P, pi
                 turn_drag[t, e] = c.drag_coefficient[e] * max(nu_n ** (2.0 / 3.0), DRAG_FLOOR) / radius
             elif kind == DRAG_CONSTANT:
                 turn_drag[t, e] = c.drag_coefficient[e]
+            elif kind == DRAG_CHURNING:
+                speed_rpm = abs(slip) / radius / RPM
+                turn_drag[t, e] = c.drag_coefficient[e] * speed_rpm * speed_rpm / radius
             else:
                 turn_drag[t, e] = 0.0
 

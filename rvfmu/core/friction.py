@@ -20,7 +20,15 @@ section 2, and every contact loses a power >= 0:
   its temperature (`lubricant.viscosity_cSt`: ISO VG grade and viscosity index, Walther);
 - a sun-planet mesh: mu * H_V of the power it rolls, the sun torque times the sun's speed
   relative to the carrier (ISO/TR 14179-2, Ohlendorf's loss factor H_V);
-- the output's lip seal: its torque times the output speed.
+- the discs and gears churning the lubricant they turn in: ISO/TR 14179-2's no-load loss
+  of a dip-lubricated gear at the lubricant's fill and viscosity (`churning.py`);
+- the lip seals (`seals.py`, SKF's seal frictional moment on each counterface): the output
+  seal's torque times the output speed, the input seal's times the input speed, i times the
+  output's.
+
+From rest every Coulomb contact and seal first breaks away at the design's
+`static_friction_factor` times its running friction (Palmgren's drag and the churning,
+viscous, at theirs): the starting and backdriving torques.
 
 Forward, P_in = P_out + sum of the losses; backdriving (the load drives the motor) the
 motor receives P_out - losses, with the losses of the backdriving equilibrium.  To first
@@ -39,12 +47,14 @@ import numpy as np
 
 from .budget import bearing_forces
 from .checks import InputError, finite_number, integer
+from .churning import CHURNING_NAMES, churning_torques
 from .design import RVDesign
 from .equivalent import EquivalentModel, dof_names
 from .errors import ErrorSet
 from .limits import check_load, check_speed
 from .lubricant import REFERENCE_TEMPERATURE_C, check_temperature, viscosity_cSt
 from .quasistatic import NO_LOAD_PROBE, _checked_errors
+from .seals import seal_torques
 from .solver import solve_pairs
 from .units import MM, RPM
 
@@ -52,7 +62,7 @@ from .units import MM, RPM
 # below; the larger of the two is continuous (the branches differ by 0.8 % at 2000).
 DRAG_FLOOR = 160.0
 LOSS_NAMES = ("pins", "crank-disc needle bearings", "crank-carrier bearings", "main bearings",
-              "sun-planet meshes", "output seal")
+              "sun-planet meshes") + CHURNING_NAMES + ("output seal", "input seal")
 AVERAGE_POINTS = 36              # angles over one crank turn that a loss is averaged on
 DEFAULT_SPEEDS_RPM = (5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 60.0)   # the catalogue chart's range
 DEFAULT_LOAD_FRACTIONS = (0.25, 0.5, 0.75, 1.0)                  # x rated torque
@@ -236,20 +246,26 @@ def drag_moments(design: RVDesign, speed_rpm,
 
 def load_free_torques(design: RVDesign, output_speed_rpm,
                       temperature_C: float = REFERENCE_TEMPERATURE_C) -> dict:
-    """{"crank-disc needle bearings", "crank-carrier bearings", "main bearings", "output seal":
-    (V,) [N*m]} the friction torque at the output of the bearings' drag and the seal at
-    output speeds (V,) [rpm], the lubricant at `temperature_C` [C]: each bearing's Palmgren
-    moment (`drag_moments`) times its speed over the output's (z_p for the crank bearings,
-    1 for the main bearings)."""
+    """{"crank-disc needle bearings", "crank-carrier bearings", "main bearings",
+    CHURNING_NAMES, "output seal", "input seal": (V,) [N*m]} the friction torque at the output
+    of the bearings' drag, the churning and the seals at output speeds (V,) [rpm], the lubricant at
+    `temperature_C` [C]: each bearing's Palmgren moment (`drag_moments`) times its speed
+    over the output's (z_p for the crank bearings, 1 for the main bearings); the discs' and
+    gears' churning power over the output speed (`churning.churning_torques`)."""
     d = design
     n_out = np.abs(np.atleast_1d(np.asarray(output_speed_rpm, dtype=float)))
     crank = drag_moments(d, d.z_p * n_out, temperature_C)
+    seals = seal_torques(d)
     main = drag_moments(d, n_out, temperature_C)
     return {
         "crank-disc needle bearings": 2 * d.n_c * d.z_p * crank["crank-disc needle bearings"],
         "crank-carrier bearings": d.n_c * d.z_p * crank["crank-carrier bearings"],
         "main bearings": main["main bearings"],
-        "output seal": np.full(n_out.shape, d.seal_torque),
+        **churning_torques(d, n_out, temperature_C),
+        # a seal's torque does not depend on the speed (`seals.py`); the input seal turns at
+        # i x the output's speed: i x its torque at the output
+        "output seal": np.full(n_out.shape, seals["output seal"]),
+        "input seal": np.full(n_out.shape, d.ratio * seals["input seal"]),
     }
 
 
@@ -265,15 +281,21 @@ def drag_kinks(design: RVDesign, temperature_C: float = REFERENCE_TEMPERATURE_C)
 
 
 def contact_losses(design: RVDesign, loads: ContactLoads, output_speed_rpm,
-                   temperature_C: float = REFERENCE_TEMPERATURE_C) -> dict:
+                   temperature_C: float = REFERENCE_TEMPERATURE_C,
+                   breakaway: bool = False) -> dict:
     """{LOSS_NAMES: (V, S, L) power [W]} lost by each kind of contact at every output speed
     (V,) [rpm], reducer and load of `loads`, averaged over its angles, the lubricant at
-    `temperature_C` [C]; each >= 0."""
+    `temperature_C` [C]; each >= 0.  breakaway: the Coulomb contacts and the seals at
+    `static_friction_factor` x their running friction, as they start from rest (`seals.py`)."""
     w = np.abs(np.atleast_1d(np.asarray(output_speed_rpm, dtype=float))) * RPM       # (V,)
     coulomb = {k: v.mean(axis=-1) for k, v in coulomb_torques(                      # (S, L)
         design, loads.pin_force, loads.pin_slide_arm, loads.cam_force, loads.crank_seat_force,
         loads.main_force, loads.tau_in).items()}
     free = load_free_torques(design, w / RPM, temperature_C)                         # (V,)
+    if breakaway:   # the viscous drag and churning have no breakaway: they stay
+        static = design.static_friction_factor
+        coulomb = {k: static * v for k, v in coulomb.items()}
+        free.update({k: static * free[k] for k in ("output seal", "input seal")})
     shape = (w.size,) + loads.main_force.shape[:-1]                                 # (V, S, L)
     out = {}
     for name in LOSS_NAMES:
@@ -335,7 +357,8 @@ class EfficiencyMap:
     efficiency, backdriving_efficiency, input_torque_Nm (the motor's torque, forward),
     loss_W (forward, total): (V, L); losses: {LOSS_NAMES: (V, L) W}, forward;
     no_load_running_torque_Nm (V,): at the input, turning the unloaded reducer;
-    starting_torque_input_Nm: its limit at standstill; backdriving_torque_output_Nm: the
+    starting_torque_input_Nm: its limit at standstill, the Coulomb contacts and the seals
+    breaking away (`contact_losses`, breakaway); backdriving_torque_output_Nm: the
     output torque that starts the unloaded reducer turning the motor.  A backdriving
     efficiency <= 0 means the load cannot drive the motor there (it is reported as 0).
     warnings: texts for the report (speeds above the allowable output speed, loads above
@@ -418,8 +441,8 @@ def efficiency_from_loads(design: RVDesign, forward: ContactLoads, output_speed_
         total_back = sum(contact_losses(design, backward, speeds,
                                         temperature_C).values())[:, 0]               # (V, L)
         back = np.maximum(1.0 - total_back / p_out, 0.0)
-    standstill = sum(contact_losses(design, forward, [STANDSTILL_RPM],
-                                    temperature_C).values())[0, 0, 0]
+    standstill = sum(contact_losses(design, forward, [STANDSTILL_RPM], temperature_C,
+                                    breakaway=True).values())[0, 0, 0]
     start = standstill / (design.ratio * STANDSTILL_RPM * RPM)
     return EfficiencyMap(
         design=design, output_speed_rpm=speeds, load_Nm=loads,

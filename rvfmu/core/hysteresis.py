@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .checks import InputError, finite_number, integer
+from .churning import CHURNING_NAMES
 from .design import RVDesign
 from .equivalent import EquivalentModel
 from .errors import ErrorSet
@@ -48,6 +49,7 @@ from .friction import coulomb_resistances, contact_loads, drag_moments
 from .limits import check_load
 from .quasistatic import (LOST_MOTION_FRACTION, NO_LOAD_PROBE, RIGIDITY_FRACTIONS,
                           WINDUP_POSITIONS, windup_positions)
+from .seals import seal_torques
 from .units import ARCMIN
 
 LEVELS = 40            # evenly spaced torques on each side of zero, up to the largest
@@ -167,7 +169,12 @@ def hysteresis(design: RVDesign, errors: ErrorSet | None = None, max_load: float
     work = {  # (T-1, P) [J]
         name: (resist[name] * slips[name]).reshape(slips[name].shape[:2] + (-1,)).sum(axis=-1)
         for name in resist}
-    work["output seal"] = d.seal_torque * np.abs(np.diff(angle, axis=0))
+    # the output seal: its running torque, the stated one or its law (`seals.seal_torques`, as
+    # `friction.load_free_torques`); the input is locked, its seal does not slip
+    work["output seal"] = seal_torques(d)["output seal"] * np.abs(np.diff(angle, axis=0))
+    work["input seal"] = np.zeros_like(work["output seal"])
+    for name in CHURNING_NAMES:     # the parts barely move in a windup test: no churning
+        work[name] = np.zeros_like(work["output seal"])
     dw = sum(work.values()).mean(axis=-1)                                       # (T-1,)
     theta = angle.mean(axis=-1)                                                 # (T,)
     step = np.diff(theta)

@@ -16,7 +16,10 @@ Friction (docs/model.md section 9) rides on the same elements: every pin, bearin
 mesh has a slip, its sliding speed [m/s], the nominal kinematics' plus a row over the
 unknowns' velocities, and resists it with R s(w), R its Coulomb force mu N (N the
 element's own normal force) plus a drag, and s(w) = w / sqrt(w^2 + slip_scale^2) the
-regularised sign of the slip.
+regularised sign of the slip.  Breakaway (`stribeck`): the Coulomb force, and a seal's drag,
+times 1 + (f_s - 1) exp(-(w / v_s)^2), f_s the static friction factor (1: the law above,
+to the bit), v_s the Stribeck speed; the bearings' drag and the churning are viscous and
+keep their value.
 
 The element data come in two named tuples built by `DynamicModel`:
 `Elements` (what does not change over the run) and `Geometry` (rows, offsets,
@@ -65,6 +68,9 @@ Elements = namedtuple("Elements", [
     "slip_scale",      # [m/s] the regularised sign's slip scale
     "line_search",     # True: Newton updates halved until the residual falls (with friction)
     "modal_c",         # (n, n) modal damping on the unknowns' velocities [N s/m]
+    "static_factor",   # breakaway over running friction f_s (1: the regularised Coulomb law)
+    "stribeck_speed",  # [m/s] the slip over which the friction falls from f_s x to 1 x
+    "turn_breakaway",  # (E,) 1: the turning contact's drag breaks away too (a seal), 0: viscous
 ])
 
 Scratch = namedtuple("Scratch", [
@@ -126,6 +132,18 @@ def regularised_sign(w, scale):
     if root == 0.0:
         return 0.0, 0.0
     return w / root, scale * scale / (root * root * root)
+
+
+@kernel
+def stribeck(w, factor, speed):
+    """(g, dg/dw) of the slip w [m/s]: the friction over its running value, the Stribeck law
+    g = 1 + (factor - 1) exp(-(w / speed)^2): `factor` at rest, 1 beyond a few `speed`;
+    exactly (1, 0) for factor = 1."""
+    if factor == 1.0:
+        return 1.0, 0.0
+    x = w / speed
+    bump = (factor - 1.0) * np.exp(-x * x)
+    return 1.0 + bump, -2.0 * x / speed * bump
 
 
 @kernel
@@ -282,18 +300,22 @@ def forces_only(el, g, a, q, v, f, K, C, work, tangent):
                         dk[x, y] += k * R[p, x] * R[p, y]
                         dc[x, y] += c * R[p, x] * R[p, y]
                 continue
-            # friction along the tangent: mu N s(w), w the disc's slip past the pin
+            # friction along the tangent: mu g(w) N s(w), w the disc's slip past the pin
             w = g.pin_slip[a, j, p] + T[p, 0] * v0 + T[p, 1] * v1 + T[p, 2] * v2
             sign, dsign = regularised_sign(w, el.slip_scale)
-            resist = mu * normal
+            lift, dlift = stribeck(w, el.static_factor, el.stribeck_speed)
+            mu_w = mu * lift
+            resist = mu_w * normal
             friction_power += resist * sign * w
             slide = resist * dsign
+            if dlift != 0.0:
+                slide += mu * normal * dlift * sign
             for x in range(3):
                 df[x] += R[p, x] * normal + T[p, x] * resist * sign
                 if not tangent:
                     continue
-                kx = k * R[p, x] + mu * sign * k * T[p, x]
-                cx = c * R[p, x] + mu * sign * c * T[p, x]
+                kx = k * R[p, x] + mu_w * sign * k * T[p, x]
+                cx = c * R[p, x] + mu_w * sign * c * T[p, x]
                 for y in range(3):
                     dk[x, y] += kx * R[p, y]
                     dc[x, y] += cx * R[p, y] + slide * T[p, x] * T[p, y]
@@ -321,8 +343,9 @@ def forces_only(el, g, a, q, v, f, K, C, work, tangent):
                 C[i, j] += el.modal_c[i, j]
         f[i] += force
         damper_power += v[i] * force
-    # turning contacts: bearings, meshes and the seal resist their slip with R s(w),
-    # R = mu N + drag; N's gradient reaches the unknowns of the element that presses them
+    # turning contacts: bearings, meshes, the seals and the churning parts resist their slip
+    # with R s(w), R = mu N + drag, the breakaway's g(w) on mu N and a seal's drag; N's
+    # gradient reaches the unknowns of the element that presses them
     cols, S = el.turn_cols, el.turn_rows
     for e in range(cols.shape[0]):
         drag, mu, source = g.turn_drag[a, e], el.turn_friction[e], el.turn_source[e]
@@ -339,6 +362,13 @@ def forces_only(el, g, a, q, v, f, K, C, work, tangent):
             if cols[e, x] >= 0:
                 w += S[e, x] * v[cols[e, x]]
         sign, dsign = regularised_sign(w, el.slip_scale)
+        slide, mu_w = resist * dsign, mu
+        if el.static_factor != 1.0:
+            lift, dlift = stribeck(w, el.static_factor, el.stribeck_speed)
+            static = mu * normal + el.turn_breakaway[e] * drag     # what breaks away
+            resist += (lift - 1.0) * static
+            slide = resist * dsign + dlift * static * sign
+            mu_w = mu * lift
         friction_power += resist * sign * w
         for x in range(cols.shape[1]):
             i = cols[e, x]
@@ -349,10 +379,10 @@ def forces_only(el, g, a, q, v, f, K, C, work, tangent):
                 continue
             for y in range(cols.shape[1]):
                 if cols[e, y] >= 0:
-                    C[i, cols[e, y]] += resist * dsign * S[e, x] * S[e, y]
+                    C[i, cols[e, y]] += slide * S[e, x] * S[e, y]
             if mu == 0.0 or normal == 0.0:
                 continue
-            scale = mu * sign * S[e, x]
+            scale = mu_w * sign * S[e, x]
             if source >= nb:        # N = |k delta + c rate| of mesh m
                 m = source - nb
                 for y in range(g.linear_cols.shape[1]):

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .lubricant import REFERENCE_TEMPERATURE_C
 from .te_map import TEMap
 
 
@@ -21,6 +22,38 @@ from .te_map import TEMap
 # and proportional to the input speed within it, so that it turns continuously through zero
 # (no chatter at standstill) and costs a host no event; 0.01 rad/s is 0.1 rpm at the motor.
 FRICTION_SPEED_SCALE = 0.01
+# The Stribeck speed of the breakaway law [rad/s at the input]: from rest the Coulomb contacts
+# and the seals break away at static_friction_factor x their running friction, which decays
+# as exp(-(omega_in / STRIBECK_SPEED)^2) to the running one.  Lubricated steel contacts reach
+# their running friction at sliding speeds of about 0.01 m/s (the Stribeck velocity of the
+# survey of Armstrong-Helouvry, Dupont and Canudas de Wit, Automatica 30(7), 1994, 1083-1138,
+# whose examples run from 1e-5 to 0.1 m/s); the input seal's lip, on a 12 to 20 mm shaft,
+# slides at about 0.01 m/s at 1 rad/s, the pins and bearings (turning slower than the input)
+# at less.  An estimate, 100 x FRICTION_SPEED_SCALE: within that scale the law is Coulomb's
+# regularised (no chatter); the breakaway only raises the torque it reaches.
+STRIBECK_SPEED = 1.0
+# exp(-STRIBECK_CUT) is below a double's resolution of 1: beyond it the factor is 1 exactly.
+STRIBECK_CUT = 40.0
+
+
+def stribeck_decay(x: float) -> float:
+    """exp(-x) for 0 <= x [1], in plain arithmetic the native FMU's C repeats operation for
+    operation (it needs no libm, rvfmu/fmu/native/model.c): x halved to <= 1/2 (exact), its
+    Taylor series to the 16th power (truncation < 1e-17), squared back; relative error within
+    about 2^n ulp, n <= 7 halvings.  0 beyond STRIBECK_CUT."""
+    if x > STRIBECK_CUT:
+        return 0.0
+    halvings = 0
+    while x > 0.5:
+        x *= 0.5
+        halvings += 1
+    term, total = 1.0, 1.0
+    for k in range(1, 17):
+        term = term * (-x) / k
+        total = total + term
+    for _ in range(halvings):
+        total = total * total
+    return total
 
 
 @dataclass(frozen=True)
@@ -38,12 +71,20 @@ class Outputs:
     efficiency: float = 0.0
 
 
-def friction_step(tau_map: float, friction_out: float, ratio: float, omega_in: float):
+def friction_step(tau_map: float, friction_out: float, ratio: float, omega_in: float,
+                  breakaway_out: float = 0.0, static_factor: float = 1.0):
     """(tau_in [N*m], p_loss [W], efficiency) of a step: the frictionless map's input torque
     `tau_map`, the friction torque at the output `friction_out` [N*m] (>= 0), the input speed
     over the step [rad/s].  Friction opposes the input's turning: its torque at the input
     is friction_out / i times the speed over FRICTION_SPEED_SCALE, clipped to +-1 (docs/model.md
-    section 9)."""
+    section 9).  Breakaway (a regularised Stribeck law): the part `breakaway_out` [N*m] of
+    friction_out (the Coulomb contacts' and the seals', not the viscous drag and churning)
+    counts 1 + (static_factor - 1) exp(-(omega_in / STRIBECK_SPEED)^2) times; with
+    static_factor 1 friction_out is unchanged to the bit."""
+    excess = static_factor - 1.0
+    if excess != 0.0:
+        x = omega_in / STRIBECK_SPEED
+        friction_out = friction_out + excess * stribeck_decay(x * x) * breakaway_out
     sense = omega_in / FRICTION_SPEED_SCALE
     sense = 1.0 if sense > 1.0 else (-1.0 if sense < -1.0 else sense)
     torque = sense * (friction_out / ratio)
@@ -79,15 +120,20 @@ class QuasiStaticReducer:
     step), so the outputs at the end of a step depend only on the inputs there and
     on the output and input angles at its start, whatever the step size.  The input
     torque carries the friction of the map (`friction_step`) at the input speed over
-    the step.
+    the step, the lubricant at `temperature_C` [C] (the map's load-free table read there,
+    `TEMap.load_free_row`: InputError outside its temperatures), the Coulomb friction and the
+    seals breaking away near standstill at the map's static_friction_factor.
     """
 
     name = "quasistatic"
 
-    def __init__(self, te_map: TEMap):
+    def __init__(self, te_map: TEMap, temperature_C: float = REFERENCE_TEMPERATURE_C):
         self.map = te_map
+        self.temperature_C = float(temperature_C)
         self._evaluate_map = te_map.evaluate_one
-        self._load_free = te_map.load_free_one
+        self._load_free = te_map.load_free(self.temperature_C)
+        self._seal = te_map.seal
+        self._static = te_map.static_friction_factor
         self._ratio = te_map.ratio
         self.time = self.theta_out = self.omega_out = self.theta_in = 0.0
 
@@ -107,7 +153,8 @@ class QuasiStaticReducer:
         else:
             omega = omega_in = 0.0
         friction_out = coulomb + self._load_free(omega_in / self._ratio)
-        tau_in, p_loss, efficiency = friction_step(tau_map, friction_out, self._ratio, omega_in)
+        tau_in, p_loss, efficiency = friction_step(tau_map, friction_out, self._ratio, omega_in,
+                                                   coulomb + self._seal, self._static)
         self.time, self.theta_out, self.omega_out = time + step_size, theta_out, omega
         self.theta_in = theta_in
         return Outputs(theta_out, omega, te, tau_in, p_loss, efficiency)

@@ -20,6 +20,7 @@ from .design import RVDesign
 from .dynamic import MESH_MODELS, DynamicModel, Motion, contact_law, ramp_motion
 from .errors import ErrorSet, zero_errors
 from .limits import check_load, check_speed
+from .lubricant import REFERENCE_TEMPERATURE_C, check_temperature
 from .metrics import NOISE_FLOOR_ARCSEC
 from .excitations import (HARMONICS, Excitations, amplitude_at,  # noqa: F401 (this module's face)
                           read_amplitudes)
@@ -227,7 +228,7 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
              revolutions: float | None = None, contact: str | None = None, mesh: str = "varying",
              step: float | None = None, ramp: float | None = None, method: str = "newmark",
              progress=None, input_angle: Sampled | None = None,
-             friction: bool = True) -> Simulation:
+             friction: bool = True, temperature_C: float = REFERENCE_TEMPERATURE_C) -> Simulation:
     """Dynamic TE of one reducer at a constant input speed after a start ramp, or along
     sampled input angles.
 
@@ -239,20 +240,23 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     constant speed (speed_rpm, duration, revolutions and ramp then come from the
     samples and must not be given).  method: "newmark" (fixed step, the default)
     or "Radau" / "BDF" (scipy's adaptive solve_ivp, the slow reference).  friction:
-    False simulates the reducer without its contacts' friction and drag.
+    False simulates the reducer without its contacts' friction and drag.  temperature_C: the
+    lubricant's [C] (default 40), the viscosity of the bearings' drag and of the churning.
     progress(total, done): optional, called on runs of more than PROGRESS_STEPS steps,
     first with done = 0 before the first step.
 
     Refused (InputError): an input speed beyond `limits.SPEED_FACTOR` x the design's
     allowable output speed times the ratio (the sampled input's fastest between two
     samples), a load beyond the emergency-stop class, a load step (`Sampled.step`) outside
-    the run, and a run of more than MAX_STEPS steps.  Speeds and loads above their rated
+    the run, a run of more than MAX_STEPS steps, and a temperature_C outside
+    `lubricant.TEMPERATURE_RANGE_C`.  Speeds and loads above their rated
     class are run and carried in `Simulation.warnings`.
     """
     errors = zero_errors(design) if errors is None else errors.check(design)
     if errors.samples != 1:
         raise InputError("errors", errors.samples, "the dynamic model simulates one reducer")
     contact = contact_law(design, contact)
+    temperature_C = check_temperature(temperature_C)
     if method not in METHODS:
         raise InputError("method", method, f"must be one of {', '.join(METHODS)}")
     if mesh not in MESH_MODELS:
@@ -325,7 +329,7 @@ def simulate(design: RVDesign, errors: ErrorSet | None = None, speed_rpm: float 
     drive = "ramp" if input_angle is None else "sampled"
     warnings = tuple(text for text in warnings if text)
     model = DynamicModel(design, errors, contact, mesh, 1 if np.mean(tau_load) <= 0 else -1,
-                         friction)
+                         friction, temperature_C)
     model.prepare(motion)
     q0 = static_start(model, tau_load[0], float(motion.theta_in[0]), model.external(0))
     model.set_modal_damping(q0)

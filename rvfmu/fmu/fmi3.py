@@ -46,8 +46,10 @@ def model_description_3(declared: list[ET.Element], about: dict[str, str], model
     ET.SubElement(root, "DefaultExperiment", startTime="0.0", stopTime=str(DEFAULT_STOP_TIME),
                   stepSize=str(DEFAULT_STEP))
     variables = ET.SubElement(root, "ModelVariables")
-    # FMI 3.0 wants the independent variable; its value reference follows the others'
-    ET.SubElement(variables, "Float64", name="time", valueReference=str(len(declared)),
+    # FMI 3.0 wants the independent variable; its value reference follows the inputs' and
+    # outputs' (fmi3Functions.c: TIME), the parameters' come after the pythonfmu FMU's others
+    signals = sum(v.get("causality") in ("input", "output") for v in declared)
+    ET.SubElement(variables, "Float64", name="time", valueReference=str(signals),
                   causality="independent", variability="continuous", unit="s",
                   description="simulation time [s]")
     for scalar in declared:

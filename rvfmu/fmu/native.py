@@ -13,8 +13,12 @@ so that its outputs are the pythonfmu FMU's quasi-static ones (tested to 1e-12
 rad; equal to the bit where the compiler does not fuse multiply-adds).
 
 The native FMU has the pythonfmu FMU's inputs and outputs (same names, value
-references, units and descriptions: taken from `rvfmu.fmu.slave`), and no
-parameter: `design_file`, `errors_file`, `map_points` and the stiffness and
+references, units and descriptions: taken from `rvfmu.fmu.slave`), and one
+parameter of it, `temperature_C` (the lubricant's temperature [C], fixed, 40 by
+default): the table carries the load-free friction torque at the temperatures
+`te_map.DRAG_TEMPERATURES`, and initialisation reads it there (linear in the
+temperature, as `TEMap.load_free_row`), or refuses a temperature outside them
+with fmi2Error / fmi3Error.  No other parameter: `design_file`, `errors_file`, `map_points` and the stiffness and
 error scales change the physics, and honouring them means solving the TE map
 again, which needs the Python model; `model` could only be "quasistatic";
 `dynamic_step` belongs to the dynamic model.  A different reducer is a
@@ -32,7 +36,7 @@ and carries the same layout in a comment):
 
     offset               type              field
     0                    char[8]           magic b"RVTEMAP\\0"
-    8                    uint32            format version, 3
+    8                    uint32            format version, 4
     12                   uint32            A, angle points over one output revolution (>= 2)
     16                   uint32            T, torque levels (>= 2)
     20                   uint32            K, speeds of the load-free friction (>= 2)
@@ -44,18 +48,24 @@ and carries the same layout in a comment):
     64                   float64           allowable output speed [rad/s] (the design's)
     72                   float64           speed factor, x allowable (limits.SPEED_FACTOR)
     80                   char[64]          the design's name, UTF-8, NUL-padded (cut to 63 bytes)
-    144                  float64[T]        torque magnitudes [N*m], ascending, the first 0
-    144 + 8T             float64[2][T][A]  te [rad]: branch 0 resisting loads, 1 driving loads
-    144 + 8T + 16TA      float64[2][T][A]  tau_in [N*m]
-    144 + 8T + 32TA      float64[2][T][A]  the Coulomb friction torque at the output [N*m]
-    144 + 8T + 48TA      float64[K]        output speeds [rad/s], ascending, the first 0
-    144 + 8T + 48TA + 8K float64[K]        the load-free friction torque at the output [N*m]
-    144 + 8T + 48TA + 16K                  end of file: the length is checked against A, T, K
+    144                  uint32            M, lubricant temperatures of the load-free friction
+    148                  uint32            0 (padding)
+    152                  float64           the seals' torque at the output [N*m] (TEMap.seal)
+    160                  float64           static friction factor (TEMap.static_friction_factor)
+    168                  float64           Stribeck speed [rad/s at the input] (reducer_model)
+    176                  float64[T]        torque magnitudes [N*m], ascending, the first 0
+    176 + 8T             float64[2][T][A]  te [rad]: branch 0 resisting loads, 1 driving loads
+    176 + 8T + 16TA      float64[2][T][A]  tau_in [N*m]
+    176 + 8T + 32TA      float64[2][T][A]  the Coulomb friction torque at the output [N*m]
+    176 + 8T + 48TA      float64[K]        output speeds [rad/s], ascending, the first 0
+    176 + 8T + 48TA + 8K float64[M]        lubricant temperatures [C], ascending
+    ... + 8M             float64[M][K]     the load-free friction torque at the output [N*m]
+    176 + 8T + 48TA + 8K + 8M + 8MK        end of file: the length is checked against A, T, K, M
 
 The load classes and the speed limit travel in the table rather than in the C
 code so that `rvfmu.core.limits` and the design stay their only source (the
-design's name only goes into the messages).  Version 3 added the speed limit; a
-version 2 table is refused, as a table of any other version.  A table that fails a check
+design's name only goes into the messages).  Version 3 added the speed limit, version 4
+the temperatures and the breakaway; a table of any other version is refused.  A table that fails a check
 (magic, version, sizes against the file length, finite values, ascending
 levels from 0) makes fmi2Instantiate log the reason and return NULL.
 """
@@ -80,7 +90,7 @@ import numpy as np
 from ..core.design import RVDesign
 from ..core.errors import ErrorSet, error_file_values, toml_text
 from ..core.limits import EMERGENCY_FACTOR, MOMENTARY_FACTOR, SPEED_FACTOR
-from ..core.reducer_model import FRICTION_SPEED_SCALE
+from ..core.reducer_model import FRICTION_SPEED_SCALE, STRIBECK_SPEED
 from ..core.te_map import TEMap
 from .build import complete_model_description, prepare, source_line
 from .fmi3 import FMI3_SOURCE_FILES, PLATFORM_TUPLES, build_description, model_description_3
@@ -93,14 +103,16 @@ FMI_VERSIONS = (2, 3)                              # the standards a native FMU 
 MODEL_IDENTIFIER = "RVReducer"
 TABLE_NAME = "te_map.bin"
 TABLE_MAGIC = b"RVTEMAP\0"
-TABLE_VERSION = 3
+TABLE_VERSION = 4
 # magic, version, A, T, K, ratio, rated, load classes, speed scale, allowable speed, speed
-# factor, design name
-TABLE_HEADER = struct.Struct("<8s4I7d64s")
+# factor, design name, M, padding, seals' torque, static friction factor, Stribeck speed
+TABLE_HEADER = struct.Struct("<8s4I7d64s2I3d")
 NAME_BYTES = 63                           # of the design's name: a NUL always ends it
 # The inputs and outputs in the order of their value references in fmi2Functions.c.
 VARIABLES = ("theta_in", "tau_load", "theta_out", "omega_out", "te", "te_arcsec", "tau_in",
              "P_loss", "efficiency")
+# The parameters and their value references (instance.h: TEMPERATURE_C), the slave's.
+PARAMETERS = {"temperature_C": 18}
 LOG_CATEGORIES = {"logEvents": "the table read, resets (with debug logging on)",
                   "logStatusWarning": "loads above the momentary maximum class, input speeds "
                                       "above the allowable one",
@@ -171,10 +183,12 @@ def write_table(te_map: TEMap, design: RVDesign, path: Path) -> None:
     header = TABLE_HEADER.pack(TABLE_MAGIC, TABLE_VERSION, points, levels, te_map.drag_speed.size,
                                te_map.ratio, design.rated_torque, MOMENTARY_FACTOR,
                                EMERGENCY_FACTOR, FRICTION_SPEED_SCALE,
-                               design.allowable_output_speed, SPEED_FACTOR, name)
+                               design.allowable_output_speed, SPEED_FACTOR, name,
+                               te_map.drag_temperature.size, 0, te_map.seal,
+                               te_map.static_friction_factor, STRIBECK_SPEED)
     body = [np.ascontiguousarray(a, dtype="<f8").tobytes()
             for a in (te_map.torque_magnitude, te_map.te, te_map.tau_in, te_map.friction,
-                      te_map.drag_speed, te_map.drag)]
+                      te_map.drag_speed, te_map.drag_temperature, te_map.drag)]
     path.write_bytes(header + b"".join(body))
 
 
@@ -185,17 +199,20 @@ def read_table(path: str | Path) -> tuple[TEMap, float]:
     interpolation needs only their count): the map's theta_in is rebuilt.
     """
     data = Path(path).read_bytes()
-    magic, version, points, levels, speeds, ratio, rated, *_ = TABLE_HEADER.unpack_from(data)
+    fields = TABLE_HEADER.unpack_from(data)
+    magic, version, points, levels, speeds, ratio, rated = fields[:7]
+    temperatures, seal, static = fields[13], fields[15], fields[16]
     if magic != TABLE_MAGIC or version != TABLE_VERSION:
         raise ValueError(f"{path}: not a version {TABLE_VERSION} TE map table")
     values = np.frombuffer(data, "<f8", offset=TABLE_HEADER.size).astype(float)
     cells = 2 * levels * points
-    magnitude, te, tau_in, friction, drag_speed, drag = np.split(
-        values, np.cumsum([levels, cells, cells, cells, speeds]))
+    magnitude, te, tau_in, friction, drag_speed, drag_temperature, drag = np.split(
+        values, np.cumsum([levels, cells, cells, cells, speeds, temperatures]))
     angles = np.arange(points) * (2.0 * np.pi * ratio / points)
     shape = (2, levels, points)
     return (TEMap(ratio, angles, magnitude, te.reshape(shape), tau_in.reshape(shape),
-                  friction.reshape(shape), drag_speed, drag), rated)
+                  friction.reshape(shape), drag_speed, drag.reshape(temperatures, speeds),
+                  drag_temperature, seal, static), rated)
 
 
 def table_limits(path: str | Path) -> dict:
@@ -206,15 +223,16 @@ def table_limits(path: str | Path) -> dict:
 
 
 def declared_variables() -> list[ET.Element]:
-    """The pythonfmu slave's inputs and outputs as FMI 2.0 <ScalarVariable>s, checked to be
-    those of the C code (instance.h) in the order of their value references."""
+    """The pythonfmu slave's inputs and outputs and the parameters of PARAMETERS as FMI 2.0
+    <ScalarVariable>s, checked to be those of the C code (instance.h) in the order of their
+    value references."""
     from .slave import RVReducer
 
     slave = RVReducer(instance_name="native")
     declared = [v for v in slave.to_xml().find("ModelVariables")
-                if v.get("causality") in ("input", "output")]
+                if v.get("causality") in ("input", "output") or v.get("name") in PARAMETERS]
     names = [(v.get("name"), int(v.get("valueReference"))) for v in declared]
-    if names != [(name, vr) for vr, name in enumerate(VARIABLES)]:
+    if names != [(name, vr) for vr, name in enumerate(VARIABLES)] + list(PARAMETERS.items()):
         raise RuntimeError(f"the slave's inputs and outputs {names} are not those of "
                            f"instance.h {VARIABLES}: update the C code")
     return declared
@@ -230,7 +248,7 @@ def about_model() -> dict[str, str]:
 
 
 def model_description(fmi_version: int = 2) -> bytes:
-    """modelDescription.xml: the pythonfmu slave's inputs and outputs, no parameter.  FMI 2.0
+    """modelDescription.xml: the pythonfmu slave's inputs and outputs, and temperature_C.  FMI 2.0
     without units and default experiment (`complete_model_description` adds them) and with
     the sources; FMI 3.0 complete (`rvfmu.fmu.fmi3`)."""
     declared = declared_variables()

@@ -28,6 +28,9 @@ FMU's resources at build time; the parameters `design_file` (a preset name or
 a design file) and `errors_file` replace them, and `map_points` and the scale
 parameters change the grid or the physics (error_scale = 0: the error-free
 reducer), in which case the TE map is solved again when initialisation ends.
+`temperature_C` (model quasistatic; the dynamic model keeps 40 C) reads the map's
+load-free friction table at that lubricant temperature (`TEMap.load_free_row`); one
+outside the table's temperatures fails the initialisation as a bad parameter does.
 
 This file is the FMU's entry module: pythonfmu copies it into the FMU and, at
 build and at run time, takes the class below as the module's Fmi2Slave
@@ -50,7 +53,8 @@ from rvfmu.core.errors import load_errors, zero_errors
 from rvfmu.core.limits import MOMENTARY_FACTOR, check_load, check_speed
 from rvfmu.core.dynamic_reducer import DEFAULT_INTERNAL_STEP
 from rvfmu.core.reducers import MODELS
-from rvfmu.core.te_map import TEMap, build_te_map
+from rvfmu.core.lubricant import REFERENCE_TEMPERATURE_C
+from rvfmu.core.te_map import DRAG_TEMPERATURES, TEMap, build_te_map
 from rvfmu.core.units import ARCSEC
 
 BUNDLED_DESIGN = "design.toml"
@@ -95,6 +99,7 @@ class RVReducer(Fmi2Slave):
         self.error_scale = 1.0
         self.map_points = 0
         self.dynamic_step = DEFAULT_INTERNAL_STEP
+        self.temperature_C = REFERENCE_TEMPERATURE_C
         self._reducer = None
         self._failed = None
         self._rated_torque = self._momentary_torque = math.inf
@@ -143,6 +148,11 @@ class RVReducer(Fmi2Slave):
                                        variability=par,
                                        description="TE map points per output revolution; "
                                                    "0: as bundled"))
+        # after every other parameter: the native FMU declares it with this value reference
+        self.register_variable(Real("temperature_C", causality=Fmi2Causality.parameter,
+                                    variability=par, description="lubricant temperature [C] of "
+                                    "the load-free friction (model quasistatic; the TE map's "
+                                    f"table: {DRAG_TEMPERATURES[0]} to {DRAG_TEMPERATURES[-1]} C)"))
 
         # Direct access for the calls a master makes every step.
         reals = [v for v in self.vars.values() if isinstance(v, Real)]
@@ -298,7 +308,8 @@ class RVReducer(Fmi2Slave):
         else:
             self.log("solving the quasi-static TE map for the changed parameters", Fmi2Status.ok)
             te_map = build_te_map(scaled_design, scaled_errors, points=self.map_points or None)
-        return MODELS[self.model](te_map)
+        # the map's load-free table read at the temperature; InputError outside its range
+        return MODELS[self.model](te_map, temperature_C=self.temperature_C)
 
     def _show(self, outputs):
         self.theta_out = outputs.theta_out

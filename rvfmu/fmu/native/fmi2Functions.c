@@ -260,7 +260,9 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         set = core_set(&instance->core, vr[k], value[k]);
         if (set != 0) {
             LOG_ERROR_(instance, "fmi2SetReal: value reference %u %s", (unsigned)vr[k],
-                       set > 0 ? "is an output: it cannot be set" : "is not a Real variable");
+                       set == 2 ? "is the fixed parameter temperature_C: it can be set only "
+                                  "before initialisation ends"
+                       : set > 0 ? "is an output: it cannot be set" : "is not a Real variable");
             return fmi2Error;
         }
     }

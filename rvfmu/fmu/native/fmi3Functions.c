@@ -260,7 +260,9 @@ fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference valueReferenc
         if (set != 0) {
             LOG_ERROR_(instance, "fmi3SetFloat64: value reference %u %s",
                        (unsigned)valueReferences[k],
-                       set > 0 ? "is an output: it cannot be set"
+                       set == 2 ? "is the fixed parameter temperature_C: it can be set only "
+                                  "before initialisation ends"
+                       : set > 0 ? "is an output: it cannot be set"
                        : valueReferences[k] == TIME ? "is time: it cannot be set"
                                                     : "is not a Float64 variable");
             return fmi3Error;

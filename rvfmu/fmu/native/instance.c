@@ -16,6 +16,7 @@ typedef struct {
 void core_reset(Core *core) {
     memset(&core->state, 0, sizeof core->state);
     core->state.mode = INSTANTIATED;
+    core->temperature_C = TEMPERATURE_START;
     core->load_warned = core->speed_warned = core->warnings = core->logged = 0;
     core->failed[0] = '\0';
 }
@@ -76,7 +77,15 @@ static InputCheck check_inputs(Core *core, int check_step, double step_size, con
 
 InputCheck core_exit_initialization(Core *core) {
     State *s = &core->state;
-    InputCheck check = check_inputs(core, 0, 0.0, "initialisation failed: ");
+    char message[RV_MESSAGE_SIZE];
+    InputCheck check;
+    if (te_map_set_temperature(&core->map, core->temperature_C, message, sizeof message) != 0) {
+        s->mode = STEPPING;
+        core->warnings = core->logged = 0;
+        snprintf(core->failed, sizeof core->failed, "initialisation failed: %s", message);
+        return INPUT_REFUSED;
+    }
+    check = check_inputs(core, 0, 0.0, "initialisation failed: ");
     s->mode = STEPPING;
     if (check != INPUT_REFUSED)
         reducer_initialize(&s->reducer, &core->map, s->reducer.time, s->theta_in, s->tau_load);
@@ -121,11 +130,17 @@ int core_get(const Core *core, unsigned vr, double *value) {
     case TAU_IN: *value = r->tau_in; return 0;
     case P_LOSS: *value = r->p_loss; return 0;
     case EFFICIENCY: *value = r->efficiency; return 0;
+    case TEMPERATURE_C: *value = core->temperature_C; return 0;
     default: return -1;
     }
 }
 
 int core_set(Core *core, unsigned vr, double value) {
+    if (vr == TEMPERATURE_C) {   /* fixed: read into the map when initialisation ends */
+        if (core->state.mode != INSTANTIATED && core->state.mode != INITIALIZATION) return 2;
+        core->temperature_C = value;
+        return 0;
+    }
     if (vr == THETA_IN) core->state.theta_in = value;
     else if (vr == TAU_LOAD) core->state.tau_load = value;
     else return vr < VARIABLES ? 1 : -1;

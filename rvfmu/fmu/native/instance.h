@@ -24,6 +24,10 @@
  * [rad/s], te [rad], te_arcsec [arcsec], tau_in [N*m], P_loss [W], efficiency [1]. */
 enum { THETA_IN, TAU_LOAD, THETA_OUT, OMEGA_OUT, TE, TE_ARCSEC, TAU_IN, P_LOSS, EFFICIENCY,
        VARIABLES };
+/* The one parameter: the lubricant's temperature [C], fixed, start 40; its value reference is
+ * the pythonfmu FMU's (rvfmu/fmu/native.py checks it), after that FMU's other parameters. */
+enum { TEMPERATURE_C = 18 };
+#define TEMPERATURE_START 40.0
 
 /* STEPPING is FMI 2.0's slave-initialised state and FMI 3.0's step mode. */
 typedef enum { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED } Mode;
@@ -44,6 +48,7 @@ enum { WARNINGS = 2 };   /* a step can warn of its load and of its speed */
 typedef struct {
     TEMap map;
     State state;
+    double temperature_C;                /* the parameter [C]; the map's row read at it */
     int logging[CATEGORIES];             /* which categories reach the host's logger */
     int load_warned;                     /* the momentary-class warning was logged */
     int speed_warned;                    /* the allowable-speed warning was logged */
@@ -63,9 +68,9 @@ long core_set_logging(Core *core, int on, size_t n, const char *const categories
  * host holds); NULL if out of memory. */
 State *core_copy_state(const State *state, void *into);
 
-/* Leave initialisation mode: the outputs from the initial inputs.  INPUT_REFUSED: inputs the
- * model cannot take, `core->failed` to log as an error, and every later step is refused until
- * core_reset.  Otherwise the outputs are set and any warning waits in core_next_warning. */
+/* Leave initialisation mode: the load-free table read at temperature_C, the outputs from the
+ * initial inputs.  INPUT_REFUSED: a temperature outside the table's or inputs the model cannot
+ * take, `core->failed` to log as an error, and every later step is refused until core_reset.  Otherwise the outputs are set and any warning waits in core_next_warning. */
 InputCheck core_exit_initialization(Core *core);
 
 /* One step from `time` [s] of `step_size` [s] with the inputs set.  INPUT_REFUSED: not taken
@@ -89,7 +94,8 @@ void core_update_initial_unknowns(Core *core);
 /* The value of the variable `vr`; 0, or -1 if there is no such variable. */
 int core_get(const Core *core, unsigned vr, double *value);
 
-/* Set the input `vr`; 0, 1 if `vr` is an output, -1 if there is no such variable. */
+/* Set the input or parameter `vr`; 0, 1 if `vr` is an output, 2 if it is the parameter after
+ * initialisation (fixed), -1 if there is no such variable. */
 int core_set(Core *core, unsigned vr, double value);
 
 /* A state as bytes: this platform's, tagged; a state goes back to the FMU that wrote it. */

@@ -15,7 +15,7 @@
  *
  *   offset               type              field
  *   0                    char[8]           magic "RVTEMAP\0"
- *   8                    uint32            format version, 3
+ *   8                    uint32            format version, 4
  *   12                   uint32            A, angle points over one output revolution (>= 2)
  *   16                   uint32            T, torque levels (>= 2)
  *   20                   uint32            K, speeds of the load-free friction (>= 2)
@@ -27,16 +27,23 @@
  *   64                   float64           allowable output speed [rad/s] (> 0)
  *   72                   float64           speed factor, x allowable: beyond, refused (>= 1)
  *   80                   char[64]          the design's name, UTF-8, NUL-padded (a NUL in it)
- *   144                  float64[T]        torque magnitudes [N*m], ascending, the first 0
- *   144 + 8T             float64[2][T][A]  te [rad]; branch 0 resisting, 1 driving loads
- *   144 + 8T + 16TA      float64[2][T][A]  tau_in [N*m]
- *   144 + 8T + 32TA      float64[2][T][A]  the Coulomb friction torque at the output [N*m]
- *   144 + 8T + 48TA      float64[K]        output speeds [rad/s], ascending, the first 0
- *   144 + 8T + 48TA + 8K float64[K]        the load-free friction torque at the output [N*m]
- *   144 + 8T + 48TA + 16K                  end of file
+ *   144                  uint32            M, lubricant temperatures of the load-free friction (>= 1)
+ *   148                  uint32            0 (padding)
+ *   152                  float64           the seals' torque at the output [N*m] (>= 0)
+ *   160                  float64           static friction factor, breakaway / running (>= 1)
+ *   168                  float64           the breakaway law's Stribeck speed [rad/s at the input] (> 0)
+ *   176                  float64[T]        torque magnitudes [N*m], ascending, the first 0
+ *   176 + 8T             float64[2][T][A]  te [rad]; branch 0 resisting, 1 driving loads
+ *   176 + 8T + 16TA      float64[2][T][A]  tau_in [N*m]
+ *   176 + 8T + 32TA      float64[2][T][A]  the Coulomb friction torque at the output [N*m]
+ *   176 + 8T + 48TA      float64[K]        output speeds [rad/s], ascending, the first 0
+ *   176 + 8T + 48TA + 8K float64[M]        lubricant temperatures [C], ascending
+ *   ... + 8M             float64[M][K]     the load-free friction torque at the output [N*m]
+ *   176 + 8T + 48TA + 8K + 8M + 8MK        end of file
  *
  * Version 3 added the speed limit (64..143): a version 2 table is refused, since the FMU
- * would then step any input speed without a word.
+ * would then step any input speed without a word.  Version 4 added the load-free torque over
+ * the lubricant's temperature and the breakaway (144..175): a version 3 table is refused.
  */
 #ifdef __MINGW32__
 #define __USE_MINGW_ANSI_STDIO 1   /* C99 printf and strtod (two-digit exponents), not msvcrt's */
@@ -54,7 +61,8 @@
 #define RPM (2.0 * PI / 60.0)                /* rvfmu.core.units.RPM, same expression */
 
 static const char MAGIC[8] = {'R', 'V', 'T', 'E', 'M', 'A', 'P', '\0'};
-enum { FORMAT_VERSION = 3, HEADER_SIZE = 144, NAME_OFFSET = 80, NAME_SIZE = 64 };
+enum { FORMAT_VERSION = 4, HEADER_SIZE = 176, NAME_OFFSET = 80, NAME_SIZE = 64 };
+#define REFERENCE_TEMPERATURE_C 40.0   /* rvfmu.core.lubricant: the load-free torque's default */
 
 /* -- reading the table ---------------------------------------------------------------- */
 
@@ -106,11 +114,11 @@ static int all_finite(const double *values, size_t count) {
 }
 
 int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
-    size_t length = 0, A, T, K, cells, count, k;
+    size_t length = 0, A, T, K, M, cells, count, k;
     double *values;
     const unsigned char *p;
     unsigned char *data = read_file(path, &length, message, size);
-    char reason[160];
+    char reason[256];
 
     memset(map, 0, sizeof *map);
     if (!data) return -1;
@@ -127,20 +135,22 @@ int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
     A = read_u32(data + 12);
     T = read_u32(data + 16);
     K = read_u32(data + 20);
+    M = read_u32(data + 144);
     /* sizes against the file length, by division: no product can overflow */
-    if (A < 2 || T < 2 || K < 2 || K > (length - HEADER_SIZE) / 16
-        || T > (length - HEADER_SIZE - 16 * K) / 8
-        || A > (length - HEADER_SIZE - 16 * K - 8 * T) / (48 * T)
-        || length != HEADER_SIZE + 8 * T + 48 * T * A + 16 * K) {
-        snprintf(reason, sizeof reason, "%lu angle points x %lu torque levels and %lu speeds do "
-                 "not fit its %lu bytes", (unsigned long)A, (unsigned long)T, (unsigned long)K,
-                 (unsigned long)length);
+    if (A < 2 || T < 2 || K < 2 || M < 1 || K > (length - HEADER_SIZE) / 16
+        || M > (length - HEADER_SIZE - 8 * K) / (8 * (K + 1))
+        || T > (length - HEADER_SIZE - 8 * K - 8 * M * (K + 1)) / 8
+        || A > (length - HEADER_SIZE - 8 * K - 8 * M * (K + 1) - 8 * T) / (48 * T)
+        || length != HEADER_SIZE + 8 * T + 48 * T * A + 8 * K + 8 * M * (K + 1)) {
+        snprintf(reason, sizeof reason, "%lu angle points x %lu torque levels, %lu speeds and %lu "
+                 "temperatures do not fit its %lu bytes", (unsigned long)A, (unsigned long)T,
+                 (unsigned long)K, (unsigned long)M, (unsigned long)length);
         free(data);
         return fail(message, size, path, reason);
     }
     cells = 2 * T * A;
-    count = T + 3 * cells + 2 * K;
-    values = malloc(count * sizeof *values);
+    count = T + 3 * cells + K + M * (K + 1);
+    values = malloc((count + K) * sizeof *values);   /* and the row at the temperature */
     if (!values) {
         free(data);
         return fail(message, size, path, "out of memory");
@@ -156,6 +166,10 @@ int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
     map->allowable_speed = read_f64(data + 64);
     map->speed_factor = read_f64(data + 72);
     memcpy(map->design, data + NAME_OFFSET, NAME_SIZE);
+    map->temperatures = (int)M;
+    map->seal = read_f64(data + 152);
+    map->static_factor = read_f64(data + 160);
+    map->stribeck_speed = read_f64(data + 168);
     for (k = 0, p = data + HEADER_SIZE; k < count; k++, p += 8) values[k] = read_f64(p);
     free(data);
     map->magnitude = values;
@@ -163,16 +177,22 @@ int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
     map->tau_in = values + T + cells;
     map->friction = values + T + 2 * cells;
     map->drag_speed = values + T + 3 * cells;
-    map->drag = values + T + 3 * cells + K;
+    map->drag_temperature = values + T + 3 * cells + K;
+    map->drag = values + T + 3 * cells + K + M;
+    map->load_free = values + count;
 
     if (!(isfinite(map->ratio) && map->ratio > 0 && isfinite(map->rated_torque)
           && map->rated_torque > 0 && isfinite(map->momentary_factor) && map->momentary_factor > 0
           && isfinite(map->emergency_factor) && map->emergency_factor >= map->momentary_factor
           && isfinite(map->speed_scale) && map->speed_scale > 0
           && isfinite(map->allowable_speed) && map->allowable_speed > 0
-          && isfinite(map->speed_factor) && map->speed_factor >= 1.0))
-        strcpy(reason, "ratio, rated torque, load classes, speed scale and allowable speed must "
-               "be finite and > 0, the speed factor >= 1");
+          && isfinite(map->speed_factor) && map->speed_factor >= 1.0
+          && isfinite(map->seal) && map->seal >= 0.0 && isfinite(map->static_factor)
+          && map->static_factor >= 1.0 && isfinite(map->stribeck_speed)
+          && map->stribeck_speed > 0))
+        strcpy(reason, "ratio, rated torque, load classes, speed scale, allowable speed and "
+               "Stribeck speed must be finite and > 0, the speed and static friction factors "
+               ">= 1, the seals' torque >= 0");
     else if (memchr(map->design, '\0', sizeof map->design) == NULL)
         strcpy(reason, "the design's name must end in a NUL within its 64 bytes");
     else if (!all_finite(values, count))
@@ -191,6 +211,11 @@ int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
                 strcpy(reason, "the speeds must be strictly ascending");
                 break;
             }
+        for (k = 1; k < M && !reason[0]; k++)
+            if (!(map->drag_temperature[k] > map->drag_temperature[k - 1])) {
+                strcpy(reason, "the temperatures must be strictly ascending");
+                break;
+            }
     }
     if (reason[0]) {
         te_map_free(map);
@@ -199,6 +224,10 @@ int te_map_read(const char *path, TEMap *map, char *message, size_t size) {
     /* as TEMap.period and TEMap._per_radian */
     map->period = 2.0 * PI * map->ratio;
     map->per_radian = (double)A / map->period;
+    /* the default temperature's row; a table without 40 C: its first until one is set (the
+     * message then left unused: the table is good) */
+    if (te_map_set_temperature(map, REFERENCE_TEMPERATURE_C, message, size) != 0)
+        memcpy(map->load_free, map->drag, K * sizeof *map->load_free);
     return 0;
 }
 
@@ -276,12 +305,41 @@ void te_map_evaluate(const TEMap *map, double theta_in, double tau_load, double 
 
 /* TEMap.load_free_one: linear in the speed's magnitude, the last two speeds extrapolated. */
 double te_map_load_free(const TEMap *map, double omega_out) {
-    const double *speeds = map->drag_speed, *values = map->drag;
+    const double *speeds = map->drag_speed, *values = map->load_free;
     double speed = omega_out < 0 ? -omega_out : omega_out, w;
     int k = bisect_right(speeds, map->speeds, speed) - 1, last = map->speeds - 2;
     k = k > last ? last : k;
     w = (speed - speeds[k]) / (speeds[k + 1] - speeds[k]);
     return values[k] + w * (values[k + 1] - values[k]);
+}
+
+/* TEMap.load_free_row: linear in the temperature between the table's, its row at one of them. */
+int te_map_set_temperature(TEMap *map, double temperature_C, char *message, size_t size) {
+    const double *temperatures = map->drag_temperature;
+    const int M = map->temperatures, K = map->speeds;
+    const double *lo, *hi;
+    char value[40], low[40], high[40];
+    double w;
+    int m, k;
+    if (!(isfinite(temperature_C) && temperatures[0] <= temperature_C
+          && temperature_C <= temperatures[M - 1])) {
+        format_number(temperature_C, value, sizeof value);
+        format_number(temperatures[0], low, sizeof low);
+        format_number(temperatures[M - 1], high, sizeof high);
+        snprintf(message, size, "temperature_C = %s: must be from %s to %s C (the temperatures of "
+                 "the TE map's load-free table)", value, low, high);
+        return -1;
+    }
+    m = bisect_right(temperatures, M, temperature_C) - 1;
+    lo = map->drag + (size_t)m * (size_t)K;
+    if (temperatures[m] == temperature_C) {
+        memcpy(map->load_free, lo, (size_t)K * sizeof *map->load_free);
+        return 0;
+    }
+    hi = lo + K;
+    w = (temperature_C - temperatures[m]) / (temperatures[m + 1] - temperatures[m]);
+    for (k = 0; k < K; k++) map->load_free[k] = lo[k] + w * (hi[k] - lo[k]);
+    return 0;
 }
 
 /* -- the reducer: QuasiStaticReducer --------------------------------------------------- */
@@ -298,11 +356,36 @@ void reducer_initialize(Reducer *reducer, const TEMap *map, double time, double 
     reducer->efficiency = 0.0;
 }
 
+/* reducer_model.stribeck_decay: exp(-x) for x >= 0 in plain arithmetic (no libm), operation for
+ * operation as the Python: x halved to <= 1/2, Taylor to the 16th power, squared back. */
+#define STRIBECK_CUT 40.0   /* reducer_model.STRIBECK_CUT: beyond, 0 */
+static double stribeck_decay(double x) {
+    double term = 1.0, total = 1.0;
+    int halvings = 0, k;
+    if (x > STRIBECK_CUT) return 0.0;
+    while (x > 0.5) {
+        x *= 0.5;
+        halvings++;
+    }
+    for (k = 1; k < 17; k++) {
+        term = term * (-x) / (double)k;
+        total = total + term;
+    }
+    for (k = 0; k < halvings; k++) total = total * total;
+    return total;
+}
+
 /* reducer_model.friction_step: friction opposes the input's turning, Coulomb beyond the speed
- * scale and proportional to the speed within it. */
+ * scale and proportional to the speed within it; the part `breakaway_out` (the Coulomb contacts'
+ * and the seals') at 1 + (static factor - 1) exp(-(omega_in / Stribeck speed)^2) times. */
 static void friction_step(Reducer *reducer, const TEMap *map, double tau_map, double friction_out,
-                          double omega_in) {
-    double sense = omega_in / map->speed_scale, torque, passed;
+                          double omega_in, double breakaway_out) {
+    double excess = map->static_factor - 1.0, sense, torque, passed;
+    if (excess != 0.0) {
+        double x = omega_in / map->stribeck_speed;
+        friction_out = friction_out + excess * stribeck_decay(x * x) * breakaway_out;
+    }
+    sense = omega_in / map->speed_scale;
     sense = sense > 1.0 ? 1.0 : (sense < -1.0 ? -1.0 : sense);
     torque = sense * (friction_out / map->ratio);
     reducer->p_loss = torque * omega_in;
@@ -328,7 +411,7 @@ void reducer_step(Reducer *reducer, const TEMap *map, double time, double step_s
         reducer->omega_out = omega_in = 0.0;
     }
     friction_step(reducer, map, tau_map, coulomb + te_map_load_free(map, omega_in / map->ratio),
-                  omega_in);
+                  omega_in, coulomb + map->seal);
     reducer->theta_out = theta_out;
     reducer->theta_in = theta_in;
     reducer->time = time + step_size;

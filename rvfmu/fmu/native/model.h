@@ -39,7 +39,13 @@ typedef struct {
     double *tau_in;            /* (2, T, A) [N*m] */
     double *friction;          /* (2, T, A): the Coulomb friction torque at the output [N*m] */
     double *drag_speed;        /* (K,) output speeds [rad/s], ascending, the first 0 */
-    double *drag;              /* (K,) the load-free friction torque at the output [N*m] */
+    int temperatures;          /* M: lubricant temperatures of the load-free friction */
+    double seal;               /* the seals' share of the load-free torque at the output [N*m] */
+    double static_factor;      /* breakaway over running friction (Coulomb and seals) [1] */
+    double stribeck_speed;     /* the breakaway law's speed [rad/s at the input] (> 0) */
+    double *drag_temperature;  /* (M,) [C], ascending */
+    double *drag;              /* (M, K) the load-free friction torque at the output [N*m] */
+    double *load_free;         /* (K,) the load-free torque at the instance's temperature */
 } TEMap;
 
 /* The reducer's whole state, and its outputs at `time`. */
@@ -65,8 +71,14 @@ void te_map_free(TEMap *map);
 void te_map_evaluate(const TEMap *map, double theta_in, double tau_load, double *te, double *tau_in,
                      double *friction);
 
-/* The load-free friction torque at the output [N*m] at an output speed [rad/s]. */
+/* The load-free friction torque at the output [N*m] at an output speed [rad/s], the lubricant at
+ * the temperature of the last te_map_set_temperature (40 C after te_map_read). */
 double te_map_load_free(const TEMap *map, double omega_out);
+
+/* Read the load-free table at the lubricant temperature `temperature_C` [C] (linear between the
+ * table's temperatures, at one of them its row exactly: TEMap.load_free_row); 0, or -1 with the
+ * reason in `message` if it is not finite or outside the table's temperatures. */
+int te_map_set_temperature(TEMap *map, double temperature_C, char *message, size_t size);
 
 /* Outputs at `time` for the initial inputs: omega_out = 0. */
 void reducer_initialize(Reducer *reducer, const TEMap *map, double time, double theta_in,
