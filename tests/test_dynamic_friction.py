@@ -59,12 +59,18 @@ def test_zero_coefficients_give_the_frictionless_run_to_the_bit(rv40, seed002):
 def test_the_tangent_is_the_derivative_of_the_forces_with_friction(rv40f, seed002):
     """K and C against central differences of f in q and in v, at speed and at a crawl whose
     slips sit inside the regularised sign's scale (every friction term's derivative)."""
-    model = DynamicModel(rv40f, seed002, mesh="varying")
-    rng = np.random.default_rng(3)
-    for omega in (100.0, 2e-3):
+    assert_tangents(DynamicModel(rv40f, seed002, mesh="varying"), (100.0, 2e-3), 1e-6,
+                    np.random.default_rng(3))
+
+
+def assert_tangents(model, input_speeds, velocity_scale, rng):
+    """K and C of `model` against central differences of its forces f in q and in v, at each
+    input speed [rad/s] (under 300 N*m), from the static start moved by 1e-8 m and
+    velocities of `velocity_scale` [m/s] drawn from `rng`."""
+    for omega in input_speeds:
         model.prepare(ramp_motion(np.array([0.0, 1e-4]), omega, 0.0, -300.0))
         q = static_start(model, -300.0, 0.0) + 1e-8 * rng.standard_normal(model.n)
-        v = 1e-6 * rng.standard_normal(model.n)
+        v = velocity_scale * rng.standard_normal(model.n)
         f, K, C = model.forces(1, q, v)
         scale = np.abs(K).max()
         # the differences' rounding: |f| eps / step, where friction's C is small (at speed)

@@ -16,7 +16,8 @@ from rvfmu.core.friction import RPM, load_free_torques
 from rvfmu.core.hysteresis import hysteresis
 from rvfmu.core.kernels import stribeck
 from rvfmu.core.seals import seal_torques
-from rvfmu.core.simulation import simulate, static_start
+from rvfmu.core.simulation import simulate
+from test_dynamic_friction import assert_tangents
 
 # the tolerance of tests/test_dynamic_friction.py's balance against the quasi-static model
 BALANCE = 0.1
@@ -187,25 +188,9 @@ def test_the_tangent_is_the_derivative_of_the_forces_through_the_breakaway(rv40,
                               tapered_pitch_diameter=d.tapered_pitch_diameter,
                               main_bearing_pitch_diameter=d.main_bearing_pitch_diameter,
                               static_friction_factor=3.0)
-    model = DynamicModel(design, seed002, mesh="varying")
-    rng = np.random.default_rng(7)
     carrier = STRIBECK_SPEED / design.R_p * design.ratio         # rad/s of input
-    for omega in (0.5 * carrier, 2.0 * carrier):
-        model.prepare(ramp_motion(np.array([0.0, 1e-4]), omega, 0.0, -300.0))
-        q = static_start(model, -300.0, 0.0) + 1e-8 * rng.standard_normal(model.n)
-        v = 1e-5 * rng.standard_normal(model.n)
-        f, K, C = model.forces(1, q, v)
-        scale = np.abs(K).max()
-        noise = 10.0 * np.abs(f).max() * np.finfo(float).eps / 1e-9
-        for k in range(model.n):
-            step = np.zeros(model.n)
-            step[k] = 1e-12
-            dq = (model.forces(1, q + step, v)[0] - model.forces(1, q - step, v)[0]) / 2e-12
-            np.testing.assert_allclose(dq, K[:, k], rtol=1e-4, atol=1e-6 * scale)
-            step[k] = 1e-9
-            dv = (model.forces(1, q, v + step)[0] - model.forces(1, q, v - step)[0]) / 2e-9
-            np.testing.assert_allclose(dv, C[:, k], rtol=1e-4,
-                                       atol=max(1e-6 * np.abs(C).max(), noise))
+    assert_tangents(DynamicModel(design, seed002, mesh="varying"), (0.5 * carrier, 2.0 * carrier),
+                    1e-5, np.random.default_rng(7))
 
 
 def test_the_hysteresis_loops_output_seal_is_its_law_or_the_stated_torque():
