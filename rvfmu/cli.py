@@ -72,7 +72,8 @@ def _simulate(args):
                               contact=args.contact, mesh=args.mesh, step=args.step,
                               csv_path=args.csv, plot_path=args.plot, progress=bar,
                               load_step=args.load_step, load_csv=args.load_csv,
-                              input_csv=args.input_csv, friction=not args.no_friction)
+                              input_csv=args.input_csv, friction=not args.no_friction,
+                              temperature_C=args.temperature)
     _show(report, args.json, (("csv", args.csv), ("plot", args.plot)))
 
 
@@ -223,6 +224,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "and --speed-rpm: columns time_s,theta_in_rad (a cubic spline through them)")
     p.add_argument("--no-friction", action="store_true", help="leave out the contacts' friction "
                    "and drag (docs/model.md section 9): the frictionless reducer")
+    p.add_argument("--temperature", type=float, default=40.0,
+                   help="lubricant temperature [C], -40 to 150 (default 40): the viscosity of the "
+                   "bearings' drag and the churning")
     p.add_argument("--csv", help="write time_s,theta_in_rad,theta_out_rad,te_arcsec,tau_in_Nm")
     p.add_argument("--plot", help="write a figure of TE(t) and its spectrum in Hz")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")

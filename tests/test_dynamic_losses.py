@@ -222,3 +222,29 @@ def test_a_temperature_outside_the_lubricants_range_is_refused(bare, value, allo
         with pytest.raises(InputError) as info:
             make()
         assert str(info.value).startswith(f"temperature_C = {value}: {allowed}")
+
+
+def test_the_dynamic_reducer_and_rvte_simulate_run_at_the_lubricants_temperature(bare, capsys):
+    """The FMU's dynamic model and `rvte simulate` take the lubricant's temperature: colder oil
+    turns the unloaded reducer with more input torque (the drag and the churning); out of
+    Walther's range it is refused by name, before any work."""
+    from rvfmu import cli
+
+    design = PRESET
+    taus = {}
+    for temperature in (40.0, -10.0):
+        reducer = DynamicReducer(design, zero_errors(design), temperature_C=temperature)
+        assert reducer.temperature_C == temperature
+        reducer.initialize(0.0, 0.0, 0.0)
+        speed, outs = 600.0 * RPM, []
+        for k in range(150):
+            omega = speed * min(1.0, (k + 1) / 50.0)
+            outs.append(reducer.step(k * 1e-3, 1e-3, reducer.theta_in + omega * 1e-3, 0.0))
+        taus[temperature] = np.mean([o.tau_in for o in outs[100:]])
+    assert taus[-10.0] < taus[40.0] < 0.0          # the reducer resists the input, more in the cold
+    with pytest.raises(InputError) as error:
+        DynamicReducer(design, zero_errors(design), temperature_C=200.0)
+    assert error.value.field == "temperature_C"
+    code = cli.main(["simulate", "RV-40E-121", "--duration", "0.01", "--temperature", "200"])
+    err = capsys.readouterr().err
+    assert code == 2 and "temperature_C" in err and "200" in err and err.count("\n") == 1

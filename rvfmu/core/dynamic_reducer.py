@@ -31,6 +31,7 @@ from .dynamic import DynamicModel, Motion, at_rest
 from .dynamic_geometry import GeometryConstants, build_geometry
 from .errors import ErrorSet
 from .kernels import Elements, forces_only, newmark_steps, scratch
+from .lubricant import REFERENCE_TEMPERATURE_C, check_temperature
 from .newmark import (BETA, CYCLE_TOLERANCE, GAMMA, MAX_ITERATIONS, TOLERANCE, NewmarkStepper,
                       State, static_start)
 from .reducer_model import Outputs, step_efficiency
@@ -44,9 +45,12 @@ class DynamicReducer:
     name = "dynamic"
 
     def __init__(self, design, errors: ErrorSet, internal_step: float = DEFAULT_INTERNAL_STEP,
-                 contact: str | None = None, mesh: str = "varying"):
+                 contact: str | None = None, mesh: str = "varying",
+                 temperature_C: float = REFERENCE_TEMPERATURE_C):
         if not (math.isfinite(internal_step) and internal_step > 0):
             raise ValueError(f"internal_step = {internal_step}: must be a number > 0")
+        # the lubricant's [C]: the viscosity of the drag and the churning (`DynamicModel`)
+        self.temperature_C = check_temperature(temperature_C)
         self.design, self.errors = design, errors
         self.internal_step = internal_step
         self.contact, self.mesh = contact, mesh
@@ -59,7 +63,8 @@ class DynamicReducer:
         flank = 1 if tau_load <= 0 else -1
         if self.model is None or self.model.flank != flank:
             before = self.model
-            self.model = DynamicModel(self.design, self.errors, self.contact, self.mesh, flank)
+            self.model = DynamicModel(self.design, self.errors, self.contact, self.mesh, flank,
+                                      temperature_C=self.temperature_C)
             if before is not None:      # the modes damped at the start stay damped alike
                 self.model.elements = self.model.elements._replace(modal_c=before.elements.modal_c)
                 self.model.modal_frequencies = before.modal_frequencies

@@ -28,9 +28,9 @@ FMU's resources at build time; the parameters `design_file` (a preset name or
 a design file) and `errors_file` replace them, and `map_points` and the scale
 parameters change the grid or the physics (error_scale = 0: the error-free
 reducer), in which case the TE map is solved again when initialisation ends.
-`temperature_C` (model quasistatic; the dynamic model keeps 40 C) reads the map's
-load-free friction table at that lubricant temperature (`TEMap.load_free_row`); one
-outside the table's temperatures fails the initialisation as a bad parameter does.
+`temperature_C` reads the quasi-static map's load-free friction table at that lubricant
+temperature (`TEMap.load_free_row`), or sets the dynamic model's viscosity there; one
+outside the range fails the initialisation as a bad parameter does.
 
 This file is the FMU's entry module: pythonfmu copies it into the FMU and, at
 build and at run time, takes the class below as the module's Fmi2Slave
@@ -301,7 +301,8 @@ class RVReducer(Fmi2Slave):
         # the scaled errors are checked again: error_scale may carry them past the model's limits
         scaled_errors = errors.scaled(scales["error_scale"]).check(scaled_design)
         if self.model == "dynamic":
-            return MODELS["dynamic"](scaled_design, scaled_errors, internal_step=self.dynamic_step)
+            return MODELS["dynamic"](scaled_design, scaled_errors, internal_step=self.dynamic_step,
+                                     temperature_C=self.temperature_C)
         if bundled:
             with np.load(resources / BUNDLED_MAP) as arrays:
                 te_map = TEMap.from_arrays(arrays)

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..core import metrics
 from ..core.checks import InputError
+from ..core.lubricant import REFERENCE_TEMPERATURE_C, check_temperature
 from ..outputs import figure_file, output_file
 from .common import columns_frame, read_columns, resolve_design, resolve_errors, write_frame
 
@@ -105,7 +106,8 @@ def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
              csv_path: str | Path | None = None, plot_path: str | Path | None = None,
              progress=None, load_step: tuple[float, float] | None = None,
              load_csv: str | Path | None = None,
-             input_csv: str | Path | None = None, friction: bool = True) -> SimulationReport:
+             input_csv: str | Path | None = None, friction: bool = True,
+             temperature_C: float = REFERENCE_TEMPERATURE_C) -> SimulationReport:
     """Dynamic TE of one reducer (docs/model.md section 7) at a constant input speed after a
     start ramp, or along sampled input angles; writes the CSV (time_s, theta_in_rad,
     theta_out_rad, te_arcsec, tau_in_Nm) and the plot if asked.
@@ -114,12 +116,15 @@ def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
     changes to that value at that time of the run; load_csv: a file of columns
     time_s, load_Nm (linear between rows, held beyond).  input_csv: a file of
     columns time_s, theta_in_rad, used instead of speed_rpm and the ramp.  friction: False
-    leaves out the contacts' friction and drag (docs/model.md section 9).  Speeds, loads,
+    leaves out the contacts' friction and drag (docs/model.md section 9); temperature_C: the
+    lubricant's [C], -40 to 150 (default 40), the viscosity of the drag and the churning
+    (checked before any work).  Speeds, loads,
     a load step outside the run and runs too long to compute are refused as
     `rvfmu.core.simulation.simulate` says.
     """
     from ..core.simulation import Sampled, simulate as run
 
+    temperature_C = check_temperature(temperature_C)
     csv_path = None if csv_path is None else output_file("csv", csv_path)
     plot_path = None if plot_path is None else figure_file("plot", plot_path)
     given = [name for name, value in (("load_step", load_step), ("load_csv", load_csv))
@@ -140,7 +145,8 @@ def simulate(design, errors=None, speed_rpm: float | None = 1600.0, load=0.0,
     design = resolve_design(design)
     sim = run(design, resolve_errors(design, errors), speed_rpm=speed_rpm, load=load,
               duration=duration, revolutions=revolutions, contact=contact, mesh=mesh, step=step,
-              progress=progress, input_angle=input_angle, friction=friction)
+              progress=progress, input_angle=input_angle, friction=friction,
+              temperature_C=temperature_C)
     report = SimulationReport(sim, tuple(sim.peaks_hz()))
     if csv_path is not None:
         write_frame(csv_path, report.to_df(), FORMATS)
