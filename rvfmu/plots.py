@@ -414,17 +414,21 @@ def plot_efficiency(report, path: str | Path) -> Path:
 
 
 def figure_efficiency(report):
-    """The catalogue's efficiency charts (`rvfmu.jobs.efficiency.EfficiencyReport`), four panels:
+    """The catalogue's efficiency charts (`rvfmu.jobs.efficiency.EfficiencyReport`), five panels:
     efficiency against output speed, one curve per resisting torque, forward (solid) and
     backdriving (dashed); efficiency against output torque, one curve per speed (light loads
     included); efficiency against the lubricant's temperature at each of the map's torques and
-    its middle speed; the no-load running torque at the input against input speed at each
-    temperature (the low-temperature characteristic).  Without `report.characteristics` the
-    first panel and the running torque at the report's temperature only.  A matplotlib Figure."""
+    its middle speed; the no-load running torque at the input against the temperature at each
+    speed (the catalogue's low-temperature characteristic); and against input speed at each
+    temperature.  Without `report.characteristics` the first panel and the running torque at
+    the report's temperature only.  A matplotlib Figure."""
     plt = _pyplot()
     m, c = report.map, report.characteristics
-    fig, axes = plt.subplots(2, 2, figsize=(12, 9), constrained_layout=True)
-    (by_speed, by_torque), (by_temperature, running) = axes
+    fig, panels = plt.subplot_mosaic([["speed", "torque"], ["temperature", "cold"],
+                                      ["running", "running"]], figsize=(12, 13),
+                                     constrained_layout=True)
+    by_speed, by_torque, by_temperature, cold, running = (
+        panels[k] for k in ("speed", "torque", "temperature", "cold", "running"))
     for j, torque in enumerate(m.load_Nm):
         line, = by_speed.plot(m.output_speed_rpm, 100 * m.efficiency[:, j], "o-", ms=3,
                               label=f"{torque:g} N·m")
@@ -436,7 +440,7 @@ def figure_efficiency(report):
     by_speed.legend(fontsize=8, title="resisting torque")
     ratio = m.design.ratio
     if c is None:
-        for ax in (by_torque, by_temperature):
+        for ax in (by_torque, by_temperature, cold):
             ax.set_visible(False)
         running.plot(m.output_speed_rpm * ratio, m.no_load_running_torque_Nm, "o-", ms=3,
                      color="tab:red", label=f"{m.temperature_C:g} °C")
@@ -459,6 +463,15 @@ def figure_efficiency(report):
         by_temperature.set_title(f"efficiency against temperature, "
                                  f"{m.output_speed_rpm[middle]:g} rpm output")
         by_temperature.legend(fontsize=8, title="resisting torque")
+        for v, speed in enumerate(m.output_speed_rpm):
+            cold.plot(temperatures, [x.no_load_running_torque_Nm[v] for x in c.by_temperature.values()],
+                      "o-", ms=3, label=f"{speed * ratio:.0f} rpm in ({speed:g} out)")
+        cold.set_xlabel("lubricant temperature [°C]")
+        cold.set_ylabel("no-load running torque at the input [N·m]")
+        cold.set_yscale("log")
+        cold.set_title("running torque against temperature (low-temperature characteristic)",
+                       fontsize=10)
+        cold.legend(fontsize=7, title="input speed")
         for temperature, x in c.by_temperature.items():
             running.plot(x.output_speed_rpm * ratio, x.no_load_running_torque_Nm, "o-", ms=3,
                          label=f"{temperature:g} °C")
@@ -470,7 +483,7 @@ def figure_efficiency(report):
     running.legend(fontsize=8, title="lubricant")
     for ax in (by_speed, by_torque, by_temperature):
         ax.set_ylabel("efficiency [%]")
-    for ax in axes.ravel():
+    for ax in panels.values():
         ax.grid(alpha=0.3)
     return fig
 

@@ -53,17 +53,23 @@ def test_the_charts_show_the_load_free_losses(plotted):
     assert np.all(np.diff(rated, axis=0) > 0.0)
 
 
-def test_the_figure_has_its_four_charts_and_without_them_two(plotted):
+def test_the_figure_has_its_five_charts_and_without_them_two(plotted):
     import matplotlib.pyplot as plt
 
     report = plotted[0]
     fig = figure_efficiency(report)
     visible = [ax for ax in fig.axes if ax.get_visible()]
-    assert len(visible) == 4
-    running = visible[3]
+    assert len(visible) == 5
+    cold, running = visible[3], visible[4]
     assert [t.get_text() for t in running.get_legend().get_texts()] == \
         [f"{t:g} °C" for t in CHART_TEMPERATURES_C]
     assert len(visible[1].get_lines()) == len(SPEEDS) + 1        # one per speed and the rated line
+    # the low-temperature characteristic: per speed, the running torque over the temperatures
+    assert len(cold.get_lines()) == len(SPEEDS)
+    x, y = cold.get_lines()[0].get_data()
+    np.testing.assert_array_equal(x, CHART_TEMPERATURES_C)
+    np.testing.assert_array_equal(y, [m.no_load_running_torque_Nm[0]
+                                      for m in report.characteristics.by_temperature.values()])
     plt.close(fig)
     fig = figure_efficiency(EfficiencyReport(report.map))
     assert len([ax for ax in fig.axes if ax.get_visible()]) == 2
