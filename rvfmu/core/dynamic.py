@@ -80,7 +80,7 @@ from .lubricant import REFERENCE_TEMPERATURE_C, check_temperature, viscosity_cSt
 from .pin_law import contacts
 from .stiffness import transverse_contact_ratio
 from .roller_law import TABLE_DE, TABLE_E, radial_law
-from .seals import seal_torques
+from .seals import SEAL_NAMES, seal_torques
 
 INPUT_SHAFT_FACTOR = 10.0  # input shaft torsional stiffness / torsional mesh stiffness at the sun
 DOUBLE_PAIR = 1.75         # double-pair / single-pair mesh stiffness: ISO 6336-1's c_gamma = c'(0.75 eps + 0.25)
@@ -99,7 +99,7 @@ SLIP_SCALE = 1e-5          # [m/s] friction's regularised sign: a contact slippi
 # law's falling slope: the robot joint's arm, stopping after its move, then sticks and slips
 # and the iterated coupling of studies/robot_joint fails to converge at t = 1.536 s.
 STRIBECK_SPEED = 1e-2
-SEALS = ("output seal", "input seal")
+SEALS = SEAL_NAMES
 CONTACT_LAWS = ("linear", "hertz", "impact")
 MESH_MODELS = ("varying", "constant")
 

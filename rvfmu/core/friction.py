@@ -54,7 +54,7 @@ from .errors import ErrorSet
 from .limits import check_load, check_speed
 from .lubricant import REFERENCE_TEMPERATURE_C, check_temperature, viscosity_cSt
 from .quasistatic import NO_LOAD_PROBE, _checked_errors
-from .seals import seal_torques
+from .seals import SEAL_NAMES, seal_torques
 from .solver import solve_pairs
 from .units import MM, RPM
 
@@ -62,7 +62,7 @@ from .units import MM, RPM
 # below; the larger of the two is continuous (the branches differ by 0.8 % at 2000).
 DRAG_FLOOR = 160.0
 LOSS_NAMES = ("pins", "crank-disc needle bearings", "crank-carrier bearings", "main bearings",
-              "sun-planet meshes") + CHURNING_NAMES + ("output seal", "input seal")
+              "sun-planet meshes") + CHURNING_NAMES + SEAL_NAMES
 AVERAGE_POINTS = 36              # angles over one crank turn that a loss is averaged on
 DEFAULT_SPEEDS_RPM = (5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 60.0)   # the catalogue chart's range
 DEFAULT_LOAD_FRACTIONS = (0.25, 0.5, 0.75, 1.0)                  # x rated torque
@@ -295,7 +295,7 @@ def contact_losses(design: RVDesign, loads: ContactLoads, output_speed_rpm,
     if breakaway:   # the viscous drag and churning have no breakaway: they stay
         static = design.static_friction_factor
         coulomb = {k: static * v for k, v in coulomb.items()}
-        free.update({k: static * free[k] for k in ("output seal", "input seal")})
+        free.update({k: static * free[k] for k in SEAL_NAMES})
     shape = (w.size,) + loads.main_force.shape[:-1]                                 # (V, S, L)
     out = {}
     for name in LOSS_NAMES:

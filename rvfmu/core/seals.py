@@ -73,6 +73,7 @@ SKF_SEAL_ROWS = {
     "CS5, CARB toroidal roller, 42 < D <= 340": (2.0, 0.057, 50.0),
 }
 DEFAULT_SEAL_ROW = "LS, cylindrical roller, 42 < D <= 360"
+SEAL_NAMES = ("output seal", "input seal")   # the seals' names among the losses (`seal_torques`)
 # SKF's exponents are 0, 2 and 2.25; a counterface's moment cannot grow faster than its
 # contact length times the lip's lever times a load growing with the size, d^3.
 EXPONENT_RANGE = (0.0, 3.0)
@@ -105,8 +106,7 @@ def seal_torques(design) -> dict:
     d = design
     law = {name: float(lip_seal_torque(diameter, d.seal_friction_exponent, d.seal_friction_K_S1,
                                        d.seal_friction_K_S2))
-           for name, diameter in (("output seal", d.output_seal_diameter),
-                                  ("input seal", d.input_seal_diameter))}
+           for name, diameter in zip(SEAL_NAMES, (d.output_seal_diameter, d.input_seal_diameter))}
     if d.seal_torque > 0.0:
         law["output seal"] = float(d.seal_torque)
     return law
