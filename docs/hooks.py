@@ -20,7 +20,7 @@ from pathlib import Path
 import griffe
 from mkdocs.exceptions import PluginError
 
-API_DIR = "api"                                   # under docs_dir
+API_DIR = "api"  # under docs_dir
 IDENTIFIER = re.compile(r"^:::\s+([\w.]+)\s*$", re.M)
 
 
@@ -36,13 +36,13 @@ def _public_members(obj):
     """The public members of a module or class: the names of `__all__` in its order where it
     exists (aliases followed to their target), else the non-underscore names defined in it."""
     if obj.is_module and obj.exports is not None:
-        names = [str(name) for name in obj.exports]    # griffe gives names or expressions
+        names = [str(name) for name in obj.exports]  # griffe gives names or expressions
         for name in dict.fromkeys(names):
             member = obj.members.get(name)
             if member is not None and member.is_alias:
                 try:
                     member = member.final_target
-                except griffe.AliasResolutionError:    # from another distribution: not ours
+                except griffe.AliasResolutionError:  # from another distribution: not ours
                     continue
             if member is not None:
                 yield member
@@ -80,13 +80,15 @@ def undocumented(identifiers, search_paths) -> list[str]:
     for identifier in identifiers:
         try:
             package = identifier.split(".")[0]
-            if package not in packages:                # griffe loads a package again if asked
+            if package not in packages:  # griffe loads a package again if asked
                 loader.load(package)
                 packages.add(package)
             objects.append(loader.modules_collection[identifier])
         except (ImportError, KeyError) as exc:
-            raise PluginError(f"docs/{API_DIR}: '::: {identifier}' names no module, class or "
-                              f"function found in {where} ({exc!r})") from None
+            raise PluginError(
+                f"docs/{API_DIR}: '::: {identifier}' names no module, class or "
+                f"function found in {where} ({exc!r})"
+            ) from None
     loader.resolve_aliases(implicit=False, external=False)
     found, seen = [], set()
     for obj in objects:
@@ -102,5 +104,7 @@ def on_pre_build(config, **kwargs):
     search_paths = [root / p for p in python.get("paths", ["."])]
     missing = undocumented(api_identifiers(config.docs_dir), search_paths)
     if missing:
-        raise PluginError(f"{len(missing)} public function(s)/class(es) of the API pages have no "
-                          f"docstring (docs/hooks.py): " + ", ".join(missing))
+        raise PluginError(
+            f"{len(missing)} public function(s)/class(es) of the API pages have no "
+            f"docstring (docs/hooks.py): " + ", ".join(missing)
+        )

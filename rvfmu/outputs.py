@@ -13,7 +13,7 @@ import os
 from functools import cache
 from pathlib import Path
 
-from .core.checks import InputError
+from .core.base.checks import InputError
 
 
 @cache
@@ -39,8 +39,7 @@ def output_file(field: str, path, suffixes: tuple[str, ...] | None = None) -> Pa
         raise InputError(field, str(path), "must end in one of ." + ", .".join(suffixes))
     folder = path.parent
     if not folder.is_dir():
-        raise InputError(field, str(path), f"cannot be written: the folder {str(folder)!r} does "
-                         "not exist")
+        raise InputError(field, str(path), f"cannot be written: the folder {str(folder)!r} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise InputError(field, str(path), "cannot be written: no write permission")
     return path
@@ -68,6 +67,5 @@ def output_folder(field: str, path) -> Path:
     if not existing.is_dir():
         raise InputError(field, str(path), f"cannot be created: {str(existing)!r} is a file")
     if not os.access(existing, os.W_OK | os.X_OK):
-        raise InputError(field, str(path), f"cannot be written: no write permission in "
-                         f"{str(existing)!r}")
+        raise InputError(field, str(path), f"cannot be written: no write permission in {str(existing)!r}")
     return path

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .core import metrics
-from .core.quasistatic import TECurve, Windup
-from .core.units import ARCMIN, rad_to_arcsec
+from .core.base.units import ARCMIN, rad_to_arcsec
+from .core.statics import metrics
+from .core.statics.quasistatic import TECurve, Windup
 
 
 def _pyplot():
@@ -44,8 +44,10 @@ def marker_orders(curve: TECurve) -> list[tuple[int, str]]:
     design = curve.design
     nyquist = curve.points // 2
     out = []
-    for order, label in ((design.z_p, "crank order (z_p)"),
-                         (design.z_p * design.z_c, "pin-passing order (z_p·z_c)")):
+    for order, label in (
+        (design.z_p, "crank order (z_p)"),
+        (design.z_p * design.z_c, "pin-passing order (z_p·z_c)"),
+    ):
         if order <= nyquist:
             out.append((order, f"{label} = {order}"))
         else:
@@ -55,9 +57,9 @@ def marker_orders(curve: TECurve) -> list[tuple[int, str]]:
     return out
 
 
-ZOOM_PERIODS = 4            # pin-passing periods the zoom panel shows
-ZOOM_MIN_POINTS = 4         # points per pin-passing period below which the ripple is not drawn
-RIPPLE_SHARE = 0.25         # the ripple dominates when its peak to peak is this share of te_pp
+ZOOM_PERIODS = 4  # pin-passing periods the zoom panel shows
+ZOOM_MIN_POINTS = 4  # points per pin-passing period below which the ripple is not drawn
+RIPPLE_SHARE = 0.25  # the ripple dominates when its peak to peak is this share of te_pp
 
 
 def ripple(curve: TECurve, sample: int = 0) -> tuple[float, bool]:
@@ -66,7 +68,7 @@ def ripple(curve: TECurve, sample: int = 0) -> tuple[float, bool]:
     order = curve.design.z_p * curve.design.z_c
     te = curve.te_arcsec[sample]
     spectrum = np.fft.rfft(te)
-    spectrum[:order // 2] = 0.0
+    spectrum[: order // 2] = 0.0
     return float(np.ptp(np.fft.irfft(spectrum, te.size))), curve.points >= ZOOM_MIN_POINTS * order
 
 
@@ -110,8 +112,10 @@ def figure_te(curve: TECurve, sample: int = 0, title: str | None = None, zoom: b
         ax_te.set_ylim(te.mean() - 0.5, te.mean() + 0.5)
     ax_te.ticklabel_format(axis="y", useOffset=False)
     load = -curve.tau_load
-    ax_te.set_title(title or (f"{design.name}: TE at load {load:g} N·m "
-                              f"(te_pp {np.ptp(te):.2f}″, {curve.points} points/rev)"))
+    ax_te.set_title(
+        title
+        or (f"{design.name}: TE at load {load:g} N·m (te_pp {np.ptp(te):.2f}″, {curve.points} points/rev)")
+    )
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
     if zoom:
@@ -120,17 +124,28 @@ def figure_te(curve: TECurve, sample: int = 0, title: str | None = None, zoom: b
         start = min(max(start, 0.0), 360.0 - ZOOM_PERIODS * period)
         inside = (out_deg >= start) & (out_deg <= start + ZOOM_PERIODS * period)
         ax_te.axvspan(start, start + ZOOM_PERIODS * period, color="C3", alpha=0.35, lw=0)
-        ax_te.annotate("zoom", (start + 0.5 * ZOOM_PERIODS * period, 1.0), xycoords=("data", "axes fraction"),
-                       xytext=(0, 2), textcoords="offset points", ha="center", va="bottom",
-                       fontsize=7, color="C3")
+        ax_te.annotate(
+            "zoom",
+            (start + 0.5 * ZOOM_PERIODS * period, 1.0),
+            xycoords=("data", "axes fraction"),
+            xytext=(0, 2),
+            textcoords="offset points",
+            ha="center",
+            va="bottom",
+            fontsize=7,
+            color="C3",
+        )
         ax_zoom.plot(out_deg[inside], te[inside], ".-", lw=0.8, ms=3, color="C0")
         ax_zoom.set_xlim(start, start + ZOOM_PERIODS * period)
         ax_zoom.set_xlabel("output angle θ_out [deg]")
         ax_zoom.set_ylabel("transmission error [arcsec]")
         ax_zoom.ticklabel_format(axis="both", useOffset=False)
-        ax_zoom.set_title(f"zoom (shaded above): {ZOOM_PERIODS} pin-passing periods of "
-                          f"{period * 3600:.1f}″ at the TE's peak, ripple {share:.3f}″ peak to "
-                          "peak", fontsize=8)
+        ax_zoom.set_title(
+            f"zoom (shaded above): {ZOOM_PERIODS} pin-passing periods of "
+            f"{period * 3600:.1f}″ at the TE's peak, ripple {share:.3f}″ peak to "
+            "peak",
+            fontsize=8,
+        )
         ax_zoom.grid(alpha=0.3)
 
     shown = orders[significant]
@@ -145,15 +160,34 @@ def figure_te(curve: TECurve, sample: int = 0, title: str | None = None, zoom: b
     ax_sp.set_ylim(0, top)
     for order, label in marks:
         ax_sp.axvline(order, color="0.6", lw=0.6, ls=":")
-        ax_sp.annotate(label, (order, 0.97 * top), xytext=(-3, 0), textcoords="offset points",
-                       fontsize=7, rotation=90, ha="right", va="top", color="0.3", zorder=1,
-                       bbox=dict(fc="white", ec="none", alpha=0.7, pad=0.5))
+        ax_sp.annotate(
+            label,
+            (order, 0.97 * top),
+            xytext=(-3, 0),
+            textcoords="offset points",
+            fontsize=7,
+            rotation=90,
+            ha="right",
+            va="top",
+            color="0.3",
+            zorder=1,
+            bbox=dict(fc="white", ec="none", alpha=0.7, pad=0.5),
+        )
     if shown.size:
-        ax_sp.set_title(f"orders above the noise floor of {floor:.3g}″ "
-                        f"({shown.size} of {orders.size - 1})", fontsize=8)
+        ax_sp.set_title(
+            f"orders above the noise floor of {floor:.3g}″ ({shown.size} of {orders.size - 1})", fontsize=8
+        )
     else:
-        ax_sp.text(0.5, 0.5, f"flat TE: no order above the noise floor of {floor:.3g}″",
-                   transform=ax_sp.transAxes, ha="center", va="center", fontsize=10, color="0.3")
+        ax_sp.text(
+            0.5,
+            0.5,
+            f"flat TE: no order above the noise floor of {floor:.3g}″",
+            transform=ax_sp.transAxes,
+            ha="center",
+            va="center",
+            fontsize=10,
+            color="0.3",
+        )
     ax_sp.grid(alpha=0.3, which="both")
     return fig
 
@@ -173,8 +207,7 @@ def plot_windup(windup: Windup, path: str | Path, sample: int = 0) -> Path:
         ax.plot(windup.tau_load, windup.windup[sample, :, p] / ARCMIN, "o-", ms=3, lw=0.7, alpha=0.7)
     ax.set_xlabel("output torque τ_load [N·m]")
     ax.set_ylabel("output windup [arcmin]")
-    ax.set_title(f"{windup.design.name}: windup, input locked "
-                 f"({windup.theta_in.size} positions)")
+    ax.set_title(f"{windup.design.name}: windup, input locked ({windup.theta_in.size} positions)")
     ax.grid(alpha=0.3)
     return _saved(plt, fig, path, dpi=130)
 
@@ -187,11 +220,20 @@ def plot_catalogue(rows, path: str | Path) -> Path:
     plt = _pyplot()
     columns = 2
     lines = (len(rows) + columns - 1) // columns
-    fig, axes = plt.subplots(lines, columns, figsize=(10, 4 * lines), constrained_layout=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(lines, columns, figsize=(10, 4 * lines), constrained_layout=True, squeeze=False)
     for ax, row in zip(axes.ravel(), rows):
-        for w, label, style in ((row.windups[0], f"estimate ({row.estimate.torsional_rigidity_Nm_per_arcmin:.0f} N·m/arcmin)", "o--"),
-                                (row.windups[1], f"preset ({row.calibrated.torsional_rigidity_Nm_per_arcmin:.0f} N·m/arcmin)", "o-")):
+        for w, label, style in (
+            (
+                row.windups[0],
+                f"estimate ({row.estimate.torsional_rigidity_Nm_per_arcmin:.0f} N·m/arcmin)",
+                "o--",
+            ),
+            (
+                row.windups[1],
+                f"preset ({row.calibrated.torsional_rigidity_Nm_per_arcmin:.0f} N·m/arcmin)",
+                "o-",
+            ),
+        ):
             ax.plot(w.tau_load, w.windup[0].mean(axis=-1) / ARCMIN, style, ms=3, lw=1.0, label=label)
         w = row.windups[1]
         rated = w.design.rated_torque
@@ -199,16 +241,23 @@ def plot_catalogue(rows, path: str | Path) -> Path:
         anchor = w.windup[0, half].mean() / ARCMIN
         torque = np.array([0.5, 1.0]) * rated
         k = row.frame.torsional_rigidity_Nm_per_arcmin
-        ax.plot(torque, anchor + (torque - 0.5 * rated) / k, "k:", lw=2,
-                label=f"catalogue {row.frame.name} ({k:g} N·m/arcmin)")
+        ax.plot(
+            torque,
+            anchor + (torque - 0.5 * rated) / k,
+            "k:",
+            lw=2,
+            label=f"catalogue {row.frame.name} ({k:g} N·m/arcmin)",
+        )
         ax.plot(-torque, -anchor - (torque - 0.5 * rated) / k, "k:", lw=2)
-        ax.set_title(f"{row.name}: lost motion {row.estimate.lost_motion_arcmin:.2f} → "
-                     f"{row.calibrated.lost_motion_arcmin:.2f} arcmin (≤ {row.frame.lost_motion_max_arcmin:g})")
+        ax.set_title(
+            f"{row.name}: lost motion {row.estimate.lost_motion_arcmin:.2f} → "
+            f"{row.calibrated.lost_motion_arcmin:.2f} arcmin (≤ {row.frame.lost_motion_max_arcmin:g})"
+        )
         ax.set_xlabel("output torque τ_load [N·m]")
         ax.set_ylabel("output windup [arcmin]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="upper left")
-    for ax in axes.ravel()[len(rows):]:
+    for ax in axes.ravel()[len(rows) :]:
         ax.set_visible(False)
     return _saved(plt, fig, path, dpi=110)
 
@@ -219,8 +268,9 @@ def plot_budget(report, path: str | Path) -> Path:
     mean, with the torsional rigidity's slope between 50 % and 100 % rated (right)."""
     plt = _pyplot()
     budget, wind = report.budget, report.windup
-    fig, (bars, curve) = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True,
-                                      gridspec_kw={"width_ratios": [1, 1.2]})
+    fig, (bars, curve) = plt.subplots(
+        1, 2, figsize=(12, 4.8), constrained_layout=True, gridspec_kw={"width_ratios": [1, 1.2]}
+    )
     elements = sorted(budget.elements, key=lambda e: e.share)
     shares = [100 * e.share for e in elements]
     bars.barh([f"{e.name} (×{e.count})" for e in elements], shares, color="tab:blue")
@@ -238,8 +288,13 @@ def plot_budget(report, path: str | Path) -> Path:
     k = report.torsional_rigidity_Nm_per_arcmin
     half = int(np.argmin(np.abs(wind.tau_load - 0.5 * rated)))
     torque = np.array([0.5, 1.0]) * rated
-    curve.plot(torque, mean[half] + (torque - 0.5 * rated) / k, "k:", lw=2,
-               label=f"torsional rigidity {k:.1f} N·m/arcmin")
+    curve.plot(
+        torque,
+        mean[half] + (torque - 0.5 * rated) / k,
+        "k:",
+        lw=2,
+        label=f"torsional rigidity {k:.1f} N·m/arcmin",
+    )
     curve.set_xlabel("output torque τ_load [N·m]")
     curve.set_ylabel("output windup [arcmin]")
     curve.set_title(f"windup, input locked; lost motion {report.lost_motion_arcmin:.3f} arcmin")
@@ -248,15 +303,22 @@ def plot_budget(report, path: str | Path) -> Path:
     return _saved(plt, fig, path, dpi=120)
 
 
-__all__ = ["figure_te", "marker_orders", "plot_te", "plot_windup", "plot_catalogue", "plot_budget",
-           "rad_to_arcsec"]
+__all__ = [
+    "figure_te",
+    "marker_orders",
+    "plot_te",
+    "plot_windup",
+    "plot_catalogue",
+    "plot_budget",
+    "rad_to_arcsec",
+]
 
 
 def plot_simulation(sim, path: str | Path) -> Path:
     """TE against time (top, the start ramp shaded) and its spectrum in Hz after the ramp
     (bottom) with the crank, pin-passing and stage-1 mesh frequencies marked (not where the
     input reverses)."""
-    from .core.excitations import Excitations
+    from .core.dynamics.excitations import Excitations
 
     plt = _pyplot()
     fig, (ax_te, ax_sp) = plt.subplots(2, 1, figsize=(9, 7), constrained_layout=True)
@@ -265,14 +327,16 @@ def plot_simulation(sim, path: str | Path) -> Path:
     ax_te.set_xlabel("time [s]")
     ax_te.set_ylabel("transmission error [arcsec]")
     ax_te.set_xlim(0.0, sim.time[-1])
-    ax_te.set_title(f"{sim.design.name}: dynamic TE at {sim.speed_rpm:g} rpm, load "
-                    f"{-sim.tau_load[0]:g} N·m (te_pp {sim.te_pp_arcsec:.2f}″ after the ramp)")
+    ax_te.set_title(
+        f"{sim.design.name}: dynamic TE at {sim.speed_rpm:g} rpm, load "
+        f"{-sim.tau_load[0]:g} N·m (te_pp {sim.te_pp_arcsec:.2f}″ after the ramp)"
+    )
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
     f, a = sim.spectrum_hz()
     ex = Excitations.at(sim.design, sim.speed_rpm)
     top = 3.0 * max(ex.mesh, ex.pin_passing)
-    keep = (f > 0) & (f <= top)         # the mean is not a vibration
+    keep = (f > 0) & (f <= top)  # the mean is not a vibration
     ax_sp.plot(f[keep], a[keep], lw=0.8, color="C1")
     ax_sp.set_xscale("log")
     ax_sp.set_xlabel("frequency [Hz]")
@@ -282,14 +346,22 @@ def plot_simulation(sim, path: str | Path) -> Path:
     for name, hz in () if sim.input_reverses else ex.items():
         if hz <= top:
             ax_sp.axvline(hz, color="0.6", lw=0.6, ls=":")
-            ax_sp.annotate(f"{name} {hz:.1f} Hz", (hz, ax_sp.get_ylim()[1] * 0.95), fontsize=7,
-                           rotation=90, ha="right", va="top", color="0.4")
+            ax_sp.annotate(
+                f"{name} {hz:.1f} Hz",
+                (hz, ax_sp.get_ylim()[1] * 0.95),
+                fontsize=7,
+                rotation=90,
+                ha="right",
+                va="top",
+                color="0.4",
+            )
     ax_sp.grid(alpha=0.3)
     return _saved(plt, fig, path, dpi=130)
 
 
-def plot_campbell(design, frequencies_hz, speeds_rpm, lines: dict, speed_rpm: float,
-                  path: str | Path) -> Path:
+def plot_campbell(
+    design, frequencies_hz, speeds_rpm, lines: dict, speed_rpm: float, path: str | Path
+) -> Path:
     """Campbell diagram: the natural frequencies (horizontal) against the excitation lines over
     input speed, the chosen speed marked; a crossing is a speed that excites a resonance."""
     plt = _pyplot()
@@ -300,14 +372,21 @@ def plot_campbell(design, frequencies_hz, speeds_rpm, lines: dict, speed_rpm: fl
     for k, hz in enumerate(frequencies_hz):
         if hz <= top:
             ax.axhline(hz, color="0.55", lw=0.7, ls="--")
-            ax.annotate(f"mode {k + 1}: {hz:.0f} Hz", (speeds_rpm[-1], hz), fontsize=7, ha="right",
-                        va="bottom", color="0.35")
+            ax.annotate(
+                f"mode {k + 1}: {hz:.0f} Hz",
+                (speeds_rpm[-1], hz),
+                fontsize=7,
+                ha="right",
+                va="bottom",
+                color="0.35",
+            )
     for n, (name, hz) in enumerate(lines.items()):
         ax.plot(speeds_rpm, hz, lw=1.2, color=f"C{n}", label=name)
         if name in ("pin passing", "stage-1 mesh"):
             for harmonic in (2, 3):
-                ax.plot(speeds_rpm, harmonic * hz, lw=0.7, ls="-.", color=f"C{n}",
-                        label=f"{harmonic} x {name}")
+                ax.plot(
+                    speeds_rpm, harmonic * hz, lw=0.7, ls="-.", color=f"C{n}", label=f"{harmonic} x {name}"
+                )
     ax.axvline(speed_rpm, color="C3", lw=0.8, ls=":", label=f"{speed_rpm:g} rpm")
     ax.set_xlim(speeds_rpm[0], speeds_rpm[-1])
     ax.set_ylim(0.0, top)
@@ -332,14 +411,18 @@ def plot_measured(measured, path: str | Path, title: str | None = None) -> Path:
     pp = m.te_pp_arcsec
     ax_te.plot(out_deg, m.te_arcsec, lw=0.6, color="0.6", label=f"measured (te_pp {pp[0]:.2f}″)")
     ax_te.plot(out_deg, m.runout_arcsec, lw=0.9, ls="--", color="C3", label="removed runout")
-    ax_te.plot(out_deg, m.te_reducer_arcsec, lw=0.7, color="C0",
-               label=f"without the runout (te_pp {pp[1]:.2f}″)")
+    ax_te.plot(
+        out_deg, m.te_reducer_arcsec, lw=0.7, color="C0", label=f"without the runout (te_pp {pp[1]:.2f}″)"
+    )
     ax_te.set_xlabel("output angle turned, θ_in / i [deg]")
     ax_te.set_ylabel("transmission error [arcsec]")
     ax_te.set_xlim(0, 360 * m.revolutions)
-    ax_te.set_title(title or f"measured TE, ratio {m.ratio:g}: {m.revolutions} output "
-                             f"revolution{'s' if m.revolutions > 1 else ''}, "
-                             f"{m.points_per_revolution} rows per revolution")
+    ax_te.set_title(
+        title
+        or f"measured TE, ratio {m.ratio:g}: {m.revolutions} output "
+        f"revolution{'s' if m.revolutions > 1 else ''}, "
+        f"{m.points_per_revolution} rows per revolution"
+    )
     ax_te.legend(loc="upper right", fontsize=8)
     ax_te.grid(alpha=0.3)
 
@@ -359,9 +442,17 @@ def plot_measured(measured, path: str | Path, title: str | None = None) -> Path:
     for c in m.components:
         order = c.order if c.shaft == "output" else c.order * m.ratio
         ax_sp.axvline(order, color="0.6", lw=0.6, ls=":")
-        ax_sp.annotate(f"removed: {c.shaft} order {c.order}", (order, 0.97 * top), xytext=(-3, 0),
-                       textcoords="offset points", fontsize=7, rotation=90, ha="right", va="top",
-                       color="0.3")
+        ax_sp.annotate(
+            f"removed: {c.shaft} order {c.order}",
+            (order, 0.97 * top),
+            xytext=(-3, 0),
+            textcoords="offset points",
+            fontsize=7,
+            rotation=90,
+            ha="right",
+            va="top",
+            color="0.3",
+        )
     if m.hz is not None:
         spectrum(axes[2], m.hz, m.spectrum_hz, "frequency [Hz]")
         axes[2].set_title(f"output speed {m.output_speed_hz:.4g} Hz (mean)", fontsize=8)
@@ -378,8 +469,9 @@ def plot_comparison(comparison, path: str | Path, title: str | None = None) -> P
     fig, (ax_te, ax_diff, ax_sp) = plt.subplots(3, 1, figsize=(9, 9.5), constrained_layout=True)
     out_deg = np.degrees(m.output_angle)
     pp = c.te_pp_arcsec
-    ax_te.plot(out_deg, c.measured_arcsec, lw=1.6, color="C0", alpha=0.5,
-               label=f"measured (te_pp {pp[0]:.2f}″)")
+    ax_te.plot(
+        out_deg, c.measured_arcsec, lw=1.6, color="C0", alpha=0.5, label=f"measured (te_pp {pp[0]:.2f}″)"
+    )
     ax_te.plot(out_deg, c.model_arcsec, lw=0.7, color="C1", label=f"model (te_pp {pp[1]:.2f}″)")
     ax_te.set_xlabel("output angle turned, θ_in / i [deg]")
     ax_te.set_ylabel("TE, mean and runout orders removed [arcsec]")
@@ -391,13 +483,16 @@ def plot_comparison(comparison, path: str | Path, title: str | None = None) -> P
     ax_diff.set_xlim(0, 360 * m.revolutions)
     ax_diff.set_xlabel("output angle turned, θ_in / i [deg]")
     ax_diff.set_ylabel("measured − model [arcsec]")
-    ax_diff.set_title(f"correlation {c.correlation:.4f}, difference {c.rms_difference_arcsec:.3f}″ "
-                      f"RMS; model on {c.points} points per revolution", fontsize=8)
+    ax_diff.set_title(
+        f"correlation {c.correlation:.4f}, difference {c.rms_difference_arcsec:.3f}″ "
+        f"RMS; model on {c.points} points per revolution",
+        fontsize=8,
+    )
     ax_diff.grid(alpha=0.3)
-    for k, (label, color, width) in enumerate((("measured", "C0", 1.6), ("model", "C1", 1.0),
-                                               ("difference", "C3", 0.6))):
-        ax_sp.vlines(c.orders[1:], 0, c.spectrum[k, 1:], color=color, lw=width, label=label,
-                     alpha=0.8)
+    for k, (label, color, width) in enumerate(
+        (("measured", "C0", 1.6), ("model", "C1", 1.0), ("difference", "C3", 0.6))
+    ):
+        ax_sp.vlines(c.orders[1:], 0, c.spectrum[k, 1:], color=color, lw=width, label=label, alpha=0.8)
     ax_sp.set_xscale("log")
     ax_sp.set_xlim(0.8 * c.orders[1], c.orders[-1])
     ax_sp.set_ylim(0, 1.1 * float(c.spectrum[:, 1:].max()) or 1.0)
@@ -424,26 +519,38 @@ def figure_efficiency(report):
     the report's temperature only.  A matplotlib Figure."""
     plt = _pyplot()
     m, c = report.map, report.characteristics
-    fig, panels = plt.subplot_mosaic([["speed", "torque"], ["temperature", "cold"],
-                                      ["running", "running"]], figsize=(12, 13),
-                                     constrained_layout=True)
+    fig, panels = plt.subplot_mosaic(
+        [["speed", "torque"], ["temperature", "cold"], ["running", "running"]],
+        figsize=(12, 13),
+        constrained_layout=True,
+    )
     by_speed, by_torque, by_temperature, cold, running = (
-        panels[k] for k in ("speed", "torque", "temperature", "cold", "running"))
+        panels[k] for k in ("speed", "torque", "temperature", "cold", "running")
+    )
     for j, torque in enumerate(m.load_Nm):
-        line, = by_speed.plot(m.output_speed_rpm, 100 * m.efficiency[:, j], "o-", ms=3,
-                              label=f"{torque:g} N·m")
-        by_speed.plot(m.output_speed_rpm, 100 * m.backdriving_efficiency[:, j], "--",
-                      color=line.get_color(), lw=1)
+        (line,) = by_speed.plot(
+            m.output_speed_rpm, 100 * m.efficiency[:, j], "o-", ms=3, label=f"{torque:g} N·m"
+        )
+        by_speed.plot(
+            m.output_speed_rpm, 100 * m.backdriving_efficiency[:, j], "--", color=line.get_color(), lw=1
+        )
     by_speed.set_xlabel("output speed [rpm]")
-    by_speed.set_title(f"{m.design.name}, {m.temperature_C:g} °C: efficiency "
-                       "(solid forward, dashed backdriving)")
+    by_speed.set_title(
+        f"{m.design.name}, {m.temperature_C:g} °C: efficiency (solid forward, dashed backdriving)"
+    )
     by_speed.legend(fontsize=8, title="resisting torque")
     ratio = m.design.ratio
     if c is None:
         for ax in (by_torque, by_temperature, cold):
             ax.set_visible(False)
-        running.plot(m.output_speed_rpm * ratio, m.no_load_running_torque_Nm, "o-", ms=3,
-                     color="tab:red", label=f"{m.temperature_C:g} °C")
+        running.plot(
+            m.output_speed_rpm * ratio,
+            m.no_load_running_torque_Nm,
+            "o-",
+            ms=3,
+            color="tab:red",
+            label=f"{m.temperature_C:g} °C",
+        )
     else:
         t = c.by_torque
         for v, speed in enumerate(t.output_speed_rpm):
@@ -456,29 +563,44 @@ def figure_efficiency(report):
         temperatures = np.array(list(c.by_temperature))
         middle = len(m.output_speed_rpm) // 2
         for j, torque in enumerate(m.load_Nm):
-            by_temperature.plot(temperatures, [100 * x.efficiency[middle, j]
-                                               for x in c.by_temperature.values()],
-                                "o-", ms=3, label=f"{torque:g} N·m")
+            by_temperature.plot(
+                temperatures,
+                [100 * x.efficiency[middle, j] for x in c.by_temperature.values()],
+                "o-",
+                ms=3,
+                label=f"{torque:g} N·m",
+            )
         by_temperature.set_xlabel("lubricant temperature [°C]")
-        by_temperature.set_title(f"efficiency against temperature, "
-                                 f"{m.output_speed_rpm[middle]:g} rpm output")
+        by_temperature.set_title(f"efficiency against temperature, {m.output_speed_rpm[middle]:g} rpm output")
         by_temperature.legend(fontsize=8, title="resisting torque")
         for v, speed in enumerate(m.output_speed_rpm):
-            cold.plot(temperatures, [x.no_load_running_torque_Nm[v] for x in c.by_temperature.values()],
-                      "o-", ms=3, label=f"{speed * ratio:.0f} rpm in ({speed:g} out)")
+            cold.plot(
+                temperatures,
+                [x.no_load_running_torque_Nm[v] for x in c.by_temperature.values()],
+                "o-",
+                ms=3,
+                label=f"{speed * ratio:.0f} rpm in ({speed:g} out)",
+            )
         cold.set_xlabel("lubricant temperature [°C]")
         cold.set_ylabel("no-load running torque at the input [N·m]")
         cold.set_yscale("log")
-        cold.set_title("running torque against temperature (low-temperature characteristic)",
-                       fontsize=10)
+        cold.set_title("running torque against temperature (low-temperature characteristic)", fontsize=10)
         cold.legend(fontsize=7, title="input speed")
         for temperature, x in c.by_temperature.items():
-            running.plot(x.output_speed_rpm * ratio, x.no_load_running_torque_Nm, "o-", ms=3,
-                         label=f"{temperature:g} °C")
+            running.plot(
+                x.output_speed_rpm * ratio,
+                x.no_load_running_torque_Nm,
+                "o-",
+                ms=3,
+                label=f"{temperature:g} °C",
+            )
     running.set_xlabel("input speed [rpm]")
     running.set_ylabel("no-load running torque at the input [N·m]")
-    running.set_title(f"running torque; starting {m.starting_torque_input_Nm:.3g} N·m (input), "
-                      f"backdriving {m.backdriving_torque_output_Nm:.3g} N·m (output)", fontsize=10)
+    running.set_title(
+        f"running torque; starting {m.starting_torque_input_Nm:.3g} N·m (input), "
+        f"backdriving {m.backdriving_torque_output_Nm:.3g} N·m (output)",
+        fontsize=10,
+    )
     running.set_ylim(bottom=0)
     running.legend(fontsize=8, title="lubricant")
     for ax in (by_speed, by_torque, by_temperature):
@@ -489,7 +611,7 @@ def figure_efficiency(report):
 
 
 INSET_FRICTION_TORQUES = 5  # the inset's torque half-span, x the friction torque at zero:
-                            # the branches cross the clearance at +-T_f, well inside it
+# the branches cross the clearance at +-T_f, well inside it
 
 
 def figure_hysteresis(report):
@@ -503,12 +625,12 @@ def figure_hysteresis(report):
     are what show friction."""
     plt = _pyplot()
     h = report.loop
-    fig, axes = plt.subplot_mosaic([["whole", "middle"], ["width", "width"]],
-                                   figsize=(12, 8.4), constrained_layout=True)
+    fig, axes = plt.subplot_mosaic(
+        [["whole", "middle"], ["width", "width"]], figsize=(12, 8.4), constrained_layout=True
+    )
     whole, middle = axes["whole"], axes["middle"]
     for ax in (whole, middle):
-        ax.plot(h.loop[:, 0], h.loop[:, 1] / ARCMIN, "-", color="tab:red", lw=1.2,
-                label="with friction")
+        ax.plot(h.loop[:, 0], h.loop[:, 1] / ARCMIN, "-", color="tab:red", lw=1.2, label="with friction")
         ax.plot(h.tau_load, h.windup / ARCMIN, ":", color="0.3", lw=1, label="without friction")
         ax.set_xlabel("output torque τ_load [N·m]")
         ax.set_ylabel("output angle [arcmin]")
@@ -524,8 +646,11 @@ def figure_hysteresis(report):
     rated = h.design.rated_torque
     for sign in (-1, 1):
         middle.axvline(sign * 0.03 * rated, color="tab:blue", lw=0.8, ls="--")
-    middle.set_title(f"lost motion {h.lost_motion_arcmin:.3f} arcmin (±3 % rated, dashed), "
-                     f"hysteresis loss {h.hysteresis_loss_arcmin:.3f} arcmin", fontsize=10)
+    middle.set_title(
+        f"lost motion {h.lost_motion_arcmin:.3f} arcmin (±3 % rated, dashed), "
+        f"hysteresis loss {h.hysteresis_loss_arcmin:.3f} arcmin",
+        fontsize=10,
+    )
     _branches_inset(middle, h)
     _width_panel(axes["width"], report)
     return fig
@@ -541,8 +666,10 @@ def _branches_inset(ax, h) -> None:
     half = h.loop.shape[0] // 2
     window = INSET_FRICTION_TORQUES * held
     inset = ax.inset_axes([0.05, 0.5, 0.42, 0.42])
-    for branch, colour, label in ((h.loop[:half], "tab:red", "loading"),
-                                  (h.loop[half:], "tab:blue", "unloading")):
+    for branch, colour, label in (
+        (h.loop[:half], "tab:red", "loading"),
+        (h.loop[half:], "tab:blue", "unloading"),
+    ):
         inset.plot(branch[:, 0], branch[:, 1] / ARCMIN, "-", color=colour, lw=1.2, label=label)
     inset.plot(h.tau_load, h.windup / ARCMIN, ":", color="0.3", lw=1)
     inset.set_xlim(-window, window)
@@ -567,11 +694,13 @@ def _width_panel(ax, report) -> None:
     ax.plot([0.0], [60.0 * report.width_at_zero_arcmin], "o", color="tab:purple", ms=4)
     ax.set_xlabel("output torque τ_load [N·m]")
     ax.set_ylabel("loop width [arcsec]")
-    ax.set_title(f"the loop's width: unloading less loading branch at the same torque; "
-                 f"{60 * report.width_at_zero_arcmin:.3g} arcsec at zero torque (dot), "
-                 f"{60 * report.width_max_arcmin:.3g} at most "
-                 f"({report.width_max_torque_Nm:.3g} N·m)",
-                 fontsize=10)
+    ax.set_title(
+        f"the loop's width: unloading less loading branch at the same torque; "
+        f"{60 * report.width_at_zero_arcmin:.3g} arcsec at zero torque (dot), "
+        f"{60 * report.width_max_arcmin:.3g} at most "
+        f"({report.width_max_torque_Nm:.3g} N·m)",
+        fontsize=10,
+    )
     ax.grid(alpha=0.3, which="both")
 
 

@@ -38,8 +38,15 @@ class ProgressBar:
         if self.bar is None:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, desc=self.description, unit=self.unit, file=sys.stderr,
-                            disable=None, dynamic_ncols=True, leave=False)
+            self.bar = tqdm(
+                total=total,
+                desc=self.description,
+                unit=self.unit,
+                file=sys.stderr,
+                disable=None,
+                dynamic_ncols=True,
+                leave=False,
+            )
         self.bar.update(done - self.bar.n)
 
     def close(self):

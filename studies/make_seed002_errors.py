@@ -28,7 +28,7 @@ def main(path=Path(__file__).with_name("seed002_errors.toml")):  # noqa: B008 - 
     def row(values):
         return "[" + ", ".join(f"{v:.3f}" for v in values) + "]"
 
-    text = f'''# Seed 002 error set of the RV-40E-121 (docs/model.md section 4 names and units: um, deg).
+    text = f"""# Seed 002 error set of the RV-40E-121 (docs/model.md section 4 names and units: um, deg).
 # Tables 2 and 3 verbatim; table 4's tolerances realised as per-tooth sequences drawn
 # once by studies/make_seed002_errors.py (seed {SEED}) and stored here.
 # Seed 002 neglects the stage-1 errors and gives no clearances: they are zero here.
@@ -54,7 +54,7 @@ disc_pitch = [{row(disc_pitch[0])},
 # E_Rk of seeds 000/002), total cumulative pitch error 8 um.  [pin k]
 pin_radial = {row(pin_radial)}
 pin_pitch = {row(pin_pitch)}
-'''
+"""
     path.write_text(text)
     return path
 

@@ -24,7 +24,7 @@ from pathlib import Path
 import matplotlib
 
 if "ipykernel" not in sys.modules and not os.environ.get("DISPLAY"):
-    matplotlib.use("Agg")     # a script without a display: figures go to files only
+    matplotlib.use("Agg")  # a script without a display: figures go to files only
 import matplotlib.pyplot as plt
 import pandas as pd
 
@@ -34,7 +34,7 @@ from tolerance.frames import factor_column
 HERE = Path(__file__).resolve().parent if "__file__" in globals() else Path("studies").resolve()
 ARGS = [a for a in sys.argv[1:] if not a.startswith("-")] if "ipykernel" not in sys.modules else []
 STUDY = Path(ARGS[0] if ARGS else os.environ.get("RVTE_STUDY", HERE / "rv40e_121_sobol.toml"))
-OUTPUT = ARGS[1] if len(ARGS) > 1 else os.environ.get("RVTE_OUTPUT")   # None: the study's own
+OUTPUT = ARGS[1] if len(ARGS) > 1 else os.environ.get("RVTE_OUTPUT")  # None: the study's own
 DECILES = 10
 
 # %% Run the study, or reuse what `rvte mc` / `rvte sobol` stored (every batch is reused)
@@ -46,23 +46,32 @@ study, folder = mc.study, Path(mc.study.output)
 print(f"study {study.name!r}: {mc.n} reducers, Sobol N = {sobol.n}, results in {folder}")
 
 # %% The reducers: one row each, as the output folder stores them
-reducers = tolerance.load_results(folder).iloc[:mc.n]    # equal to mc.to_df()
+reducers = tolerance.load_results(folder).iloc[: mc.n]  # equal to mc.to_df()
 metric = "te_pp_arcsec" if "te_pp_arcsec" in reducers else study.metric_columns[0]
-print(reducers.select_dtypes("float").describe().T[["mean", "std", "min", "50%", "max"]]
-      .to_string(float_format="{:.3g}".format))
+print(
+    reducers.select_dtypes("float")
+    .describe()
+    .T[["mean", "std", "min", "50%", "max"]]
+    .to_string(float_format="{:.3g}".format)
+)
 if "passed" in reducers:
-    print(f"yield {reducers['passed'].mean():.4f} ({int(reducers['passed'].sum())} of "
-          f"{int(reducers['passed'].count())} reducers meet every spec line)")
+    print(
+        f"yield {reducers['passed'].mean():.4f} ({int(reducers['passed'].sum())} of "
+        f"{int(reducers['passed'].count())} reducers meet every spec line)"
+    )
 
 # %% The Sobol table, sorted by ST
 indices = sobol.to_df()
 ranked = indices.sort_values(["metric", "ST"], ascending=[True, False])
-print(ranked[["metric", "factor", "S1", "S1_conf", "ST", "ST_conf", "notes"]].to_string(
-    index=False, float_format="{:.3f}".format))
+print(
+    ranked[["metric", "factor", "S1", "S1_conf", "ST", "ST_conf", "notes"]].to_string(
+        index=False, float_format="{:.3f}".format
+    )
+)
 
 # %% The factor on top of the te_pp ranking, and te_pp by its decile
 top_group = ranked[ranked["metric"] == metric].iloc[0]["factor"]
-factor = next(f for f in study.factors if f.group == top_group)   # its first factor
+factor = next(f for f in study.factors if f.group == top_group)  # its first factor
 column = factor_column(factor)
 decile = pd.qcut(reducers[column], DECILES, labels=False, duplicates="drop") + 1
 by_decile = reducers.groupby(decile)[metric].agg(["count", "mean", "max"])
@@ -80,8 +89,7 @@ if limit is not None:
     ax.axhline(limit, color="k", ls=":", lw=1, label=f"spec {limit:g}")
 ax.set_xlabel(f"{column} (drawn value)")
 ax.set_ylabel(metric)
-ax.set_title(f"{study.name}: {metric} by decile of {factor.name} (top of the ST ranking)",
-             fontsize=9)
+ax.set_title(f"{study.name}: {metric} by decile of {factor.name} (top of the ST ranking)", fontsize=9)
 ax.legend(fontsize=8)
 ax.grid(alpha=0.3)
 figure = folder / "notebook_te_pp_by_decile.png"

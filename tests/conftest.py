@@ -6,8 +6,8 @@ springs of their stated stiffness: the tests of the physics were built on that g
 those stiffnesses.  The calibrated presets and the series compliance
 that calibration adds are tested on their own (test_catalogue.py), exactly.  `rv40_rollers` is
 the estimate with its crank bearings' rollers given, its pins linear: those bearings follow
-the roller law (rvfmu/core/roller_law.py).  `rv40_hertz` is the estimate as shipped, its
-pins' groove given too: the pins follow the Hertz law (rvfmu/core/pin_law.py).
+the roller law (rvfmu/core/laws/roller_law.py).  `rv40_hertz` is the estimate as shipped, its
+pins' groove given too: the pins follow the Hertz law (rvfmu/core/laws/pin_law.py).
 """
 
 from pathlib import Path
@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rvfmu.core.design import preset
-from rvfmu.core.errors import load_errors
+from rvfmu.core.reducer.design import preset
+from rvfmu.core.reducer.errors import load_errors
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -71,9 +71,9 @@ def hand_pin_geometry(design, theta_in):
     d = design
     theta_out = theta_in / d.ratio
     psi = -d.z_c * theta_out[:, None] + np.array([0.0, np.pi])
-    centre = d.e * unit(psi)                                           # (A, 2, 2)
+    centre = d.e * unit(psi)  # (A, 2, 2)
     pitch = d.z_p * d.e * unit(psi)
-    pins = d.R_p * unit(2 * np.pi * np.arange(d.z_p) / d.z_p)          # (z_p, 2)
+    pins = d.R_p * unit(2 * np.pi * np.arange(d.z_p) / d.z_p)  # (z_p, 2)
     normal = pins[None, None] - pitch[:, :, None]
     normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
     contact = pins[None, None] - d.r_rp * normal

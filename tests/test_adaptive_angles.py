@@ -1,13 +1,13 @@
-"""te_pp from a coarse pass refined around the extremes (rvfmu/core/adaptive_angles.py):
+"""te_pp from a coarse pass refined around the extremes (rvfmu/core/statics/adaptive_angles.py):
 the same grid max - min as the full curve, from fewer solves, and the rule's stated limits."""
 
 import numpy as np
 import pytest
-
 from conftest import ROOT
-from rvfmu.core.adaptive_angles import refine_extremes, te_pp_adaptive
-from rvfmu.core.checks import InputError
-from rvfmu.core.quasistatic import te_curve
+
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.statics.adaptive_angles import refine_extremes, te_pp_adaptive
+from rvfmu.core.statics.quasistatic import te_curve
 from tolerance import montecarlo
 from tolerance.sampling import errors_from_unit
 from tolerance.study import load_study
@@ -15,9 +15,11 @@ from tolerance.study import load_study
 
 def table_solver(curves, calls):
     """solve(sample, index) reading the values of `curves` (S, P), recording every call."""
+
     def solve(sample, index):
         calls.append((sample.copy(), index.copy()))
         return curves[sample, index], np.ones(sample.size, dtype=bool)
+
     return solve
 
 
@@ -48,7 +50,7 @@ def test_a_spike_narrower_than_the_stride_and_larger_than_any_excess_seen_is_mis
     x = 2 * np.pi * np.arange(P) / P
     curve = np.sin(x)
     # intervals of stride 8: the pilot takes 0 and 25, the extremes 11, 12, 36 and 37
-    spike = 163                                           # inside interval 20
+    spike = 163  # inside interval 20
     curve[spike] = 5.0
     r = refine_extremes(table_solver(curve[None], []), 1, P, stride=8, safety=2.0, pilot=2)
     assert r.argmax[0] != spike
@@ -58,14 +60,17 @@ def test_a_spike_narrower_than_the_stride_and_larger_than_any_excess_seen_is_mis
     assert r.argmax[0] == spike and r.solves[0] == P
 
 
-@pytest.mark.parametrize("field, value, allowed", [
-    ("stride", 1, "must be from 2 to 200"),
-    ("stride", 201, "must be from 2 to 200"),
-    ("safety", 0.5, "must be >= 1"),
-    ("safety", float("nan"), "must be finite"),
-    ("pilot", -1, "must be >= 0"),
-    ("points", 4, "must be >= 8"),
-])
+@pytest.mark.parametrize(
+    "field, value, allowed",
+    [
+        ("stride", 1, "must be from 2 to 200"),
+        ("stride", 201, "must be from 2 to 200"),
+        ("safety", 0.5, "must be >= 1"),
+        ("safety", float("nan"), "must be finite"),
+        ("pilot", -1, "must be >= 0"),
+        ("points", 4, "must be >= 8"),
+    ],
+)
 def test_bad_rule_settings_name_the_field_the_value_and_what_is_allowed(field, value, allowed):
     settings = {"points": 400, "stride": 4, "safety": 2.0, "pilot": 8, field: value}
     with pytest.raises(InputError) as caught:
@@ -96,7 +101,7 @@ def test_te_pp_equals_the_full_curve_on_sampled_reducers_with_clearances(full_st
     np.testing.assert_array_equal(r.argmax, full.te_arcsec.argmax(axis=1))
     np.testing.assert_array_equal(r.argmin, full.te_arcsec.argmin(axis=1))
     assert r.solves.sum() < errors.samples * P, r.solves
-    assert np.all(r.solves >= P // 4)                    # the coarse pass at least
+    assert np.all(r.solves >= P // 4)  # the coarse pass at least
 
 
 def test_te_pp_adaptive_refuses_a_load_beyond_the_emergency_class(full_study_reducers):

@@ -9,16 +9,25 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.special import ndtr, ndtri
+from tolerance_toy import toml_value, write_study
 
 import tolerance
-from rvfmu.core.checks import InputError
+from rvfmu.core.base.checks import InputError
 from tolerance import cost as costs
-from tolerance.least_cost import (CORRECTION_CONSTANT, CORRECTION_LOCAL, CORRECTION_SLOPE, KAPPA,
-                                  Correction, Limit, ScaledModel, Verified, allocate_scales)
-from tolerance.surrogate import Chaos
+from tolerance.least_cost import (
+    CORRECTION_CONSTANT,
+    CORRECTION_LOCAL,
+    CORRECTION_SLOPE,
+    KAPPA,
+    Correction,
+    Limit,
+    ScaledModel,
+    Verified,
+    allocate_scales,
+)
 from tolerance.run import run_mc
 from tolerance.study import load_study
-from tolerance_toy import toml_value, write_study
+from tolerance.surrogate import Chaos
 
 
 def priced_study(folder, costs_of: dict, **options):
@@ -26,32 +35,42 @@ def priced_study(folder, costs_of: dict, **options):
     path = write_study(folder, **options)
     lines = [path.read_text()]
     for name, table in costs_of.items():
-        lines.append(f"[tolerances.{name}.cost]\n" + "".join(f"{key} = {toml_value(value)}\n"
-                                                             for key, value in table.items()))
+        lines.append(
+            f"[tolerances.{name}.cost]\n"
+            + "".join(f"{key} = {toml_value(value)}\n" for key, value in table.items())
+        )
     path.write_text("".join(lines))
     return path
 
 
 # -- the cost model --------------------------------------------------------------------------------
 
+
 def test_reciprocal_power_cost_and_its_defaults_by_hand(tmp_path):
     model = costs.CostModel(a=1.0, b=32.0, k=2.0, tightest_um=2.0, loosest_um=8.0)
     assert model.cost(4.0) == pytest.approx(1.0 + 32.0 / 16.0)
-    assert model.slope(4.0) == pytest.approx(-2.0 * 32.0 / 16.0)   # d cost / d ln t
+    assert model.slope(4.0) == pytest.approx(-2.0 * 32.0 / 16.0)  # d cost / d ln t
     study = load_study(write_study(tmp_path))
-    zone = study.factors[0]                                       # carrier_assembly, 8 um
+    zone = study.factors[0]  # carrier_assembly, 8 um
     default = costs.resolved(zone)
-    assert (default.a, default.k, default.b) == (0.0, 2.0, 8.0 ** 2)  # one unit at 8 um (seed 002)
+    assert (default.a, default.k, default.b) == (0.0, 2.0, 8.0**2)  # one unit at 8 um (seed 002)
     assert default.cost(8.0) == pytest.approx(1.0)
-    assert default.tightest_um == pytest.approx(8.0 / 10 ** 0.4)     # two IT grades either side
-    assert default.loosest_um == pytest.approx(8.0 * 10 ** 0.4)
+    assert default.tightest_um == pytest.approx(8.0 / 10**0.4)  # two IT grades either side
+    assert default.loosest_um == pytest.approx(8.0 * 10**0.4)
 
 
 def test_the_allocated_number_of_each_kind_and_what_follows_it(tmp_path):
-    study = load_study(write_study(tmp_path, tolerances={
-        "disc_pitch": {"cumulative_um": 6.0, "single_um": 1.9},
-        "crank_disc_clearance": {"min_um": 2.0, "max_um": 8.0},
-        "pin_radial": {"band_um": 5.0}, "carrier_assembly": {"position_um": 8.0}}))
+    study = load_study(
+        write_study(
+            tmp_path,
+            tolerances={
+                "disc_pitch": {"cumulative_um": 6.0, "single_um": 1.9},
+                "crank_disc_clearance": {"min_um": 2.0, "max_um": 8.0},
+                "pin_radial": {"band_um": 5.0},
+                "carrier_assembly": {"position_um": 8.0},
+            },
+        )
+    )
     pitch, clearance, band, zone = study.factors
     assert costs.scaled_values(pitch, 0.5) == {"cumulative_um": 3.0, "single_um": 0.95}
     assert costs.scaled_values(clearance, 0.5) == {"max_um": 4.0, "min_um": 1.0}
@@ -62,26 +81,36 @@ def test_the_allocated_number_of_each_kind_and_what_follows_it(tmp_path):
 
 def test_a_cost_section_changes_no_computed_number(tmp_path):
     plain = load_study(write_study(tmp_path, name="plain"))
-    priced = load_study(priced_study(tmp_path, {
-        "carrier_assembly": {"a": 2.0, "b": 10.0, "k": 1.5, "tightest_um": 4.0, "loosest_um": 12.0},
-        "crank_cam_eccentricity": {"k": 1.0}}, name="priced"))
+    priced = load_study(
+        priced_study(
+            tmp_path,
+            {
+                "carrier_assembly": {"a": 2.0, "b": 10.0, "k": 1.5, "tightest_um": 4.0, "loosest_um": 12.0},
+                "crank_cam_eccentricity": {"k": 1.0},
+            },
+            name="priced",
+        )
+    )
     assert priced.inputs_hash == plain.inputs_hash
-    assert priced.factors[0].cost == costs.CostModel(a=2.0, b=10.0, k=1.5, tightest_um=4.0,
-                                                     loosest_um=12.0)
-    assert costs.resolved(priced.factors[1]).b == pytest.approx(8.0)   # 8 um ** k = 1
+    assert priced.factors[0].cost == costs.CostModel(a=2.0, b=10.0, k=1.5, tightest_um=4.0, loosest_um=12.0)
+    assert costs.resolved(priced.factors[1]).b == pytest.approx(8.0)  # 8 um ** k = 1
 
 
-@pytest.mark.parametrize("cost, field, words", [
-    ({"k": -1.0}, "cost.k", "exponent must be >= 0"),
-    ({"b": -2.0}, "cost.b", "must be >= 0"),
-    ({"tightest_um": 6.0, "loosest_um": 5.0}, "cost.tightest_um", "must be <= loosest_um"),
-    ({"tightest_um": 10.0}, "cost.tightest_um", "must be <= the current tolerance position_um"),
-    ({"tightest_um": 2.0, "loosest_um": 7.0}, "cost.loosest_um", "must be >= the current"),
-    ({"colour": 1}, "cost.colour", "is not a key of the cost table"),
-])
+@pytest.mark.parametrize(
+    "cost, field, words",
+    [
+        ({"k": -1.0}, "cost.k", "exponent must be >= 0"),
+        ({"b": -2.0}, "cost.b", "must be >= 0"),
+        ({"tightest_um": 6.0, "loosest_um": 5.0}, "cost.tightest_um", "must be <= loosest_um"),
+        ({"tightest_um": 10.0}, "cost.tightest_um", "must be <= the current tolerance position_um"),
+        ({"tightest_um": 2.0, "loosest_um": 7.0}, "cost.loosest_um", "must be >= the current"),
+        ({"colour": 1}, "cost.colour", "is not a key of the cost table"),
+    ],
+)
 def test_bad_cost_sections_are_one_line_naming_the_field(tmp_path, cost, field, words):
-    path = priced_study(tmp_path, {"carrier_assembly": cost},
-                        tolerances={"carrier_assembly": {"position_um": 8.0}})
+    path = priced_study(
+        tmp_path, {"carrier_assembly": cost}, tolerances={"carrier_assembly": {"position_um": 8.0}}
+    )
     with pytest.raises(InputError) as error:
         load_study(path)
     message = str(error.value)
@@ -91,6 +120,7 @@ def test_bad_cost_sections_are_one_line_naming_the_field(tmp_path, cost, field, 
 
 # -- the core on an analytic stack-up ----------------------------------------------------------------
 
+
 def test_chaos_evaluates_as_openturns_does():
     rng = np.random.default_rng(4)
     X = rng.uniform(-1, 1, (400, 3))
@@ -98,14 +128,16 @@ def test_chaos_evaluates_as_openturns_does():
     chaos = Chaos(X, y)
     test = rng.uniform(-1, 1, (50, 3))
     np.testing.assert_allclose(chaos(test), np.asarray(chaos.metamodel(test))[:, 0], atol=1e-12)
-    np.testing.assert_allclose(chaos(test), 1.0 + test[:, 0] - 2.0 * test[:, 1] * test[:, 2]
-                               + 0.5 * test[:, 2] ** 2, atol=1e-9)
+    np.testing.assert_allclose(
+        chaos(test), 1.0 + test[:, 0] - 2.0 * test[:, 1] * test[:, 2] + 0.5 * test[:, 2] ** 2, atol=1e-9
+    )
 
 
 def _central_differences(function, X, h=1e-6):
     """d function / d X by central differences: function (m, F) -> (m,), X (m, F): (m, F)."""
-    return np.stack([(function(X + h * e) - function(X - h * e)) / (2 * h)
-                     for e in np.eye(X.shape[1])], axis=1)
+    return np.stack(
+        [(function(X + h * e) - function(X - h * e)) / (2 * h) for e in np.eye(X.shape[1])], axis=1
+    )
 
 
 def test_the_gradients_the_optimisers_use_are_those_of_the_functions():
@@ -115,31 +147,34 @@ def test_the_gradients_the_optimisers_use_are_those_of_the_functions():
 
     rng = np.random.default_rng(5)
     X = rng.uniform(-1, 1, (400, 3))
-    chaos = Chaos(X, 1.0 + X[:, 0] - 2.0 * X[:, 1] * X[:, 2] + 0.5 * X[:, 2] ** 2
-                  + 0.05 * rng.standard_normal(400))
+    chaos = Chaos(
+        X, 1.0 + X[:, 0] - 2.0 * X[:, 1] * X[:, 2] + 0.5 * X[:, 2] ** 2 + 0.05 * rng.standard_normal(400)
+    )
     inside = rng.uniform(-0.9, 0.9, (6, 3))
     value, gradient = chaos.value_gradient(inside)
     np.testing.assert_allclose(value, chaos(inside), atol=1e-12)
     np.testing.assert_allclose(gradient, _central_differences(chaos, inside), atol=1e-7)
 
-    Z = rng.uniform(0.0, 2.0, (3000, 3))            # a metric whose spread grows with Z
-    Y = np.exp(0.3 * Z[:, :1] + 0.2 * Z[:, 1:2] * Z[:, 2:3]
-               + 0.1 * (1 + Z[:, :1]) * rng.standard_normal((3000, 1)))
+    Z = rng.uniform(0.0, 2.0, (3000, 3))  # a metric whose spread grows with Z
+    Y = np.exp(
+        0.3 * Z[:, :1] + 0.2 * Z[:, 1:2] * Z[:, 2:3] + 0.1 * (1 + Z[:, :1]) * rng.standard_normal((3000, 1))
+    )
     surrogate = Surrogate(Z, Y, (Limit(0, 3.0, "max"), Limit(0, 1.2, "min")))
     at = rng.uniform(0.1, 1.9, (6, 3))
     p, dp = surrogate.probability(at, gradient=True)
     np.testing.assert_allclose(p, surrogate.probability(at), rtol=1e-12)
-    assert np.abs(dp).max() > 0.05                  # not trivially flat
+    assert np.abs(dp).max() > 0.05  # not trivially flat
     np.testing.assert_allclose(dp, _central_differences(surrogate.probability, at), atol=1e-7)
 
-    def surrogate_probit(S, gradient=False):        # a curved surrogate, 2 factors
+    def surrogate_probit(S, gradient=False):  # a curved surrogate, 2 factors
         x = np.log(np.atleast_2d(S))
         z = 3.0 - 0.7 * x.sum(axis=1) - 0.2 * x[:, 0] * x[:, 1]
         return (z, np.stack([-0.7 - 0.2 * x[:, 1], -0.7 - 0.2 * x[:, 0]], axis=1)) if gradient else z
 
     runs = np.array([[1.0, 1.0], [1.3, 1.1], [1.1, 1.4]])
-    correction = Correction([_verified_at(s, surrogate_probit(s)[0] - 0.1, n=20000) for s in runs],
-                            surrogate_probit, 3.0)
+    correction = Correction(
+        [_verified_at(s, surrogate_probit(s)[0] - 0.1, n=20000) for s in runs], surrogate_probit, 3.0
+    )
     log_s = np.log(rng.uniform(0.8, 2.0, (5, 2)))
     z, mean, var, dz, d_mean, d_var = correction.at(np.exp(log_s), gradient=True)
     for value, gradient, k in ((mean, d_mean, 1), (var, d_var, 2)):
@@ -151,7 +186,7 @@ def test_the_gradients_the_optimisers_use_are_those_of_the_functions():
     np.testing.assert_allclose(d_planned, numeric, atol=1e-7)
 
 
-def _verified_at(scales, z, n=10 ** 7):
+def _verified_at(scales, z, n=10**7):
     """A Monte Carlo of n reducers whose yield is Phi(z) (to a reducer)."""
     passed = int(round(ndtr(z) * n))
     return Verified(np.asarray(scales, dtype=float), passed, n, 0.0, 1.0)
@@ -162,7 +197,8 @@ def test_the_correction_learns_the_surrogates_error_from_the_verified_points():
     0.3 x its predicted drop.  From four nearly noise-free Monte Carlo runs the correction
     reproduces the truth at and beside them; at twice their largest drop it has learnt most
     of the error, its spread has grown again, and the search's margin covers the rest."""
-    def surrogate_probit(S):                # predicted drop 0.7 x the true one, 2 factors
+
+    def surrogate_probit(S):  # predicted drop 0.7 x the true one, 2 factors
         return 3.0 - 0.7 * np.log(np.atleast_2d(S)).sum(axis=1)
 
     def true_probit(S):
@@ -172,19 +208,19 @@ def test_the_correction_learns_the_surrogates_error_from_the_verified_points():
     verified = [_verified_at(s, true_probit(s)[0]) for s in runs]
     correction = Correction(verified, surrogate_probit, 3.0)
     z, mean, var = correction.at(runs)
-    np.testing.assert_allclose(z - mean, true_probit(runs), atol=0.01)   # the runs, corrected
+    np.testing.assert_allclose(z - mean, true_probit(runs), atol=0.01)  # the runs, corrected
     assert np.all(np.sqrt(var) < 0.01)
-    between = np.array([[2.0, 1.2]])               # beside the runs: corrected to 0.02 probit
+    between = np.array([[2.0, 1.2]])  # beside the runs: corrected to 0.02 probit
     z, mean, _ = correction.at(between)
     assert z[0] - mean[0] == pytest.approx(true_probit(between)[0], abs=0.02)
-    far = np.array([[2.5, 2.5]])                   # predicted drop 1.28, the runs' largest 0.57
+    far = np.array([[2.5, 2.5]])  # predicted drop 1.28, the runs' largest 0.57
     z, mean, var = correction.at(far)
     truth = true_probit(far)[0]
-    assert z[0] - truth == pytest.approx(0.3 * 2 * np.log(2.5), rel=1e-9)   # 0.55 optimistic
-    assert abs(z[0] - mean[0] - truth) < 0.25 * (z[0] - truth)   # most of it learnt
-    assert z[0] - mean[0] - KAPPA * np.sqrt(var[0]) < truth      # the search's margin covers the rest
-    prior = CORRECTION_CONSTANT ** 2 + CORRECTION_SLOPE ** 2 * (3.0 - z[0]) ** 2 + CORRECTION_LOCAL ** 2
-    assert 0.05 ** 2 < var[0] < prior                           # unsure again, less than knowing nothing
+    assert z[0] - truth == pytest.approx(0.3 * 2 * np.log(2.5), rel=1e-9)  # 0.55 optimistic
+    assert abs(z[0] - mean[0] - truth) < 0.25 * (z[0] - truth)  # most of it learnt
+    assert z[0] - mean[0] - KAPPA * np.sqrt(var[0]) < truth  # the search's margin covers the rest
+    prior = CORRECTION_CONSTANT**2 + CORRECTION_SLOPE**2 * (3.0 - z[0]) ** 2 + CORRECTION_LOCAL**2
+    assert 0.05**2 < var[0] < prior  # unsure again, less than knowing nothing
 
 
 def test_linear_stack_up_recovers_the_closed_form_least_cost_allocation():
@@ -197,7 +233,7 @@ def test_linear_stack_up_recovers_the_closed_form_least_cost_allocation():
     current = np.ones(3)
     models = tuple(costs.CostModel(a=0.0, b=bi, k=k, tightest_um=0.2, loosest_um=5.0) for bi in b)
 
-    def values(U):                      # each factor's error at the current tolerance
+    def values(U):  # each factor's error at the current tolerance
         return ndtri(np.clip(U, 1e-12, 1 - 1e-12)) * current / 3
 
     def evaluate(s, U, job):
@@ -205,19 +241,29 @@ def test_linear_stack_up_recovers_the_closed_form_least_cost_allocation():
 
     verifications = []
 
-    def verify(s, n, draw):             # draws number `draw`: independent of every other number
+    def verify(s, n, draw):  # draws number `draw`: independent of every other number
         U = np.random.default_rng([11, draw]).random((n, 3))
         verifications.append(draw)
         return evaluate(s, U, "verify")
 
-    model = ScaledModel(("x0", "x1", "x2"), current, models, (Limit(0, L, "max"), Limit(0, -L, "min")),
-                        3, values, evaluate, verify, log_inputs=False, seed=3)
-    result = allocate_scales(model, target, 1_000_000, draws=2 ** 16)
+    model = ScaledModel(
+        ("x0", "x1", "x2"),
+        current,
+        models,
+        (Limit(0, L, "max"), Limit(0, -L, "min")),
+        3,
+        values,
+        evaluate,
+        verify,
+        log_inputs=False,
+        seed=3,
+    )
+    result = allocate_scales(model, target, 1_000_000, draws=2**16)
 
     sigma_y = L / ndtri((1 + target) / 2)
     best = b ** (1 / (k + 2))
-    best *= 3 * sigma_y / np.sqrt(np.sum(best ** 2))
-    best_cost = np.sum(b * best ** -k)
+    best *= 3 * sigma_y / np.sqrt(np.sum(best**2))
+    best_cost = np.sum(b * best**-k)
     assert result.feasible and result.allocated.estimate >= target
     assert result.current.estimate == pytest.approx(2 * ndtr(L / np.sqrt(3) * 3) - 1, abs=1e-3)
     assert model.cost(result.scales).sum() == pytest.approx(best_cost, rel=0.02)
@@ -230,20 +276,27 @@ def test_linear_stack_up_recovers_the_closed_form_least_cost_allocation():
 
 # -- a small reducer study -----------------------------------------------------------------------------
 
-TOLERANCES = {"crank_cam_eccentricity": {"position_um": 9.0, "distribution": "normal"},
-              "pin_radial": {"band_um": 5.0}}
+TOLERANCES = {
+    "crank_cam_eccentricity": {"position_um": 9.0, "distribution": "normal"},
+    "pin_radial": {"band_um": 5.0},
+}
 
 
 def small_study(folder, spec=30.0, name="small"):
     """Two factors, TE only, 64 points: a reducer model in milliseconds.  One output folder for
     every spec: the spec is not part of the study's identity, so the stored runs are shared."""
-    return priced_study(folder, {"crank_cam_eccentricity": {"tightest_um": 4.0, "loosest_um": 18.0}},
-                        name=name, study={"metrics": ["te_pp"], "batch_size": 32,
-                                          "output": "small/output"},
-                        spec={"te_pp_arcsec": spec}, montecarlo={"n": 512}, tolerances=TOLERANCES)
+    return priced_study(
+        folder,
+        {"crank_cam_eccentricity": {"tightest_um": 4.0, "loosest_um": 18.0}},
+        name=name,
+        study={"metrics": ["te_pp"], "batch_size": 32, "output": "small/output"},
+        spec={"te_pp_arcsec": spec},
+        montecarlo={"n": 512},
+        tolerances=TOLERANCES,
+    )
 
 
-SPEC = 24.0   # te_pp, arcsec: the current tolerances miss it (yield 0.92 of 512)
+SPEC = 24.0  # te_pp, arcsec: the current tolerances miss it (yield 0.92 of 512)
 
 
 @pytest.fixture(scope="module")
@@ -257,7 +310,7 @@ def test_allocation_meets_its_target_in_the_verification_monte_carlo(allocated):
     path, result = allocated
     # met: the low end of the verification's 95 % interval, not only its estimate
     assert result.feasible and result.yield_allocated.low >= 0.95 > result.yield_current.estimate
-    assert result.yield_allocated.n == 512           # the study's [montecarlo] n below 0.99
+    assert result.yield_allocated.n == 512  # the study's [montecarlo] n below 0.99
     low, high = tolerance.wilson_interval(round(result.yield_allocated.estimate * 512), 512, 0.95)
     assert (result.yield_allocated.low, result.yield_allocated.high) == pytest.approx((low, high))
     # the cam position decides the TE (the pin band hardly does): it is tightened, relatively,
@@ -283,15 +336,35 @@ def test_allocation_json_has_exactly_the_schema_the_report_reads(allocated):
     path, result = allocated
     folder = path.parent / "small" / "output"
     document = json.loads((folder / "allocation.json").read_text())
-    assert (folder / "mc_summary.json").is_file()        # the current tolerances: `rvte mc`'s files
+    assert (folder / "mc_summary.json").is_file()  # the current tolerances: `rvte mc`'s files
     assert document == json.loads(json.dumps(result.to_json()))
-    assert list(document) == ["study", "study_file", "allocated_study_file", "target_yield",
-                              "feasible", "factors", "total_cost", "yield", "surrogate",
-                              "model_evaluations"]
-    assert [f["name"] for f in document["factors"]] == ["crank_cam_eccentricity.position_um",
-                                                        "pin_radial.band_um"]
-    assert set(document["factors"][0]) == {"name", "unit", "current", "allocated", "lower", "upper",
-                                           "cost_current", "cost_allocated", "binding"}
+    assert list(document) == [
+        "study",
+        "study_file",
+        "allocated_study_file",
+        "target_yield",
+        "feasible",
+        "factors",
+        "total_cost",
+        "yield",
+        "surrogate",
+        "model_evaluations",
+    ]
+    assert [f["name"] for f in document["factors"]] == [
+        "crank_cam_eccentricity.position_um",
+        "pin_radial.band_um",
+    ]
+    assert set(document["factors"][0]) == {
+        "name",
+        "unit",
+        "current",
+        "allocated",
+        "lower",
+        "upper",
+        "cost_current",
+        "cost_allocated",
+        "binding",
+    }
     assert {f["binding"] for f in document["factors"]} <= {"none", "lower", "upper"}
     assert document["factors"][0]["lower"] == 4.0 and document["factors"][0]["upper"] == 18.0
     assert set(document["yield"]) == {"current", "allocated"}
@@ -303,7 +376,7 @@ def test_allocation_json_has_exactly_the_schema_the_report_reads(allocated):
 
 def test_an_unreachable_target_gives_the_best_yield_and_the_binding_bounds(allocated):
     path, _ = allocated
-    strict = small_study(path.parent, spec=4.0, name="strict")   # same study, same output folder
+    strict = small_study(path.parent, spec=4.0, name="strict")  # same study, same output folder
     result = tolerance.allocate(strict, 0.99, n=512, progress=False)
     assert not result.feasible
     # the cam position decides the TE: it binds at its tightest; the pin band hardly moves the
@@ -318,12 +391,13 @@ def test_an_unreachable_target_gives_the_best_yield_and_the_binding_bounds(alloc
 
 def test_rvte_allocate_prints_the_same_document_and_refuses_bad_input_in_one_line(allocated, tmp_path):
     path, result = allocated
-    proc = rvte("allocate", path, "--yield", 0.95, "--json")         # everything is stored: reused
+    proc = rvte("allocate", path, "--yield", 0.95, "--json")  # everything is stored: reused
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout) == json.loads(json.dumps(result.to_json()))
 
-    bad = priced_study(tmp_path, {"pin_radial": {"k": -2.0}}, name="bad",
-                       tolerances={"pin_radial": {"band_um": 5.0}})
+    bad = priced_study(
+        tmp_path, {"pin_radial": {"k": -2.0}}, name="bad", tolerances={"pin_radial": {"band_um": 5.0}}
+    )
     proc = rvte("allocate", bad)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.strip().splitlines() == [proc.stderr.strip()]
@@ -331,18 +405,25 @@ def test_rvte_allocate_prints_the_same_document_and_refuses_bad_input_in_one_lin
 
     other = write_study(tmp_path, name="other", tolerances={"pin_radial": {"band_um": 3.0}})
     proc = rvte("allocate", other, "-o", path.parent / "small" / "output")
-    assert proc.returncode == 2 and "output = " in proc.stderr and "belongs to another study" \
-        in proc.stderr and "Traceback" not in proc.stderr
+    assert (
+        proc.returncode == 2
+        and "output = " in proc.stderr
+        and "belongs to another study" in proc.stderr
+        and "Traceback" not in proc.stderr
+    )
 
     proc = rvte("allocate", path, "--yield", 1.5)
     assert proc.returncode == 2 and "yield = 1.5" in proc.stderr
 
 
 def test_bounds_that_exclude_the_current_tolerance_stop_allocate_before_any_work(tmp_path):
-    path = priced_study(tmp_path, {"pin_radial": {"loosest_um": 4.0}},
-                        tolerances={"pin_radial": {"band_um": 5.0}})
-    with pytest.raises(InputError, match="tolerances.pin_radial.cost.loosest_um = 4.0: must be >= "
-                                         "the current tolerance band_um = 5"):
+    path = priced_study(
+        tmp_path, {"pin_radial": {"loosest_um": 4.0}}, tolerances={"pin_radial": {"band_um": 5.0}}
+    )
+    with pytest.raises(
+        InputError,
+        match="tolerances.pin_radial.cost.loosest_um = 4.0: must be >= the current tolerance band_um = 5",
+    ):
         tolerance.allocate(path)
     assert not (tmp_path / "toy").exists()
 
@@ -355,5 +436,6 @@ def test_allocate_is_the_package_function_even_once_the_modules_are_imported():
 
 
 def rvte(*args):
-    return subprocess.run([sys.executable, "-m", "rvfmu.cli", *map(str, args)], capture_output=True,
-                          text=True, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "rvfmu.cli", *map(str, args)], capture_output=True, text=True, timeout=600
+    )

@@ -38,17 +38,16 @@ def edited(text: str, **values) -> str:
 def allocation(tmp_path_factory):
     folder = tmp_path_factory.mktemp("rv40e_allocate")
     path = folder / "rv40e_121_full_rated_36.toml"
-    path.write_text(edited(STUDY.read_text(), name='"rv40e_121_full_rated_36"', points=36,
-                           output='"output"'))
+    path.write_text(edited(STUDY.read_text(), name='"rv40e_121_full_rated_36"', points=36, output='"output"'))
     return path, tolerance.allocate(path, TARGET, progress=False, processes=2)
 
 
 def test_the_current_tolerances_over_achieve_and_the_allocation_opens_them_for_less(allocation):
     path, result = allocation
     assert len(result.factors) == 15
-    assert result.yield_current.low > TARGET                # the starting drawing over-achieves
+    assert result.yield_current.low > TARGET  # the starting drawing over-achieves
     assert result.feasible and result.yield_allocated.low >= TARGET
-    assert result.yield_allocated.n == 2000                 # the study's [montecarlo] n
+    assert result.yield_allocated.n == 2000  # the study's [montecarlo] n
     assert result.total_cost_allocated < result.total_cost_current
     assert sum(f.allocated > f.current for f in result.factors) >= 1
     for f in result.factors:
@@ -66,7 +65,7 @@ def test_an_independent_monte_carlo_of_10000_reducers_confirms_the_target(alloca
     study = load_study(check)
     assert study.factors == load_study(allocated).factors and study.seed != load_study(allocated).seed
     mc = run_mc(check, INDEPENDENT, processes=2, plots=False)
-    assert mc.computed.reused == 0                         # nothing reused: new reducers
+    assert mc.computed.reused == 0  # nothing reused: new reducers
     (line,) = mc.analysis.yields
     assert line.n == INDEPENDENT
     assert line.low >= TARGET, (line.fraction, line.low, result.yield_allocated)

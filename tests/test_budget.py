@@ -4,15 +4,15 @@ import json
 
 import numpy as np
 import pytest
-
 from conftest import ROOT
-from rvfmu import api
-from rvfmu.core.budget import WEAK_SPRINGS, compliance_budget
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import preset
-from rvfmu.core.quasistatic import windup
-from rvfmu.core.units import ARCMIN, UM
 from test_cli import rvte
+
+from rvfmu import api
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import ARCMIN, UM
+from rvfmu.core.reducer.design import preset
+from rvfmu.core.statics.budget import WEAK_SPRINGS, compliance_budget
+from rvfmu.core.statics.quasistatic import windup
 
 
 def test_shares_add_up_to_the_work_of_the_output_torque(rv40, seed002):
@@ -24,16 +24,17 @@ def test_shares_add_up_to_the_work_of_the_output_torque(rv40, seed002):
     # the solver's weak springs hold a millionth, no element's
     assert 0.0 <= budget.regularisation / budget.work < 1e-5
     assert budget.elements[-1].name == WEAK_SPRINGS
-    assert budget.elements[-1].share == pytest.approx(budget.regularisation / budget.work,
-                                                      rel=1e-12)
+    assert budget.elements[-1].share == pytest.approx(budget.regularisation / budget.work, rel=1e-12)
     # so the table's shares add up to one as the energies do
     assert sum(e.share for e in budget.elements) == pytest.approx(budget.share_sum, abs=1e-12)
 
 
 def _with_clearances(errors):
-    return errors.replace(crank_disc_clearance=np.array([6.0 * UM]),
-                          crank_carrier_clearance=np.array([4.0 * UM]),
-                          main_bearing_clearance=np.array([10.0 * UM]))
+    return errors.replace(
+        crank_disc_clearance=np.array([6.0 * UM]),
+        crank_carrier_clearance=np.array([4.0 * UM]),
+        main_bearing_clearance=np.array([10.0 * UM]),
+    )
 
 
 def test_shares_add_up_with_bearing_clearances(rv40, seed002):
@@ -57,8 +58,10 @@ def test_series_compliance_share_is_its_part_of_the_compliance():
     budget = compliance_budget(design)
     shares = {e.name: e.share for e in budget.elements}
     assert all(e.share >= 0.0 for e in budget.elements)  # no errors: nothing unloads
-    for name, compliance in (("output series compliance", design.output_compliance),
-                             ("carrier pillars", design.carrier_compliance)):
+    for name, compliance in (
+        ("output series compliance", design.output_compliance),
+        ("carrier pillars", design.carrier_compliance),
+    ):
         expected = compliance / ARCMIN * budget.torsional_rigidity_Nm_per_arcmin
         assert 0.01 < expected < 0.5
         assert shares[name] == pytest.approx(expected, rel=2e-3)
@@ -99,8 +102,15 @@ def test_budget_refuses_a_bad_load_or_sample(rv40):
 
 def test_stiffness_job_json_and_plot(tmp_path):
     plot = tmp_path / "budget.png"
-    proc = rvte("stiffness", "RV-40E-121", "--errors", ROOT / "studies" / "seed002_errors.toml",
-                "--json", "--plot", plot)
+    proc = rvte(
+        "stiffness",
+        "RV-40E-121",
+        "--errors",
+        ROOT / "studies" / "seed002_errors.toml",
+        "--json",
+        "--plot",
+        plot,
+    )
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
     assert {"torsional_rigidity_Nm_per_arcmin", "lost_motion_arcmin", "elements"} <= set(data)
@@ -109,7 +119,8 @@ def test_stiffness_job_json_and_plot(tmp_path):
         assert set(element) == {"name", "count", "stiffness", "unit", "share"}
     report = api.stiffness("RV-40E-121", ROOT / "studies" / "seed002_errors.toml")
     assert data["torsional_rigidity_Nm_per_arcmin"] == pytest.approx(
-        report.torsional_rigidity_Nm_per_arcmin, rel=1e-12)
+        report.torsional_rigidity_Nm_per_arcmin, rel=1e-12
+    )
     assert plot.read_bytes()[:4] == b"\x89PNG"
 
 
@@ -124,8 +135,9 @@ def test_stiffness_command_checks_its_inputs_first(tmp_path):
 
 @pytest.mark.parametrize("clearances", [False, True], ids=["tight", "clearances"])
 def test_with_the_roller_law_shares_still_add_up_and_the_crank_has_rows_of_its_own(
-        rv40_rollers, seed002, clearances):
-    """The roller law's energy is the integral of its force (rvfmu/core/roller_law.py): the
+    rv40_rollers, seed002, clearances
+):
+    """The roller law's energy is the integral of its force (rvfmu/core/laws/roller_law.py): the
     shares add up to one as with linear springs, the rigidity is the windup test's, and
     the springs in series with the needles and with the tapered roller pairs (the
     crankshaft's two parts, compliance.crank_split) are rows of their own: each with its
@@ -135,15 +147,24 @@ def test_with_the_roller_law_shares_still_add_up_and_the_crank_has_rows_of_its_o
     assert budget.converged
     assert abs(budget.share_sum - 1.0) < 1e-6
     assert budget.torsional_rigidity_Nm_per_arcmin == pytest.approx(
-        windup(rv40_rollers, errors).torsional_rigidity_Nm_per_arcmin()[0], rel=1e-9)
+        windup(rv40_rollers, errors).torsional_rigidity_Nm_per_arcmin()[0], rel=1e-9
+    )
     rows = {e.name: e for e in budget.elements}
     for crank, bearing, stated in (
-            ("crank bending and tilt, each cam", "crank-disc needle bearings",
-             rv40_rollers.crank_disc_bearing_stiffness),
-            ("crank bending, both cams alike", "crank-carrier bearings",
-             rv40_rollers.crank_carrier_bearing_stiffness)):
+        (
+            "crank bending and tilt, each cam",
+            "crank-disc needle bearings",
+            rv40_rollers.crank_disc_bearing_stiffness,
+        ),
+        (
+            "crank bending, both cams alike",
+            "crank-carrier bearings",
+            rv40_rollers.crank_carrier_bearing_stiffness,
+        ),
+    ):
         assert 1.0 / rows[crank].stiffness + 1.0 / rows[bearing].stiffness == pytest.approx(
-            1.0 / stated, rel=1e-12)
+            1.0 / stated, rel=1e-12
+        )
         assert rows[crank].share > 0.05 and rows[bearing].share > 0.05
         assert rows[crank].count == rows[bearing].count
 
@@ -152,11 +173,11 @@ def _crank_torsion_against_the_mesh(design, sources):
     """k_mesh / k_torsion: the crank's torsion (not an element of the model) as a spring along
     the line of action, G J / (L r_b^2), L = crank span + gear width (more than the length
     between the cams and the planet), over the mesh's stiffness."""
-    from rvfmu.core.compliance import shaft_torsion_stiffness, shear_modulus
+    from rvfmu.core.laws.compliance import shaft_torsion_stiffness, shear_modulus
 
     d, span = sources["crank_diameter_mm"] * 1e-3, sources["crank_span_mm"] * 1e-3
     g = shear_modulus(design.youngs_modulus, design.poisson_ratio)
-    torsion = shaft_torsion_stiffness(g, d, span + design.gear_width) / design.planet_base_radius ** 2
+    torsion = shaft_torsion_stiffness(g, d, span + design.gear_width) / design.planet_base_radius**2
     return design.mesh_stiffness / torsion
 
 
@@ -165,12 +186,14 @@ def test_the_crank_torsion_left_out_would_take_under_two_percent():
     the locked input reacts at the mesh: it is a spring in series with the mesh, so its share
     would be the mesh's times k_mesh / k_torsion (the same force in both).  Largest on the
     RV-110E; under 2 % there (docs/model.md section 6)."""
-    from rvfmu.core.design import PRESET_NAMES, preset_file
+    from rvfmu.core.reducer.design import PRESET_NAMES, preset_file
 
-    ratios = {n: _crank_torsion_against_the_mesh(preset(n + "-estimate"), preset_file(n)["sources"])
-              for n in PRESET_NAMES}
+    ratios = {
+        n: _crank_torsion_against_the_mesh(preset(n + "-estimate"), preset_file(n)["sources"])
+        for n in PRESET_NAMES
+    }
     assert max(ratios, key=ratios.get) == "RV-110E"
-    assert all(r > 1.0 for r in ratios.values())   # softer than the mesh it is in series with
+    assert all(r > 1.0 for r in ratios.values())  # softer than the mesh it is in series with
     budget = compliance_budget(preset("RV-110E-estimate"), positions=2, levels=9)
     mesh = next(e.share for e in budget.elements if e.name == "sun-planet meshes")
     assert 0.0 < mesh * ratios["RV-110E"] < 0.02

@@ -16,15 +16,22 @@ from rvfmu import api
 from rvfmu.bench import catalogue
 from rvfmu.bench.calibration_values import parameters
 from rvfmu.cli import main
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import (DESIGN_FIELDS, ESTIMATE_NAMES, PRESET_NAMES, design_from_file_values,
-                               load_design, preset, preset_file)
-from rvfmu.core.dynamic_reducer import DynamicReducer
-from rvfmu.core.quasistatic import te_curve, windup
-from rvfmu.core.simulation import Sampled, simulate
-from rvfmu.core.units import ARCMIN, ARCSEC
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import ARCMIN, ARCSEC
+from rvfmu.core.dynamics.simulation import Sampled, simulate
+from rvfmu.core.reducer.design import (
+    DESIGN_FIELDS,
+    ESTIMATE_NAMES,
+    PRESET_NAMES,
+    design_from_file_values,
+    load_design,
+    preset,
+    preset_file,
+)
+from rvfmu.core.statics.quasistatic import te_curve, windup
+from rvfmu.core.steppers.dynamic_reducer import DynamicReducer
 
-COMPLIANCE = 0.4 * ARCSEC   # rad per N*m: about what the RV-40E calibration finds
+COMPLIANCE = 0.4 * ARCSEC  # rad per N*m: about what the RV-40E calibration finds
 
 
 @pytest.fixture(scope="module")
@@ -33,6 +40,7 @@ def estimate():
 
 
 # -- the series compliance: exact superposition -------------------------------------------
+
 
 def test_the_compliance_adds_its_windup_to_every_output_angle_and_to_the_rigidity_in_series(estimate):
     soft = estimate.with_fields(output_compliance=COMPLIANCE)
@@ -46,8 +54,7 @@ def test_the_compliance_adds_its_windup_to_every_output_angle_and_to_the_rigidit
     assert k == pytest.approx(1.0 / (1.0 / k0 + COMPLIANCE / ARCMIN), rel=1e-9)
     # lost motion: the span at +-3 % of rated grows by the spring's windup over 6 % of rated
     span = 0.06 * estimate.rated_torque * COMPLIANCE / ARCMIN
-    assert soft_w.lost_motion_arcmin()[0] == pytest.approx(rigid_w.lost_motion_arcmin()[0] + span,
-                                                           rel=1e-9)
+    assert soft_w.lost_motion_arcmin()[0] == pytest.approx(rigid_w.lost_motion_arcmin()[0] + span, rel=1e-9)
 
 
 def test_the_compliance_shifts_the_loaded_te_by_a_constant_and_leaves_the_no_load_te(estimate):
@@ -63,12 +70,12 @@ def test_the_dynamic_model_puts_the_compliance_on_its_outputs(estimate):
     soft = estimate.with_fields(output_compliance=COMPLIANCE)
     load = Sampled.checked("load", [0.0, 0.004, 0.008, 0.012], [100.0, 140.0, 180.0, 220.0])
     runs = [simulate(d, speed_rpm=600.0, load=load, duration=0.012, ramp=0.004) for d in (estimate, soft)]
-    np.testing.assert_allclose(runs[1].te - runs[0].te, COMPLIANCE * runs[0].tau_load,
-                               rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(runs[1].te - runs[0].te, COMPLIANCE * runs[0].tau_load, rtol=1e-9, atol=1e-15)
     # the load grows at 10 000 N*m/s: the flange turns c x that faster than the carrier
     rate = np.gradient(runs[0].tau_load, runs[0].time)
-    np.testing.assert_allclose(runs[1].omega_out - runs[0].omega_out, COMPLIANCE * rate,
-                               rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(
+        runs[1].omega_out - runs[0].omega_out, COMPLIANCE * rate, rtol=1e-6, atol=1e-12
+    )
     # the time-stepping reducer of the FMUs: the same offset, and the rate over a step
     reducers = [DynamicReducer(d, api.resolve_errors(d, None)) for d in (estimate, soft)]
     starts = [r.initialize(0.0, 0.0, -150.0) for r in reducers]
@@ -91,13 +98,15 @@ def test_a_negative_compliance_is_refused_and_a_missing_one_is_rigid():
 
 # -- the presets: calibrated by name, the estimate reachable ---------------------------------
 
+
 @pytest.mark.parametrize("name", PRESET_NAMES)
 def test_each_preset_meets_its_frames_catalogue_and_its_estimate_does_not(name):
     frame = catalogue.frame_of(name)
     calibrated, before = catalogue.figures(preset(name)), catalogue.figures(preset(name + "-estimate"))
     assert calibrated.converged and before.converged
     assert calibrated.torsional_rigidity_Nm_per_arcmin == pytest.approx(
-        frame.torsional_rigidity_Nm_per_arcmin, rel=0.02)
+        frame.torsional_rigidity_Nm_per_arcmin, rel=0.02
+    )
     assert calibrated.lost_motion_arcmin <= frame.lost_motion_max_arcmin
     # what the calibration was for: the estimate from geometry is stiffer than the frame (by
     # 2-26 %, docs/model.md section 6), with too much lost motion
@@ -107,9 +116,9 @@ def test_each_preset_meets_its_frames_catalogue_and_its_estimate_does_not(name):
     record = preset_file(name)["calibration"]
     assert record["frame"] == frame.name
     assert record["estimate_torsional_rigidity_Nm_per_arcmin"] == pytest.approx(
-        before.torsional_rigidity_Nm_per_arcmin, rel=1e-5)
-    assert record["calibrated_lost_motion_arcmin"] == pytest.approx(calibrated.lost_motion_arcmin,
-                                                                    rel=1e-4)
+        before.torsional_rigidity_Nm_per_arcmin, rel=1e-5
+    )
+    assert record["calibrated_lost_motion_arcmin"] == pytest.approx(calibrated.lost_motion_arcmin, rel=1e-4)
 
 
 # The estimate from geometry against the catalogue (docs/model.md section 6): within the
@@ -147,8 +156,9 @@ def test_the_estimate_is_the_file_and_the_preset_is_the_file_with_its_calibratio
     for spec in DESIGN_FIELDS:
         raw = values[spec.file_key]
         assert getattr(estimate, spec.field) == pytest.approx(raw * spec.scale, rel=1e-12)
-        assert getattr(calibrated, spec.field) == pytest.approx(fields.get(spec.file_key, raw) * spec.scale,
-                                                                rel=1e-12)
+        assert getattr(calibrated, spec.field) == pytest.approx(
+            fields.get(spec.file_key, raw) * spec.scale, rel=1e-12
+        )
     assert set(fields) == {"output_compliance_arcsec_per_Nm", "d_rp_mm", "d_rrp_mm"}
     # the modification pair keeps the estimate's ratio, scaled
     assert fields["d_rrp_mm"] / fields["d_rp_mm"] == pytest.approx(values["d_rrp_mm"] / values["d_rp_mm"])
@@ -171,18 +181,35 @@ def test_unknown_preset_names_list_both_forms():
 
 # -- calibrating a design of one's own to a catalogue, from the command line -----------------
 
+
 def test_rvte_calibrate_fits_output_stiffness_and_modification_scale_to_a_catalogue(tmp_path, capsys):
     data = tmp_path / "frame.toml"
     data.write_text("torsional_rigidity_Nm_per_arcmin = 100.0\nlost_motion_arcmin = 0.7\n")
     out = tmp_path / "mine.toml"
-    assert main(["calibrate", "RV-40E-121-estimate", str(data), "--fit",
-                 "output_stiffness,modification_scale", "--target", "catalogue",
-                 "--maxiter", "6", "--popsize", "6", "-o", str(out), "--json"]) in (0, None)
+    assert main(
+        [
+            "calibrate",
+            "RV-40E-121-estimate",
+            str(data),
+            "--fit",
+            "output_stiffness,modification_scale",
+            "--target",
+            "catalogue",
+            "--maxiter",
+            "6",
+            "--popsize",
+            "6",
+            "-o",
+            str(out),
+            "--json",
+        ]
+    ) in (0, None)
     summary = json.loads(capsys.readouterr().out)
     fitted = {f["name"]: f for f in summary["fitted"]}
     assert fitted["output_stiffness"]["unit"] == "N*m/arcmin"
     assert fitted["modification_scale"]["sets"]["d_rp_mm"] == pytest.approx(
-        -0.01 * fitted["modification_scale"]["value"], rel=1e-9)
+        -0.01 * fitted["modification_scale"]["value"], rel=1e-9
+    )
     figures = catalogue.figures(load_design(out))
     assert figures.torsional_rigidity_Nm_per_arcmin == pytest.approx(100.0, rel=0.02)
     assert figures.lost_motion_arcmin == pytest.approx(0.7, rel=0.02)
@@ -204,16 +231,17 @@ def test_rvte_presets_catalogue_prints_model_beside_catalogue(tmp_path, capsys):
     main(["presets", "--catalogue", "--json", "--plot", str(png)])
     assert png.read_bytes()[:4] == b"\x89PNG"
     out = capsys.readouterr().out
-    rows = {r["name"]: r for r in json.loads(out[:out.rindex("}") + 1])["presets"]}
+    rows = {r["name"]: r for r in json.loads(out[: out.rindex("}") + 1])["presets"]}
     assert set(rows) == set(PRESET_NAMES)
     for name, row in rows.items():
         frame = catalogue.frame_of(name)
         assert row["catalogue"]["torsional_rigidity_Nm_per_arcmin"] == frame.torsional_rigidity_Nm_per_arcmin
         assert row["rigidity_within"] and row["lost_motion_within"]
         assert row["preset"]["torsional_rigidity_Nm_per_arcmin"] == pytest.approx(
-            catalogue.figures(preset(name)).torsional_rigidity_Nm_per_arcmin, rel=1e-12)
+            catalogue.figures(preset(name)).torsional_rigidity_Nm_per_arcmin, rel=1e-12
+        )
     # the friction figures beside the catalogue's, which gives none: the model's alone
-    from rvfmu.core.friction import efficiency_map
+    from rvfmu.core.losses.friction import efficiency_map
 
     for name, row in rows.items():
         losses = row["losses"]

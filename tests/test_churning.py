@@ -1,4 +1,4 @@
-"""The lubricant's churning (rvfmu/core/churning.py): ISO/TR 14179-2's no-load loss of a
+"""The lubricant's churning (rvfmu/core/losses/churning.py): ISO/TR 14179-2's no-load loss of a
 dip-lubricated gear against a hand-worked point, its place among the load-free torques, a
 dry reducer unchanged to the bit, and what it does to the efficiency of every preset."""
 
@@ -6,14 +6,14 @@ import json
 
 import numpy as np
 import pytest
-
-from rvfmu.core import churning, friction
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import PRESET_NAMES, load_design, preset
-from rvfmu.core.hysteresis import hysteresis
-from rvfmu.core.lubricant import viscosity_cSt
-from rvfmu.core.units import RPM
 from test_hardening import run_cli
+
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import RPM
+from rvfmu.core.laws.lubricant import viscosity_cSt
+from rvfmu.core.losses import churning, friction
+from rvfmu.core.losses.hysteresis import hysteresis
+from rvfmu.core.reducer.design import PRESET_NAMES, load_design, preset
 
 BASE = "RV-40E-121"
 
@@ -29,11 +29,11 @@ def test_the_law_at_a_hand_worked_point():
     assert churning.roughness_factor(2.0) == pytest.approx(5.606, rel=1e-12)
     power = churning.gear_churning_power(0.5, 100.0, [1000.0, -1000.0, 0.0], 100.0, 10.0, 2.0)
     assert power[0] == pytest.approx(3.520173, rel=1e-6)
-    assert power[1] == power[0] and power[2] == 0.0         # either sense, none at rest
+    assert power[1] == power[0] and power[2] == 0.0  # either sense, none at rest
     # the teeth's factor is 0 below m = 4.648 / 7.93 = 0.586 mm: a smooth disc's two faces
     assert churning.roughness_factor(0.5) == 0.0
     smooth = churning.gear_churning_power(1.0, 10.0, 100.0, 50.0, 5.0, 0.5)
-    assert smooth == pytest.approx(1.474 * 10.0 * 1e6 * 50.0 ** 5.7 / (0.2e26) * 1e3, rel=1e-12)
+    assert smooth == pytest.approx(1.474 * 10.0 * 1e6 * 50.0**5.7 / (0.2e26) * 1e3, rel=1e-12)
 
 
 def test_the_presets_parts_turn_at_their_speeds_relative_to_the_housing():
@@ -48,11 +48,12 @@ def test_the_presets_parts_turn_at_their_speeds_relative_to_the_housing():
     assert planet[:2] == (2, pytest.approx(1.5 * 38)) and planet[4] == 39
     assert sun[:2] == (1, pytest.approx(1.5 * 14)) and sun[4] == pytest.approx(121.0)
     torques = churning.churning_torques(d, [15.0])
-    nu = viscosity_cSt(d, 40.0)                  # 100 mm^2/s: the grade's, at 40 C
+    nu = viscosity_cSt(d, 40.0)  # 100 mm^2/s: the grade's, at 40 C
     discs = 2 * churning.gear_churning_power(0.5, nu, 15.0, 124.7, 10.0, 2.6)
     assert torques["discs churning"][0] == pytest.approx(discs / (15.0 * RPM), rel=1e-12)
-    gears = (2 * churning.gear_churning_power(0.5, nu, 39 * 15.0, 57.0, 10.0, 1.5)
-             + churning.gear_churning_power(0.5, nu, 121 * 15.0, 21.0, 10.0, 1.5))
+    gears = 2 * churning.gear_churning_power(
+        0.5, nu, 39 * 15.0, 57.0, 10.0, 1.5
+    ) + churning.gear_churning_power(0.5, nu, 121 * 15.0, 21.0, 10.0, 1.5)
     assert torques["gears churning"][0] == pytest.approx(gears / (15.0 * RPM), rel=1e-12)
     # they are the load-free torques' churning entries, among the loss names
     free = friction.load_free_torques(d, [15.0])
@@ -72,7 +73,7 @@ def test_churning_rises_as_the_lubricant_cools_and_with_speed():
     speeds = np.array([1.0, 5.0, 15.0, 30.0, 60.0])
     fast = sum(churning.churning_torques(d, speeds).values())
     assert np.all(np.diff(fast) > 0.0)
-    assert fast[-1] / fast[2] == pytest.approx(16.0, rel=1e-12)       # torque ~ n^2
+    assert fast[-1] / fast[2] == pytest.approx(16.0, rel=1e-12)  # torque ~ n^2
     assert sum(churning.churning_torques(d, [0.0]).values())[0] == 0.0  # no starting torque
     # the load-free total rises with them too (the bearings' drag and the churning)
     free = {t: sum(friction.load_free_torques(d, [15.0], t).values())[0] for t in (40.0, -10.0)}
@@ -88,12 +89,12 @@ def test_a_dry_reducer_is_todays_to_the_bit():
         for name, torque in friction.load_free_torques(dry, speeds, t).items():
             if name in churning.CHURNING_NAMES:
                 assert np.all(torque == 0.0), name
-            else:    # the bearings' drag and the seals do not see the fill
+            else:  # the bearings' drag and the seals do not see the fill
                 assert np.array_equal(torque, wet_free[name]), name
-    m_dry = friction.efficiency_map(dry, output_speed_rpm=speeds, load_Nm=loads, points=6,
-                                    temperature_C=-10.0)
-    m_wet = friction.efficiency_map(d, output_speed_rpm=speeds, load_Nm=loads, points=6,
-                                    temperature_C=-10.0)
+    m_dry = friction.efficiency_map(
+        dry, output_speed_rpm=speeds, load_Nm=loads, points=6, temperature_C=-10.0
+    )
+    m_wet = friction.efficiency_map(d, output_speed_rpm=speeds, load_Nm=loads, points=6, temperature_C=-10.0)
     # the wet run with its churning taken out is the dry run, every figure to the bit
     rest = [n for n in friction.LOSS_NAMES if n not in churning.CHURNING_NAMES]
     p_out = np.asarray(loads)[None] * np.asarray(speeds)[:, None] * RPM
@@ -118,8 +119,9 @@ def test_efficiency_of_every_preset_with_its_load_free_losses():
     for name in PRESET_NAMES:
         d = preset(name)
         speeds = [v for v in (5.0, 15.0, 60.0) if v * RPM <= d.allowable_output_speed]
-        m = friction.efficiency_map(d, output_speed_rpm=speeds,
-                                    load_Nm=[0.1 * d.rated_torque, d.rated_torque], points=12)
+        m = friction.efficiency_map(
+            d, output_speed_rpm=speeds, load_Nm=[0.1 * d.rated_torque, d.rated_torque], points=12
+        )
         light, rated = m.efficiency[speeds.index(15.0)]
         # light loads lose more of their power: the load-free losses do not shrink with it
         assert rated - light >= 0.05, (name, light, rated)
@@ -127,8 +129,7 @@ def test_efficiency_of_every_preset_with_its_load_free_losses():
         assert np.all(np.diff(m.efficiency[:, 1]) < 0.0), (name, m.efficiency[:, 1])
 
 
-@pytest.mark.parametrize("value, allowed", [(1.5, "must be from 0 to 1"),
-                                            (-0.2, "must be >= 0")])
+@pytest.mark.parametrize("value, allowed", [(1.5, "must be from 0 to 1"), (-0.2, "must be >= 0")])
 def test_a_fill_outside_0_to_1_is_refused_naming_it(tmp_path, capsys, value, allowed):
     with pytest.raises(InputError) as info:
         preset(BASE).with_fields(lubricant_fill=value)
@@ -145,8 +146,7 @@ def test_a_fill_outside_0_to_1_is_refused_naming_it(tmp_path, capsys, value, all
 
 
 def test_the_efficiency_report_lists_the_churning(capsys):
-    code, out, err = run_cli(["efficiency", BASE, "--speeds", "15", "--loads", "412", "--json"],
-                             capsys)
+    code, out, err = run_cli(["efficiency", BASE, "--speeds", "15", "--loads", "412", "--json"], capsys)
     assert code == 0, err
     losses = json.loads(out)["map"][0]["losses_W"]
     assert losses["gears churning"] > losses["discs churning"] > 0.0

@@ -1,11 +1,11 @@
-"""Element laws from geometry (rvfmu/core/compliance.py), each against a closed form."""
+"""Element laws from geometry (rvfmu/core/laws/compliance.py), each against a closed form."""
 
 import math
 
 import pytest
 
-from rvfmu.core import compliance as c
-from rvfmu.core.stiffness import hertz_line_contact_approach, simply_supported_beam_stiffness
+from rvfmu.core.laws import compliance as c
+from rvfmu.core.laws.stiffness import hertz_line_contact_approach, simply_supported_beam_stiffness
 
 E, NU = 211e9, 0.29
 
@@ -53,8 +53,10 @@ def test_bearing_force_tangent_and_inverse():
         force, tangent = c.bearing_radial_force(d, 14, 6e-3, half)
         assert force == pytest.approx(2500.0, rel=1e-10)
         h = 1e-4 * d
-        numeric = (c.bearing_radial_force(d + h, 14, 6e-3, half)[0]
-                   - c.bearing_radial_force(d - h, 14, 6e-3, half)[0]) / (2 * h)
+        numeric = (
+            c.bearing_radial_force(d + h, 14, 6e-3, half)[0]
+            - c.bearing_radial_force(d - h, 14, 6e-3, half)[0]
+        ) / (2 * h)
         assert tangent == pytest.approx(numeric, rel=1e-4)
     # free within the clearance, and the clearance is the free play of the centre
     assert c.bearing_radial_force(2.9e-6, 14, 6e-3, 3e-6) == (0.0, 0.0)
@@ -67,38 +69,40 @@ def test_bearing_stiffens_under_load():
     """delta ~ F^0.9 without clearance: the secant stiffness grows as F^0.1."""
     law = lambda f: c.bearing_deflection(f, 12, 8e-3)  # noqa: E731
     low, high = c.secant_stiffness(law, 100.0, 200.0), c.secant_stiffness(law, 1000.0, 2000.0)
-    assert high / low == pytest.approx(10.0 ** 0.1, rel=1e-6)
+    assert high / low == pytest.approx(10.0**0.1, rel=1e-6)
 
 
 def test_beam_influence_reciprocity_and_the_central_load():
-    inertia = math.pi * 0.016 ** 4 / 64
+    inertia = math.pi * 0.016**4 / 64
     assert c.beam_influence(0.04, 0.01, 0.03, E, inertia) == pytest.approx(
-        c.beam_influence(0.04, 0.03, 0.01, E, inertia), rel=1e-12)       # Maxwell
+        c.beam_influence(0.04, 0.03, 0.01, E, inertia), rel=1e-12
+    )  # Maxwell
     assert c.beam_shear_influence(0.04, 0.01, 0.03, 8e10, 2e-4, 0.9) == pytest.approx(
-        c.beam_shear_influence(0.04, 0.03, 0.01, 8e10, 2e-4, 0.9), rel=1e-12)
+        c.beam_shear_influence(0.04, 0.03, 0.01, 8e10, 2e-4, 0.9), rel=1e-12
+    )
     # a central load: Euler-Bernoulli L^3 / (48 E I) plus Timoshenko's shear L / (4 k G A)
     d, span = 0.016, 0.04
-    g, area = E / (2 * (1 + NU)), math.pi * d ** 2 / 4
+    g, area = E / (2 * (1 + NU)), math.pi * d**2 / 4
     kappa = 6 * (1 + NU) / (7 + 6 * NU)
     assert c.round_shear_coefficient(NU) == pytest.approx(0.88558, rel=1e-4)
     central = 1 / c.crank_influence(E, NU, d, span, [0.02])[0, 0]
     bending = simply_supported_beam_stiffness(E, d, span)
     assert 1 / central == pytest.approx(1 / bending + span / (4 * kappa * g * area), rel=1e-12)
     # the crank is short: shear adds a third to its bending here (2.18 (d/L)^2 = 0.35)
-    assert bending / central - 1 == pytest.approx(0.75 * 2 * (1 + NU) / kappa * (d / span) ** 2,
-                                                  rel=1e-12)
+    assert bending / central - 1 == pytest.approx(0.75 * 2 * (1 + NU) / kappa * (d / span) ** 2, rel=1e-12)
     # a slender shaft is Euler-Bernoulli's
     assert 1 / c.crank_influence(E, NU, 0.002, 0.4, [0.2])[0, 0] == pytest.approx(
-        simply_supported_beam_stiffness(E, 0.002, 0.4), rel=1e-4)
+        simply_supported_beam_stiffness(E, 0.002, 0.4), rel=1e-4
+    )
     # two cams loaded alike at b from each support (Roark table 8.1, case 1e twice):
     # at a cam b^2 (3L - 4b) / (6 E I) bent, plus b / (k G A) sheared
     b = 0.015
     two = c.crank_influence(E, NU, d, span, [b, span - b]).sum(axis=1)
-    assert two == pytest.approx(b * b * (3 * span - 4 * b) / (6 * E * inertia)
-                                + b / (kappa * g * area), rel=1e-12)
+    assert two == pytest.approx(
+        b * b * (3 * span - 4 * b) / (6 * E * inertia) + b / (kappa * g * area), rel=1e-12
+    )
     # two cams loaded alike bend the crank more than one
     assert two[0] > c.crank_influence(E, NU, d, span, [b])[0, 0]
-
 
 
 def test_the_crank_splits_into_like_and_opposite_cam_loads_as_the_half_beam_gives():
@@ -113,10 +117,10 @@ def test_the_crank_splits_into_like_and_opposite_cam_loads_as_the_half_beam_give
     gives like loads each + 2 common, opposite loads each."""
     d, span, b = 0.016, 0.04, 0.015
     s, half = span - 2 * b, span / 2
-    inertia, area = math.pi * d ** 4 / 64, math.pi * d ** 2 / 4
+    inertia, area = math.pi * d**4 / 64, math.pi * d**2 / 4
     kga = c.round_shear_coefficient(NU) * c.shear_modulus(E, NU) * area
     like = b * b * (3 * span - 4 * b) / (6 * E * inertia) + b / kga
-    opposite = b ** 2 * (s / 2) ** 2 / (3 * E * inertia * half) + b * (s / 2) / (half * kga)
+    opposite = b**2 * (s / 2) ** 2 / (3 * E * inertia * half) + b * (s / 2) / (half * kga)
     influence = c.crank_influence(E, NU, d, span, (b, span - b))
     assert influence.shape == (2, 2) and influence[0, 1] == pytest.approx(influence[1, 0], rel=1e-12)
     rigid_each, rigid_common = c.crank_split(influence, span, (b, span - b), math.inf)
@@ -124,9 +128,9 @@ def test_the_crank_splits_into_like_and_opposite_cam_loads_as_the_half_beam_give
     assert rigid_each + 2 * rigid_common == pytest.approx(like, rel=1e-12)
     # the cams sit close: opposite loads bend the crank under a tenth as much as like loads
     assert rigid_each < 0.1 * like
-    pair = 6e8                                                 # both bearings, each 3e8
+    pair = 6e8  # both bearings, each 3e8
     each, common = c.crank_split(influence, span, (b, span - b), pair)
-    assert each - rigid_each == pytest.approx(s ** 2 / (span ** 2 * 0.5 * pair), rel=1e-12)
+    assert each - rigid_each == pytest.approx(s**2 / (span**2 * 0.5 * pair), rel=1e-12)
     assert each + 2 * common == pytest.approx(like, rel=1e-12)  # like loads do not tilt it
     # the seat's element is the pair in series with the common part, and gives the pair back
     seat = 1 / (1 / pair + common)
@@ -135,14 +139,15 @@ def test_the_crank_splits_into_like_and_opposite_cam_loads_as_the_half_beam_give
     with pytest.raises(ValueError, match="two cams"):
         c.crank_split(influence[:1, :1], span, (b,), pair)
 
+
 def test_guided_beam_and_torsion_closed_forms():
     inertia, area = 1e-9, 1e-4
     slender = c.guided_beam_stiffness(E, NU, inertia, area, 0.3, 0.85)
-    assert slender == pytest.approx(12 * E * inertia / 0.3 ** 3, rel=0.01)  # shear negligible
+    assert slender == pytest.approx(12 * E * inertia / 0.3**3, rel=0.01)  # shear negligible
     stubby = c.guided_beam_stiffness(E, NU, 1e-7, area, 0.005, 0.85)
     g = E / (2 * (1 + NU))
-    assert 1 / stubby == pytest.approx(0.005 ** 3 / (12 * E * 1e-7) + 0.005 / (0.85 * g * area))
-    assert c.shaft_torsion_stiffness(g, 0.02, 0.1) == pytest.approx(g * math.pi * 0.02 ** 4 / 32 / 0.1)
+    assert 1 / stubby == pytest.approx(0.005**3 / (12 * E * 1e-7) + 0.005 / (0.85 * g * area))
+    assert c.shaft_torsion_stiffness(g, 0.02, 0.1) == pytest.approx(g * math.pi * 0.02**4 / 32 / 0.1)
 
 
 def test_carrier_compliance_by_energy():

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from rvfmu.core.dynamic import DynamicModel, Motion
-from rvfmu.core.modes import modes
-from rvfmu.core.newmark import NewmarkStepper
-from rvfmu.core.simulation import static_start
+from rvfmu.core.dynamics.dynamic import DynamicModel, Motion
+from rvfmu.core.dynamics.modes import modes
+from rvfmu.core.dynamics.newmark import NewmarkStepper
+from rvfmu.core.dynamics.simulation import static_start
 
 
 @pytest.mark.parametrize("zeta", [0.05, 0.02])
@@ -40,12 +40,16 @@ def test_the_carrier_torsion_mode_decays_by_the_printed_ratio(rv40, seed002):
     q, v = np.empty((count, model.n)), np.empty((count, model.n))
     q[0] = q0
     stepper.advance(count - 1, q, v)
-    coordinate = (q - q0) @ (m.mass * phi)                    # phi^T M (q - q0)
-    peaks = [i for i in range(1, count - 1)
-             if coordinate[i] > coordinate[i - 1] and coordinate[i] >= coordinate[i + 1]]
+    coordinate = (q - q0) @ (m.mass * phi)  # phi^T M (q - q0)
+    peaks = [
+        i
+        for i in range(1, count - 1)
+        if coordinate[i] > coordinate[i - 1] and coordinate[i] >= coordinate[i + 1]
+    ]
     assert len(peaks) >= 10
     decrement = math.log(coordinate[peaks[0]] / coordinate[peaks[9]]) / 9.0
-    measured = decrement / math.sqrt(4.0 * math.pi ** 2 + decrement ** 2)
+    measured = decrement / math.sqrt(4.0 * math.pi**2 + decrement**2)
     assert measured == pytest.approx(m.damping_ratios[k], rel=0.05)
     assert (t[peaks[9]] - t[peaks[0]]) / 9.0 == pytest.approx(
-        1.0 / (hz * math.sqrt(1.0 - m.damping_ratios[k] ** 2)), rel=0.01)
+        1.0 / (hz * math.sqrt(1.0 - m.damping_ratios[k] ** 2)), rel=0.01
+    )

@@ -6,18 +6,27 @@ import math
 import numpy as np
 import pytest
 
-from rvfmu.core.dynamic import DynamicModel, ramp_motion
-from rvfmu.core.dynamic_reducer import DynamicReducer
-from rvfmu.core.errors import zero_errors
-from rvfmu.core.friction import RPM, efficiency_map
-from rvfmu.core.kernels import regularised_sign
-from rvfmu.core.newmark import NewmarkStepper
-from rvfmu.core.simulation import simulate, static_start
+from rvfmu.core.dynamics.dynamic import DynamicModel, ramp_motion
+from rvfmu.core.dynamics.kernels import regularised_sign
+from rvfmu.core.dynamics.newmark import NewmarkStepper
+from rvfmu.core.dynamics.simulation import simulate, static_start
+from rvfmu.core.losses.friction import RPM, efficiency_map
+from rvfmu.core.reducer.errors import zero_errors
+from rvfmu.core.steppers.dynamic_reducer import DynamicReducer
 
-FRICTIONLESS = dict(pin_disc_friction=0.0, pin_groove_friction=0.0, mesh_friction=0.0,
-                    needle_friction=0.0, tapered_friction=0.0, main_bearing_friction=0.0,
-                    bearing_drag_factor=0.0, seal_torque=0.0, output_seal_diameter=0.0,
-                    input_seal_diameter=0.0, lubricant_fill=0.0)
+FRICTIONLESS = dict(
+    pin_disc_friction=0.0,
+    pin_groove_friction=0.0,
+    mesh_friction=0.0,
+    needle_friction=0.0,
+    tapered_friction=0.0,
+    main_bearing_friction=0.0,
+    bearing_drag_factor=0.0,
+    seal_torque=0.0,
+    output_seal_diameter=0.0,
+    input_seal_diameter=0.0,
+    lubricant_fill=0.0,
+)
 
 
 @pytest.fixture(scope="module")
@@ -25,13 +34,15 @@ def rv40f(rv40):
     """The estimate with the preset's bearing pitch diameters, its output seal stated at
     0.5 N*m, its input seal, lubricant fill and static friction factor the preset's: every
     kind of contact of the table resists, and every load-free loss."""
-    from rvfmu.core.design import preset
+    from rvfmu.core.reducer.design import preset
 
     d = preset("RV-40E-121")
-    return rv40.with_fields(needle_pitch_diameter=d.needle_pitch_diameter,
-                            tapered_pitch_diameter=d.tapered_pitch_diameter,
-                            main_bearing_pitch_diameter=d.main_bearing_pitch_diameter,
-                            seal_torque=0.5)
+    return rv40.with_fields(
+        needle_pitch_diameter=d.needle_pitch_diameter,
+        tapered_pitch_diameter=d.tapered_pitch_diameter,
+        main_bearing_pitch_diameter=d.main_bearing_pitch_diameter,
+        seal_torque=0.5,
+    )
 
 
 def test_the_regularised_sign_is_the_sign_beyond_its_scale_and_smooth_through_zero():
@@ -48,8 +59,7 @@ def test_the_regularised_sign_is_the_sign_beyond_its_scale_and_smooth_through_ze
 
 def test_zero_coefficients_give_the_frictionless_run_to_the_bit(rv40, seed002):
     design = rv40.with_fields(**FRICTIONLESS)
-    runs = [simulate(design, seed002, 1600.0, load=206.0, duration=0.01, friction=f)
-            for f in (True, False)]
+    runs = [simulate(design, seed002, 1600.0, load=206.0, duration=0.01, friction=f) for f in (True, False)]
     for name in ("te", "tau_in", "q", "omega_out"):
         assert np.array_equal(getattr(runs[0], name), getattr(runs[1], name)), name
     assert not np.any(runs[0].friction_power)
@@ -59,8 +69,9 @@ def test_zero_coefficients_give_the_frictionless_run_to_the_bit(rv40, seed002):
 def test_the_tangent_is_the_derivative_of_the_forces_with_friction(rv40f, seed002):
     """K and C against central differences of f in q and in v, at speed and at a crawl whose
     slips sit inside the regularised sign's scale (every friction term's derivative)."""
-    assert_tangents(DynamicModel(rv40f, seed002, mesh="varying"), (100.0, 2e-3), 1e-6,
-                    np.random.default_rng(3))
+    assert_tangents(
+        DynamicModel(rv40f, seed002, mesh="varying"), (100.0, 2e-3), 1e-6, np.random.default_rng(3)
+    )
 
 
 def assert_tangents(model, input_speeds, velocity_scale, rng):
@@ -80,10 +91,9 @@ def assert_tangents(model, input_speeds, velocity_scale, rng):
             d[k] = 1e-12
             dq = (model.forces(1, q + d, v)[0] - model.forces(1, q - d, v)[0]) / 2e-12
             np.testing.assert_allclose(dq, K[:, k], rtol=1e-4, atol=1e-6 * scale)
-            d[k] = 1e-9                 # 1e-4 of the regularised sign's slip scale
+            d[k] = 1e-9  # 1e-4 of the regularised sign's slip scale
             dv = (model.forces(1, q, v + d)[0] - model.forces(1, q, v - d)[0]) / 2e-9
-            np.testing.assert_allclose(dv, C[:, k], rtol=1e-4,
-                                       atol=max(1e-6 * np.abs(C).max(), noise))
+            np.testing.assert_allclose(dv, C[:, k], rtol=1e-4, atol=max(1e-6 * np.abs(C).max(), noise))
 
 
 def test_the_working_arrays_carry_nothing_from_one_evaluation_to_the_next(rv40f, seed002):
@@ -91,11 +101,14 @@ def test_the_working_arrays_carry_nothing_from_one_evaluation_to_the_next(rv40f,
     a loaded state, a state with every bearing inside its clearance (no normal force, so no
     Coulomb friction in them) gives what fresh arrays give, to the bit, and so does the
     loaded state after it."""
-    from rvfmu.core.kernels import element_forces, forces_into, scratch
+    from rvfmu.core.dynamics.kernels import element_forces, forces_into, scratch
 
-    errors = seed002.replace(**{name: np.full_like(getattr(seed002, name), 20e-6)
-                                for name in ("crank_disc_clearance", "crank_carrier_clearance",
-                                             "main_bearing_clearance")})
+    errors = seed002.replace(
+        **{
+            name: np.full_like(getattr(seed002, name), 20e-6)
+            for name in ("crank_disc_clearance", "crank_carrier_clearance", "main_bearing_clearance")
+        }
+    )
     model = DynamicModel(rv40f, errors, mesh="varying")
     model.prepare(ramp_motion(np.array([0.0, 1e-4]), 100.0, 0.0, -300.0))
     loaded = static_start(model, -300.0, 0.0)
@@ -129,7 +142,7 @@ def _balance(design, errors, load, step, duration=0.04, speed_rpm=1600.0):
     error offsets follow the nominal input angle, so at fixed unknowns the elastic energy
     changes in time (dU/dtheta_in * omega_in, a central difference here) and the nominal
     velocities work against the element forces; an exact large-motion model has none."""
-    from rvfmu.core.dynamic import Motion
+    from rvfmu.core.dynamics.dynamic import Motion
 
     errors = zero_errors(design) if errors is None else errors
     count = int(round(duration / step))
@@ -154,8 +167,7 @@ def _balance(design, errors, load, step, duration=0.04, speed_rpm=1600.0):
     for shift in (1e-6, -1e-6):
         twin = DynamicModel(design, errors, mesh="constant", flank=flank, friction=False)
         twin.elements = twin.elements._replace(modal_c=model.elements.modal_c)
-        twin.prepare(Motion(t, motion.theta_in + shift, motion.omega_in, motion.alpha_in,
-                            motion.tau_load))
+        twin.prepare(Motion(t, motion.theta_in + shift, motion.omega_in, motion.alpha_in, motion.tau_load))
         energy.append(np.array([twin.elastic_energy(k, q[k]) for k in range(count)]))
     twin.prepare(motion)
     nominal = twin.nominal_velocities(motion.theta_in, motion.omega_in)
@@ -170,21 +182,28 @@ def _balance(design, errors, load, step, duration=0.04, speed_rpm=1600.0):
     def work(p):
         return float(np.sum(0.5 * step * (p[1:] + p[:-1])))
 
-    return {"input": work(p_in), "kinematic": work(p_kinematic), "output": work(p_out),
-            "friction": work(power[:, 0]), "damping": work(power[:, 1]),
-            "stored": model.stored_energy(count - 1, q[-1], v[-1])
-            - model.stored_energy(0, q[0], v[0])}
+    return {
+        "input": work(p_in),
+        "kinematic": work(p_kinematic),
+        "output": work(p_out),
+        "friction": work(power[:, 0]),
+        "damping": work(power[:, 1]),
+        "stored": model.stored_energy(count - 1, q[-1], v[-1]) - model.stored_energy(0, q[0], v[0]),
+    }
 
 
 def _closing(w):
-    return (w["input"] + w["kinematic"] - w["output"] - w["friction"] - w["damping"]
-            - w["stored"]) / w["input"]
+    return (w["input"] + w["kinematic"] - w["output"] - w["friction"] - w["damping"] - w["stored"]) / w[
+        "input"
+    ]
 
 
-@pytest.mark.parametrize("load, errors", [(0.0, False), (0.0, True), (206.0, False), (206.0, True)],
-                         ids=["unloaded", "unloaded, seed 002", "206 N*m", "206 N*m, seed 002"])
-def test_the_input_work_is_the_output_the_losses_and_the_stored_energy(rv40f, seed002, load,
-                                                                       errors):
+@pytest.mark.parametrize(
+    "load, errors",
+    [(0.0, False), (0.0, True), (206.0, False), (206.0, True)],
+    ids=["unloaded", "unloaded, seed 002", "206 N*m", "206 N*m, seed 002"],
+)
+def test_the_input_work_is_the_output_the_losses_and_the_stored_energy(rv40f, seed002, load, errors):
     """To 1e-6 of the input work with the kinematic work, which stays below 2e-3 of it: the
     rows and offsets turning with the input, and the modal damping's forces on the nominal
     motion while the start ramp winds the unknowns up (docs/model.md section 9)."""
@@ -203,12 +222,14 @@ def test_the_dynamic_losses_are_the_quasi_static_power_balance(rv40f):
     load = 0.5 * rv40f.rated_torque
     speed = 600.0 / rv40f.ratio
     qs = efficiency_map(rv40f, None, [speed], [load], points=12)
-    runs = {side: simulate(rv40f, None, 600.0, load=side * load, duration=0.2).mean_powers()
-            for side in (1.0, -1.0)}
+    runs = {
+        side: simulate(rv40f, None, 600.0, load=side * load, duration=0.2).mean_powers()
+        for side in (1.0, -1.0)
+    }
     forward, backward = runs[1.0], runs[-1.0]
     assert forward["friction_W"] == pytest.approx(qs.loss_W[0, 0], rel=0.1)
     assert forward["efficiency"] == pytest.approx(qs.efficiency[0, 0], abs=0.01)
-    assert backward["output_W"] < 0.0 and backward["input_W"] < 0.0      # the motor receives
+    assert backward["output_W"] < 0.0 and backward["input_W"] < 0.0  # the motor receives
     assert backward["efficiency"] < forward["efficiency"]
     assert backward["efficiency"] == pytest.approx(qs.backdriving_efficiency[0, 0], abs=0.01)
     idle = simulate(rv40f, None, 600.0, load=0.0, duration=0.2).mean_powers()
@@ -221,8 +242,12 @@ def test_friction_winds_the_output_back_by_its_own_torque(rv40f, seed002):
     """At a crawl the dynamic TE with friction is the frictionless one less the windup of the
     contacts' friction: an offset of the loaded side's sign, a small part of the windup, and
     the same curve."""
-    runs = [simulate(rv40f, seed002, speed_rpm=5.0, load=300.0, revolutions=0.01,
-                     mesh="constant", ramp=0.5, friction=f) for f in (True, False)]
+    runs = [
+        simulate(
+            rv40f, seed002, speed_rpm=5.0, load=300.0, revolutions=0.01, mesh="constant", ramp=0.5, friction=f
+        )
+        for f in (True, False)
+    ]
     shift = runs[0].steady_te_arcsec() - runs[1].steady_te_arcsec()
     windup = -np.mean(runs[1].steady_te_arcsec())
     assert windup > 50.0
@@ -247,7 +272,7 @@ def test_the_dynamic_fmu_model_holds_at_standstill_without_chattering(rv40f, see
     assert np.all(loss >= 0.0) and np.all((efficiency >= 0.0) & (efficiency <= 1.0))
     assert 0.8 < np.mean(efficiency[20:100]) < 0.95
     held = slice(110, None)
-    assert np.all(np.diff(tau[held]) > 0.0)                     # monotone: no chatter
+    assert np.all(np.diff(tau[held]) > 0.0)  # monotone: no chatter
     assert np.all(np.diff(loss[held]) < 0.0)
     assert tau[-1] == pytest.approx(-load / rv40f.ratio, rel=0.01)
     assert np.ptp(te[held]) * 206265.0 < 1.0
@@ -264,8 +289,7 @@ def test_the_dynamic_fmu_models_torque_carries_the_losses_both_ways(rv40f):
         outs = []
         for k in range(400):
             omega = speed * min(1.0, (k + 1) / 100.0)
-            outs.append((omega, reducer.step(k * 1e-3, 1e-3, reducer.theta_in + omega * 1e-3,
-                                             -side * load)))
+            outs.append((omega, reducer.step(k * 1e-3, 1e-3, reducer.theta_in + omega * 1e-3, -side * load)))
         steady = outs[200:]
         tau_in = np.mean([o.tau_in for _, o in steady])
         p_in = np.mean([-o.tau_in * w for w, o in steady])

@@ -17,15 +17,16 @@ import numba
 import numpy as np
 import pytest
 
-from rvfmu.core import dynamic_reducer, kernels
-from rvfmu.core.design import preset
-from rvfmu.core.dynamic import DynamicModel, Motion
-from rvfmu.core.dynamic_geometry import LOBE_MARGIN, _same_lobe
-from rvfmu.core.dynamic_reducer import DynamicReducer
-from rvfmu.core.errors import zero_errors
-from rvfmu.core.newmark import BETA, CYCLE_TOLERANCE, GAMMA, MAX_ITERATIONS, TOLERANCE
+from rvfmu.core.dynamics import kernels
+from rvfmu.core.dynamics.dynamic import DynamicModel, Motion
+from rvfmu.core.dynamics.dynamic_geometry import LOBE_MARGIN, _same_lobe
+from rvfmu.core.dynamics.newmark import BETA, CYCLE_TOLERANCE, GAMMA, MAX_ITERATIONS, TOLERANCE
+from rvfmu.core.reducer.design import preset
+from rvfmu.core.reducer.errors import zero_errors
+from rvfmu.core.steppers import dynamic_reducer
+from rvfmu.core.steppers.dynamic_reducer import DynamicReducer
 
-FAST = 1600 * 2 * np.pi / 60        # rad/s at the input
+FAST = 1600 * 2 * np.pi / 60  # rad/s at the input
 
 
 def test_numba_is_in_use():
@@ -78,7 +79,7 @@ def test_the_factors_solve_as_the_elimination_to_the_bit():
         assert solve_in_place(A1, x1)
         A2, x2, pivots = A.copy(), x.copy(), np.empty(A.shape[0], dtype=np.int64)
         assert kernels.factor_in_place(A2, pivots)
-        assert np.any(pivots != np.arange(A.shape[0]))        # rows were swapped
+        assert np.any(pivots != np.arange(A.shape[0]))  # rows were swapped
         kernels.solve_factored(A2, pivots, x2)
         assert np.array_equal(x1, x2)
         assert np.allclose(A @ x2, x, rtol=0, atol=1e-9 * np.abs(x).max())
@@ -95,7 +96,7 @@ def test_the_factors_solve_as_the_elimination_to_the_bit():
 
 
 def test_a_singular_tangent_is_told_by_every_route():
-    A = np.arange(1.0, 17.0).reshape(4, 4)          # rank 2
+    A = np.arange(1.0, 17.0).reshape(4, 4)  # rank 2
     A[:, 3] = 0.0
     pivots = np.empty(4, dtype=np.int64)
     assert not solve_in_place(A.copy(), np.ones(4))
@@ -116,8 +117,11 @@ def geometry_of(reducer, count=10):
     """The model's geometry over the next communication step of `reducer` (A = count + 1)."""
     model = reducer.model
     t = reducer.time + 1e-3 * np.arange(count + 1) / count
-    model.prepare(Motion(t, reducer.theta_in + FAST * (t - t[0]), np.full(t.size, FAST),
-                         np.zeros(t.size), reducer.tau_load))
+    model.prepare(
+        Motion(
+            t, reducer.theta_in + FAST * (t - t[0]), np.full(t.size, FAST), np.zeros(t.size), reducer.tau_load
+        )
+    )
     return model, model.geometry(1)[0]
 
 
@@ -138,8 +142,8 @@ def test_the_forces_without_their_tangent_are_the_forces_to_the_bit(name, seed00
         f2, K2, C2 = np.empty(n), np.full((n, n), np.nan), np.full((n, n), np.nan)
         p2 = kernels.forces_only(el, g, a, q, v, f2, K2, C2, work, False)
         assert np.array_equal(f1, f2) and p1 == p2
-        assert np.all(np.isnan(K2)) and np.all(np.isnan(C2))     # left as they were
-        assert p1[0] > 0.0 and np.count_nonzero(K1) > n             # friction, contacts
+        assert np.all(np.isnan(K2)) and np.all(np.isnan(C2))  # left as they were
+        assert p1[0] > 0.0 and np.count_nonzero(K1) > n  # friction, contacts
 
 
 class Counted:
@@ -162,9 +166,24 @@ def newton_run(model, g, state, reuse_below, monkeypatch):
     A, n = g.h.size, model.n
     q, v, a = (x.copy() for x in (state.q, state.v, state.a))
     out_q, out_v, power = np.empty((A, n)), np.empty((A, n)), np.empty((A, 2))
-    most, failed = kernels.newmark_steps.py_func(model.elements, g, 1, A, model.mass, q, v, a,
-                                                 BETA, GAMMA, TOLERANCE, CYCLE_TOLERANCE,
-                                                 MAX_ITERATIONS, out_q, out_v, power)
+    most, failed = kernels.newmark_steps.py_func(
+        model.elements,
+        g,
+        1,
+        A,
+        model.mass,
+        q,
+        v,
+        a,
+        BETA,
+        GAMMA,
+        TOLERANCE,
+        CYCLE_TOLERANCE,
+        MAX_ITERATIONS,
+        out_q,
+        out_v,
+        power,
+    )
     monkeypatch.undo()
     assert failed == 0
     return out_q[1:], counted.calls
@@ -192,13 +211,29 @@ def test_the_reused_factors_move_the_run_by_far_less_than_the_tolerance(seed002,
         q, v, a = (x.copy() for x in (state.q, state.v, state.a))
         A, n = g.h.size, model.n
         out_q, out_v, power = np.empty((A, n)), np.empty((A, n)), np.empty((A, 2))
-        kernels.newmark_steps(model.elements, g, 1, A, model.mass, q, v, a, BETA, GAMMA,
-                              TOLERANCE, CYCLE_TOLERANCE, MAX_ITERATIONS, out_q, out_v, power)
+        kernels.newmark_steps(
+            model.elements,
+            g,
+            1,
+            A,
+            model.mass,
+            q,
+            v,
+            a,
+            BETA,
+            GAMMA,
+            TOLERANCE,
+            CYCLE_TOLERANCE,
+            MAX_ITERATIONS,
+            out_q,
+            out_v,
+            power,
+        )
         np.testing.assert_allclose(out_q[1:], reused, rtol=0, atol=1e-20)
         reducer.step(reducer.time, 1e-3, reducer.theta_in + FAST * 1e-3, reducer.tau_load)
     assert 0.0 < worst < 2e-3 * TOLERANCE
-    assert counts[False] >= 3 * steps                       # Newton: three eliminations a step
-    assert counts[True] <= counts[False] - 0.75 * steps     # reused: one fewer in most steps
+    assert counts[False] >= 3 * steps  # Newton: three eliminations a step
+    assert counts[True] <= counts[False] - 0.75 * steps  # reused: one fewer in most steps
 
 
 def test_a_lobe_is_kept_only_well_inside_it():
@@ -229,15 +264,24 @@ def test_the_lobes_kept_over_small_steps_give_the_numpy_geometry(name):
 
     design = preset(name)
     model = DynamicModel(design, random_errors(design, 5))
-    for speed, step, count in ((FAST, 1e-4, 2000), (5 * 2 * np.pi / 60, 1e-4, 600),
-                               (2 * np.pi / design.z_c / 3 * design.ratio / 1e-4, 1e-4, 300)):
+    for speed, step, count in (
+        (FAST, 1e-4, 2000),
+        (5 * 2 * np.pi / 60, 1e-4, 600),
+        (2 * np.pi / design.z_c / 3 * design.ratio / 1e-4, 1e-4, 300),
+    ):
         t = step * np.arange(count + 1)
-        model.prepare(Motion(t, 1.234 + speed * t, np.full(t.size, speed), np.zeros(t.size),
-                             -0.3 * design.rated_torque))
+        model.prepare(
+            Motion(t, 1.234 + speed * t, np.full(t.size, speed), np.zeros(t.size), -0.3 * design.rated_torque)
+        )
         compiled, reference = model._chunk(0, t.size), model._chunk_numpy(0, t.size)
         for field, x, y in zip(reference._fields, compiled, reference):
-            np.testing.assert_allclose(x, y, rtol=0, atol=1e-13 * max(np.abs(y).max(), 1e-300),
-                                       err_msg=f"{name} {field} at {speed} rad/s")
+            np.testing.assert_allclose(
+                x,
+                y,
+                rtol=0,
+                atol=1e-13 * max(np.abs(y).max(), 1e-300),
+                err_msg=f"{name} {field} at {speed} rad/s",
+            )
 
 
 def test_the_one_call_step_is_the_python_route_through_a_change_of_flank(seed002, monkeypatch):

@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
-
 from conftest import hand_pin_geometry, perp, unit
-from rvfmu.core.design import PRESET_NAMES, preset
-from rvfmu.core.equivalent import EquivalentModel, Pose
-from rvfmu.core.errors import zero_errors
-from rvfmu.core.units import UM
+
+from rvfmu.core.base.units import UM
+from rvfmu.core.reducer.design import PRESET_NAMES, preset
+from rvfmu.core.reducer.errors import zero_errors
+from rvfmu.core.statics.equivalent import EquivalentModel, Pose
 
 
 def hand_mechanism_mode(model):
@@ -15,15 +15,16 @@ def hand_mechanism_mode(model):
     d, pose = model.design, model.pose
     A = pose.theta_in.size
     q = np.zeros((A, model.n_dof))
-    speed = 1.0 + d.z_s / d.z_pl                    # crank turns relative to ground per carrier rad
+    speed = 1.0 + d.z_s / d.z_pl  # crank turns relative to ground per carrier rad
     crank_dir = pose.theta_out[:, None] + 2 * np.pi * np.arange(d.n_c) / d.n_c
     for i in range(d.n_c):
-        q[:, model.index[f"crank{i}_x"]:model.index[f"crank{i}_y"] + 1] = (
-            d.crank_circle_radius * perp(unit(crank_dir[:, i])))
+        q[:, model.index[f"crank{i}_x"] : model.index[f"crank{i}_y"] + 1] = d.crank_circle_radius * perp(
+            unit(crank_dir[:, i])
+        )
         q[:, model.index[f"crank{i}_rot"]] = speed * model.scale
     for j in range(2):
         psi = pose.psi[:, j]
-        q[:, model.index[f"disc{j}_x"]:model.index[f"disc{j}_y"] + 1] = d.e * speed * perp(unit(psi))
+        q[:, model.index[f"disc{j}_x"] : model.index[f"disc{j}_y"] + 1] = d.e * speed * perp(unit(psi))
         q[:, model.index[f"disc{j}_rot"]] = model.scale
     q[:, model.index["carrier_rot"]] = model.scale
     return q

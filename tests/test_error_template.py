@@ -12,18 +12,36 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rvfmu.core.design import PRESET_NAMES, preset
-from rvfmu.core.errors import (ERROR_NAMES, PHASED, error_file_values, error_shapes,
-                               error_template_text, load_errors, toml_text)
-from rvfmu.core.quasistatic import te_curve
+from rvfmu.core.reducer.design import PRESET_NAMES, preset
+from rvfmu.core.reducer.errors import (
+    ERROR_NAMES,
+    PHASED,
+    error_file_values,
+    error_shapes,
+    error_template_text,
+    load_errors,
+    toml_text,
+)
+from rvfmu.core.statics.quasistatic import te_curve
 
 # The error names of the contract, in the order of its section 4 table: written out here,
 # not taken from the code, so that the code cannot drift from the contract unnoticed.
 CONTRACT_NAMES = (
-    "sun_eccentricity", "sun_assembly", "planet_eccentricity", "crank_cam_eccentricity",
-    "disc_crank_hole", "carrier_crank_hole", "carrier_assembly",
-    "pin_radial", "pin_pitch", "pin_radius", "disc_profile", "disc_pitch",
-    "crank_disc_clearance", "crank_carrier_clearance", "main_bearing_clearance",
+    "sun_eccentricity",
+    "sun_assembly",
+    "planet_eccentricity",
+    "crank_cam_eccentricity",
+    "disc_crank_hole",
+    "carrier_crank_hole",
+    "carrier_assembly",
+    "pin_radial",
+    "pin_pitch",
+    "pin_radius",
+    "disc_profile",
+    "disc_pitch",
+    "crank_disc_clearance",
+    "crank_carrier_clearance",
+    "main_bearing_clearance",
 )
 
 SEED002 = Path(__file__).resolve().parent.parent / "studies" / "seed002_errors.toml"
@@ -99,6 +117,5 @@ def test_toml_text_round_trips_an_error_file(tmp_path):
 
 
 def test_toml_text_values():
-    text = toml_text({"name": 'a "b"', "z_p": 40, "flag": True, "x": 2.0, "y": 1e-7, "z": 3.0},
-                     digits=6)
+    text = toml_text({"name": 'a "b"', "z_p": 40, "flag": True, "x": 2.0, "y": 1e-7, "z": 3.0}, digits=6)
     assert text == 'name = "a \\"b\\""\nz_p = 40\nflag = true\nx = 2.0\ny = 1e-07\nz = 3.0\n'

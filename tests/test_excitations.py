@@ -1,4 +1,4 @@
-"""The TE amplitude at each excitation of a dynamic run (rvfmu/core/simulation.py,
+"""The TE amplitude at each excitation of a dynamic run (rvfmu/core/dynamics/simulation.py,
 docs/model.md section 7): against synthetic signals whose sines are known."""
 
 import dataclasses
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rvfmu import cli
-from rvfmu.core.simulation import Excitations, amplitude_at, simulate
-from rvfmu.core.units import ARCSEC
+from rvfmu.core.base.units import ARCSEC
+from rvfmu.core.dynamics.simulation import Excitations, amplitude_at, simulate
 
 
 @pytest.mark.parametrize("offset", [0.0, 0.25, 0.5, 0.37])
@@ -27,8 +27,10 @@ def test_a_sine_off_the_bins_reads_its_amplitude(offset):
     assert amplitude_at(signal, step, f1) == pytest.approx(0.3, rel=5e-3)
     assert amplitude_at(signal, step, f2) == pytest.approx(2.0, rel=5e-3)
     if offset == 0.5:
-        bins = 2.0 * np.abs(np.fft.rfft((signal - signal.mean()) * np.hanning(count))) / np.hanning(count).sum()
-        assert bins[40:42].max() < 0.9 * 0.3 + 0.02            # what reading the bin would give
+        bins = (
+            2.0 * np.abs(np.fft.rfft((signal - signal.mean()) * np.hanning(count))) / np.hanning(count).sum()
+        )
+        assert bins[40:42].max() < 0.9 * 0.3 + 0.02  # what reading the bin would give
 
 
 @pytest.fixture(scope="module")
@@ -42,13 +44,24 @@ def test_a_run_reports_every_excitation_and_its_second_harmonic(run, rv40):
     input's, 9 Hz apart, are 5.4 bins apart), and the orders above Nyquist say so."""
     ex = Excitations.at(rv40, 1600.0)
     expected = dict(ex.with_harmonics())
-    assert list(expected) == ["input rotation", "input rotation x2", "crank rotation",
-                              "crank rotation x2", "pin passing", "pin passing x2",
-                              "stage-1 mesh", "stage-1 mesh x2"]
+    assert list(expected) == [
+        "input rotation",
+        "input rotation x2",
+        "crank rotation",
+        "crank rotation x2",
+        "pin passing",
+        "pin passing x2",
+        "stage-1 mesh",
+        "stage-1 mesh x2",
+    ]
     amplitudes = {name: 0.1 * (k + 1) for k, name in enumerate(expected)}
     t = run.time
-    te = sum(a * np.sin(2 * math.pi * expected[name] * t + k) for k, (name, a) in
-             enumerate(amplitudes.items())) * ARCSEC
+    te = (
+        sum(
+            a * np.sin(2 * math.pi * expected[name] * t + k) for k, (name, a) in enumerate(amplitudes.items())
+        )
+        * ARCSEC
+    )
     synthetic = dataclasses.replace(run, te=te - 100.0 * ARCSEC)
     got = synthetic.excitation_amplitudes()
     assert [(name, hz) for name, hz, _ in got] == list(expected.items())
@@ -67,8 +80,7 @@ def test_the_summary_and_json_carry_the_amplitudes(capsys):
     assert {r["name"]: r["frequency_hz"] for r in rows} == pytest.approx(ex)
     # 0.1 s at speed resolves the 2nd orders of pin passing and mesh (0.0568 s needed), not the
     # others (0.113 s and more): those carry the reason instead of an amplitude
-    assert {r["name"] for r in rows if r["not_resolved"] is None} == {"pin passing x2",
-                                                                      "stage-1 mesh x2"}
+    assert {r["name"] for r in rows if r["not_resolved"] is None} == {"pin passing x2", "stage-1 mesh x2"}
     assert all((r["amplitude_arcsec"] is None) == (r["not_resolved"] is not None) for r in rows)
     assert all(r["amplitude_arcsec"] > 0.0 for r in rows if r["not_resolved"] is None)
     assert cli.main(["simulate", "RV-40E-121", "--load", "206", "--duration", "0.1"]) == 0
@@ -77,6 +89,6 @@ def test_the_summary_and_json_carry_the_amplitudes(capsys):
 
 
 def run_design():
-    from rvfmu.core.design import preset
+    from rvfmu.core.reducer.design import preset
 
     return preset("RV-40E-121")

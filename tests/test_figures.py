@@ -1,18 +1,21 @@
 """What the TE figure shows (rvfmu/plots.py): the ripple's shape in a zoom where it matters."""
 
 import pytest
-
-from rvfmu.core.errors import load_errors
-from rvfmu.core.quasistatic import te_curve
-from rvfmu.plots import RIPPLE_SHARE, figure_te, ripple
 from conftest import ROOT
+
+from rvfmu.core.reducer.errors import load_errors
+from rvfmu.core.statics.quasistatic import te_curve
+from rvfmu.plots import RIPPLE_SHARE, figure_te, ripple
 
 
 @pytest.fixture(scope="module")
 def curves(rv40):
     errors = load_errors(ROOT / "studies" / "seed002_errors.toml", rv40)
-    return {"nominal": te_curve(rv40, None, 0.0, 12480), "errors": te_curve(rv40, errors, 0.0, 12480),
-            "coarse": te_curve(rv40, None, 0.0, 720)}
+    return {
+        "nominal": te_curve(rv40, None, 0.0, 12480),
+        "errors": te_curve(rv40, errors, 0.0, 12480),
+        "coarse": te_curve(rv40, None, 0.0, 720),
+    }
 
 
 def test_the_nominal_ripple_gets_a_zoom_and_a_curve_with_errors_does_not(curves):
@@ -27,7 +30,7 @@ def test_the_nominal_ripple_gets_a_zoom_and_a_curve_with_errors_does_not(curves)
     assert len(figure_te(curves["errors"], zoom=True).axes) == 3
     zoom = figure_te(curves["nominal"]).axes[1]
     left, right = zoom.get_xlim()
-    assert right - left == pytest.approx(4 * 360.0 / 1560)         # four pin-passing periods
+    assert right - left == pytest.approx(4 * 360.0 / 1560)  # four pin-passing periods
 
 
 def test_an_unresolved_ripple_gets_no_zoom(curves):

@@ -9,25 +9,24 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from conftest import ROOT
-from rvfmu.core.quasistatic import equilibria
-from rvfmu.core.units import ARCSEC
+from rvfmu.core.base.units import ARCSEC
+from rvfmu.core.statics.quasistatic import equilibria
 from rvfmu.fmu.build import build_fmu
 
-MAP_POINTS = 6240          # 4 per pin-passing period: te_pp within 0.5 % of the core
+MAP_POINTS = 6240  # 4 per pin-passing period: te_pp within 0.5 % of the core
 SPEED = 1600 * 2 * np.pi / 60  # rad/s at the input, as in seeds 000/001
 STEP = 1e-3
-LONG = 1e4                     # [s] a step over which any jump of an angle is a slow turn
+LONG = 1e4  # [s] a step over which any jump of an angle is a slow turn
 
 
 @pytest.fixture(scope="module")
 def fmu_path(tmp_path_factory, rv40, seed002):
-    return build_fmu(rv40, seed002, tmp_path_factory.mktemp("fmu") / "RVReducer.fmu",
-                     points=MAP_POINTS)
+    return build_fmu(rv40, seed002, tmp_path_factory.mktemp("fmu") / "RVReducer.fmu", points=MAP_POINTS)
 
 
 @pytest.fixture(scope="module")
@@ -43,9 +42,15 @@ def signal(times, theta_in, tau_load):
 
 def run(fmu_path, stop, step, theta_of_t, tau_of_t, outputs=("theta_out", "te_arcsec", "tau_in")):
     times = np.arange(0.0, stop + step / 2, step)
-    return simulate_fmu(str(fmu_path), start_time=0.0, stop_time=stop, output_interval=step,
-                        step_size=step, input=signal(times, theta_of_t(times), tau_of_t(times)),
-                        output=list(outputs))
+    return simulate_fmu(
+        str(fmu_path),
+        start_time=0.0,
+        stop_time=stop,
+        output_interval=step,
+        step_size=step,
+        input=signal(times, theta_of_t(times), tau_of_t(times)),
+        output=list(outputs),
+    )
 
 
 class Instance:
@@ -61,9 +66,12 @@ class Instance:
         self.vr = {v.name: v.valueReference for v in description.modelVariables}
         self.log = []
         unzipped = extract(str(fmu_path))
-        self.fmu = FMU2Slave(guid=description.guid, unzipDirectory=unzipped,
-                             modelIdentifier=description.coSimulation.modelIdentifier,
-                             instanceName=name)
+        self.fmu = FMU2Slave(
+            guid=description.guid,
+            unzipDirectory=unzipped,
+            modelIdentifier=description.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
         self.fmu.instantiate(loggingOn=True, callbacks=None)
         Instance.opened.append(self.fmu)
         self.fmu.fmi2SetDebugLogging(self.fmu.component, True, 0, None)
@@ -109,8 +117,12 @@ def test_validates_with_units_and_default_experiment(fmu_path, description):
     assert description.coSimulation.canGetAndSetFMUstate
     with zipfile.ZipFile(fmu_path) as archive:
         names = set(archive.namelist())
-    assert {"resources/rvfmu/core/solver.py", "resources/te_map.npz",
-            "resources/design.toml", "resources/errors.toml"} <= names
+    assert {
+        "resources/rvfmu/core/statics/solver.py",
+        "resources/te_map.npz",
+        "resources/design.toml",
+        "resources/errors.toml",
+    } <= names
 
 
 def test_constant_speed_and_load_reproduce_the_core_te_curve(fmu_path, rv40, seed002):
@@ -131,8 +143,9 @@ def test_a_load_change_moves_the_output_by_the_core_windup(fmu_path, rv40, seed0
     """Input held still, the load steps from a quarter to all of the rated torque."""
     theta = 123.4
     loads = (-0.25 * rv40.rated_torque, -rv40.rated_torque)
-    result = run(fmu_path, 0.2, STEP, lambda t: theta + 0 * t,
-                 lambda t: np.where(t < 0.1, loads[0], loads[1]))
+    result = run(
+        fmu_path, 0.2, STEP, lambda t: theta + 0 * t, lambda t: np.where(t < 0.1, loads[0], loads[1])
+    )
     before = result["theta_out"][(result["time"] > 0.05) & (result["time"] < 0.095)]
     after = result["theta_out"][result["time"] > 0.15]
     assert np.ptp(before) < 1e-15 and np.ptp(after) < 1e-15
@@ -156,12 +169,13 @@ def test_results_do_not_depend_on_the_communication_step(fmu_path, rv40):
 def test_bad_inputs_are_refused_with_a_logged_message_not_a_crash(fmu_path, description, capfd):
     """Each ends the simulation (fmi2Error, every later step refused) until a reset."""
     inst = Instance(fmu_path, description)
-    for values, size, expected in (({"theta_in": float("nan"), "tau_load": -100.0}, STEP, "theta_in"),
-                                   ({"theta_in": 1.0, "tau_load": float("inf")}, STEP, "tau_load"),
-                                   ({"theta_in": 1.0, "tau_load": -100.0}, -STEP, "step size"),
-                                   ({"theta_in": 1.0, "tau_load": -100.0}, 0.0, "step size = 0.0"),
-                                   ({"theta_in": 1.0, "tau_load": -100.0}, float("nan"),
-                                    "step size = nan")):
+    for values, size, expected in (
+        ({"theta_in": float("nan"), "tau_load": -100.0}, STEP, "theta_in"),
+        ({"theta_in": 1.0, "tau_load": float("inf")}, STEP, "tau_load"),
+        ({"theta_in": 1.0, "tau_load": -100.0}, -STEP, "step size"),
+        ({"theta_in": 1.0, "tau_load": -100.0}, 0.0, "step size = 0.0"),
+        ({"theta_in": 1.0, "tau_load": -100.0}, float("nan"), "step size = nan"),
+    ):
         restart(inst)
         inst.set(theta_in=0.5, tau_load=-100.0)
         inst.step(0.0, STEP)
@@ -171,14 +185,14 @@ def test_bad_inputs_are_refused_with_a_logged_message_not_a_crash(fmu_path, desc
             inst.step(STEP, size)
         assert expected in capfd.readouterr().out
         inst.set(theta_in=0.6, tau_load=-100.0)
-        with pytest.raises(Exception, match="status 3"):            # ended: good inputs too
+        with pytest.raises(Exception, match="status 3"):  # ended: good inputs too
             inst.step(STEP, STEP)
         assert expected in capfd.readouterr().out
-        assert inst.get("te_arcsec") == good                        # the outputs of the last step
+        assert inst.get("te_arcsec") == good  # the outputs of the last step
     restart(inst)
     inst.set(theta_in=0.5, tau_load=-100.0)
     inst.step(0.0, STEP)
-    assert inst.get("te_arcsec") == good                            # usable again after a reset
+    assert inst.get("te_arcsec") == good  # usable again after a reset
 
 
 def restart(inst):
@@ -189,13 +203,17 @@ def restart(inst):
     inst.fmu.exitInitializationMode()
 
 
-@pytest.mark.parametrize("design_file, expected", [
-    ("/no/such/design.toml", "neither a preset"),
-    ("RV-99", "RV-99"),
-    ("bad_z_c", "z_c"),
-])
-def test_a_bad_design_parameter_is_reported_at_initialisation(fmu_path, description, tmp_path,
-                                                              capfd, design_file, expected):
+@pytest.mark.parametrize(
+    "design_file, expected",
+    [
+        ("/no/such/design.toml", "neither a preset"),
+        ("RV-99", "RV-99"),
+        ("bad_z_c", "z_c"),
+    ],
+)
+def test_a_bad_design_parameter_is_reported_at_initialisation(
+    fmu_path, description, tmp_path, capfd, design_file, expected
+):
     if design_file == "bad_z_c":
         path = tmp_path / "bad.toml"
         path.write_text('preset = "RV-40E-121"\nz_c = 41\n')
@@ -208,7 +226,8 @@ def test_a_bad_design_parameter_is_reported_at_initialisation(fmu_path, descript
 
 
 def test_an_error_scale_that_carries_the_errors_past_the_models_limits_is_reported(
-        fmu_path, description, capfd):
+    fmu_path, description, capfd
+):
     # the bundled errors are a few um; x 1e4 they are centimetres (docs/model.md section 4)
     inst = Instance(fmu_path, description, reals={"error_scale": 1e4})
     expected = "must be at most 130 um, 0.1 x the eccentricity e = 1.3 mm"
@@ -224,36 +243,35 @@ def test_info_names_the_bundled_design_and_errors(fmu_path, rv40):
     text = fmu_info(fmu_path)
     assert f"design   {rv40.name} (z_s 12, z_pl 36, z_p 40, rated torque 412.0 N*m)" in text
     assert "errors   8 nonzero: crank_cam_eccentricity, disc_crank_hole" in text
-    assert "a preset name or a design TOML path" in text      # design_file, as the README says
+    assert "a preset name or a design TOML path" in text  # design_file, as the README says
 
 
 def test_load_above_the_momentary_class_warns_once_and_above_emergency_stop_is_refused(
-        fmu_path, description, rv40, capfd):
+    fmu_path, description, rv40, capfd
+):
     inst = Instance(fmu_path, description)
     capfd.readouterr()
     rated = rv40.rated_torque
-    for k, load in enumerate((-2.0 * rated, -3.0 * rated, 4.0 * rated)):   # in range: no Discard
+    for k, load in enumerate((-2.0 * rated, -3.0 * rated, 4.0 * rated)):  # in range: no Discard
         inst.set(theta_in=1.0 + k, tau_load=load)
         inst.step(k * STEP, STEP)
     log = capfd.readouterr().out
-    assert log.count("above the momentary maximum class") == 1        # warned once, not per step
-    assert "tau_load = -1236 N*m" in log                              # the first offending input
+    assert log.count("above the momentary maximum class") == 1  # warned once, not per step
+    assert "tau_load = -1236 N*m" in log  # the first offending input
     inst.set(theta_in=3.5, tau_load=-5.5 * rated)
-    with pytest.raises(Exception, match="status 3"):                  # fmi2Error: ended
+    with pytest.raises(Exception, match="status 3"):  # fmi2Error: ended
         inst.step(3 * STEP, STEP)
     assert "tau_load = -2266.0: must be within +-5 x the rated torque 412" in capfd.readouterr().out
     restart(inst)
     inst.set(theta_in=0.5, tau_load=-rated)
-    inst.step(0.0, STEP)                                              # usable after a reset
+    inst.step(0.0, STEP)  # usable after a reset
 
 
 def test_error_scale_zero_is_the_error_free_reducer(fmu_path, description, rv40, tmp_path):
     clean_fmu = build_fmu(rv40, None, tmp_path / "clean.fmu", points=624)
     clean = Instance(clean_fmu, read_model_description(str(clean_fmu)))
-    zeroed = Instance(fmu_path, description, reals={"error_scale": 0.0},
-                      ints={"map_points": 624})
-    errors = Instance(fmu_path, description, reals={"error_scale": 1.0},
-                      ints={"map_points": 624})
+    zeroed = Instance(fmu_path, description, reals={"error_scale": 0.0}, ints={"map_points": 624})
+    errors = Instance(fmu_path, description, reals={"error_scale": 1.0}, ints={"map_points": 624})
     t = 0.0
     for theta, load in ((0.3, -400.0), (17.0, -10.0), (2.2, 0.0), (50.0, 300.0), (80.1, -800.0)):
         for inst in (clean, zeroed, errors):
@@ -262,11 +280,11 @@ def test_error_scale_zero_is_the_error_free_reducer(fmu_path, description, rv40,
         t += LONG
         assert zeroed.get("te")[0] == pytest.approx(clean.get("te")[0], abs=1e-12)
         assert zeroed.get("tau_in")[0] == pytest.approx(clean.get("tau_in")[0], abs=1e-12)
-        assert abs(errors.get("te")[0] - clean.get("te")[0]) > 1e-7   # the errors do show
+        assert abs(errors.get("te")[0] - clean.get("te")[0]) > 1e-7  # the errors do show
 
 
 def test_state_roll_back_and_re_step_give_identical_results(fmu_path, description):
-    inst = Instance(fmu_path, description, reals={"theta_in": 9.9})   # no jump to 10 in 1 ms
+    inst = Instance(fmu_path, description, reals={"theta_in": 9.9})  # no jump to 10 in 1 ms
     inst.set(theta_in=10.0, tau_load=-200.0)
     inst.step(0.0, STEP)
     state = inst.fmu.getFMUstate()
@@ -274,7 +292,7 @@ def test_state_roll_back_and_re_step_give_identical_results(fmu_path, descriptio
     inst.step(STEP, STEP)
     first = inst.get("theta_out", "omega_out", "te", "tau_in")
     inst.set(theta_in=55.0, tau_load=100.0)
-    inst.step(2 * STEP, 1.0)                                  # 45 rad in 1 s, not in 1 ms
+    inst.step(2 * STEP, 1.0)  # 45 rad in 1 s, not in 1 ms
     inst.fmu.setFMUstate(state)
     inst.set(theta_in=10.1, tau_load=-300.0)
     inst.step(STEP, STEP)
@@ -286,7 +304,7 @@ def test_reset_returns_to_the_start(fmu_path, description):
     inst = Instance(fmu_path, description)
     start = inst.get("theta_out", "te")
     inst.set(theta_in=20.0, tau_load=-400.0)
-    inst.step(0.0, 1.0)                                       # 20 rad in 1 s, not in 1 ms
+    inst.step(0.0, 1.0)  # 20 rad in 1 s, not in 1 ms
     inst.fmu.reset()
     inst.fmu.setupExperiment(startTime=0.0)
     inst.fmu.enterInitializationMode()
@@ -297,8 +315,12 @@ def test_reset_returns_to_the_start(fmu_path, description):
 def test_instances_in_one_process_stay_independent(fmu_path, description, rv40):
     plain = Instance(fmu_path, description, name="plain", reals={"theta_in": 4.9})
     # a second instance with other physics: no errors, the map solved again at init
-    clean = Instance(fmu_path, description, name="clean",
-                     reals={"error_scale": 0.0, "pin_stiffness_scale": 1.0, "theta_in": 4.9})
+    clean = Instance(
+        fmu_path,
+        description,
+        name="clean",
+        reals={"error_scale": 0.0, "pin_stiffness_scale": 1.0, "theta_in": 4.9},
+    )
     alone = Instance(fmu_path, description, name="alone", reals={"theta_in": 4.9})
     for inst, theta in ((plain, 5.0), (clean, 5.0), (alone, 5.0)):
         inst.set(theta_in=theta, tau_load=-rv40.rated_torque)
@@ -321,10 +343,22 @@ def native_env(site_packages):
 def test_native_engine_libcosim_runs_the_fmu_with_the_readme_recipe(fmu_path, rv40, tmp_path):
     site = ":".join(p for p in sys.path if p.endswith("site-packages"))
     out = tmp_path / "cosim.csv"
-    proc = subprocess.run([sys.executable, str(ROOT / "studies" / "native_host" / "run_libcosim.py"),
-                           str(fmu_path), str(out), "--load", str(rv40.rated_torque),
-                           "--duration", "0.05"],
-                          env=native_env(site), capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "studies" / "native_host" / "run_libcosim.py"),
+            str(fmu_path),
+            str(out),
+            "--load",
+            str(rv40.rated_torque),
+            "--duration",
+            "0.05",
+        ],
+        env=native_env(site),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     data = np.genfromtxt(out, delimiter=",", names=True)
     # libcosim sets theta_in(t) then steps to t + h: outputs belong to theta_in(t)
@@ -334,8 +368,8 @@ def test_native_engine_libcosim_runs_the_fmu_with_the_readme_recipe(fmu_path, rv
 
 
 def rv40_errors():
-    from rvfmu.core.design import preset
-    from rvfmu.core.errors import load_errors
+    from rvfmu.core.reducer.design import preset
+    from rvfmu.core.reducer.errors import load_errors
 
     return load_errors(ROOT / "studies" / "seed002_errors.toml", preset("RV-40E-121"))
 
@@ -346,11 +380,16 @@ def test_runs_where_numpy_and_scipy_are_installed_but_not_rvte_nor_numba(fmu_pat
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
     python = venv / "bin" / "python"
-    subprocess.run([str(python), "-m", "pip", "install", "-q", "numpy", "scipy", "fmpy", "libcosimpy"],
-                   check=True, timeout=900, capture_output=True)
+    subprocess.run(
+        [str(python), "-m", "pip", "install", "-q", "numpy", "scipy", "fmpy", "libcosimpy"],
+        check=True,
+        timeout=900,
+        capture_output=True,
+    )
     for module in ("rvfmu", "numba"):
-        probe = subprocess.run([str(python), "-c", f"import {module}"], capture_output=True, text=True,
-                               cwd=tmp_path)
+        probe = subprocess.run(
+            [str(python), "-c", f"import {module}"], capture_output=True, text=True, cwd=tmp_path
+        )
         assert probe.returncode != 0 and f"No module named '{module}'" in probe.stderr
     script = tmp_path / "run.py"
     script.write_text(
@@ -366,19 +405,32 @@ def test_runs_where_numpy_and_scipy_are_installed_but_not_rvte_nor_numba(fmu_pat
         "r = simulate_fmu(sys.argv[1], stop_time=0.05, **options)\n"
         "print(repr(float(r['te_arcsec'][-1])))\n"
         "r = simulate_fmu(sys.argv[1], stop_time=0.01, start_values={'model': 'dynamic'}, **options)\n"
-        "print(json.dumps(r['te_arcsec'].tolist()))\n")
+        "print(json.dumps(r['te_arcsec'].tolist()))\n"
+    )
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
-    proc = subprocess.run([str(python), str(script), str(fmu_path)], capture_output=True, text=True,
-                          env=env, timeout=600, cwd=tmp_path)
+    proc = subprocess.run(
+        [str(python), str(script), str(fmu_path)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+        cwd=tmp_path,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     static_last, dynamic = proc.stdout.strip().splitlines()[-2:]
     inside = run(fmu_path, 0.05, STEP, lambda t: SPEED * t, lambda t: -412.0 + 0 * t)
     assert float(static_last) == pytest.approx(inside["te_arcsec"][-1], abs=1e-9)
     # the same dynamic run in this process, where the kernels may be numba-compiled: equal to rounding
     times = np.arange(0, 0.0505, STEP)
-    inside = simulate_fmu(str(fmu_path), stop_time=0.01, output_interval=STEP, step_size=STEP,
-                          input=signal(times, SPEED * times, -412.0 + 0 * times),
-                          output=["te_arcsec"], start_values={"model": "dynamic"})["te_arcsec"]
+    inside = simulate_fmu(
+        str(fmu_path),
+        stop_time=0.01,
+        output_interval=STEP,
+        step_size=STEP,
+        input=signal(times, SPEED * times, -412.0 + 0 * times),
+        output=["te_arcsec"],
+        start_values={"model": "dynamic"},
+    )["te_arcsec"]
     dynamic = np.array(json.loads(dynamic))
     assert dynamic.shape == inside.shape, proc.stderr[-2000:]
     assert np.isfinite(dynamic).all()
@@ -387,11 +439,25 @@ def test_runs_where_numpy_and_scipy_are_installed_but_not_rvte_nor_numba(fmu_pat
     cosim = {}
     for model, duration in (("quasistatic", "0.02"), ("dynamic", "0.01")):
         out = tmp_path / f"cosim_{model}.csv"
-        proc = subprocess.run([str(python), str(ROOT / "studies" / "native_host" / "run_libcosim.py"),
-                               str(fmu_path), str(out), "--load", "412", "--duration", duration,
-                               "--model", model],
-                              env=native_env(site), capture_output=True, text=True, timeout=600,
-                              cwd=tmp_path)
+        proc = subprocess.run(
+            [
+                str(python),
+                str(ROOT / "studies" / "native_host" / "run_libcosim.py"),
+                str(fmu_path),
+                str(out),
+                "--load",
+                "412",
+                "--duration",
+                duration,
+                "--model",
+                model,
+            ],
+            env=native_env(site),
+            capture_output=True,
+            text=True,
+            timeout=600,
+            cwd=tmp_path,
+        )
         assert proc.returncode == 0, proc.stderr[-2000:]
         cosim[model] = np.genfromtxt(out, delimiter=",", names=True)["te_arcsec"]
         assert np.isfinite(cosim[model]).all()

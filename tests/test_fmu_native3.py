@@ -25,21 +25,43 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi3 import FMU3Slave, fmi3Boolean, fmi3Error, fmi3Float64, fmi3OK
 from fmpy.validation import validate_fmu
+from test_fmu import (
+    Instance,
+    free_instances,  # noqa: F401 - frees every instance after a test
+)
+from test_fmu_native import (
+    BAD_STEPS,
+    MAP_POINTS,
+    OUTPUTS,
+    STEP,
+    corrupt,
+    drive,
+    native,  # noqa: F401 - the FMI 2.0 native FMU fixture
+    varying_run,
+)
+from test_fmu_native_hosts import (
+    CYCLES,
+    SANITIZE,
+    STEPS,
+    VALGRIND,
+    assert_fmutool_compliant,
+    assert_sanitizers_clean,
+    assert_valgrind_clean,
+    compile_host,
+    fmutool,  # noqa: F401 - fmu-manipulation-toolbox's command
+    fmutool_check,
+    last_step_te,
+    nan_table_resources,
+    sanitized_library,
+    tool,
+    without_line,
+)
 
 from rvfmu import cli
-from rvfmu.core.checks import InputError
+from rvfmu.core.base.checks import InputError
 from rvfmu.fmu.api import check_fmi_version, fmu_build, fmu_info
 from rvfmu.fmu.fmi3 import FMI3_SOURCE_FILES
 from rvfmu.fmu.native import PARAMETERS, TABLE_NAME, VARIABLES, WIN64_COMPILER, native_platforms
-from test_fmu import Instance
-from test_fmu import free_instances  # noqa: F401 - frees every instance after a test
-from test_fmu_native import BAD_STEPS, MAP_POINTS, OUTPUTS, STEP, corrupt, drive, varying_run
-from test_fmu_native import native  # noqa: F401 - the FMI 2.0 native FMU fixture
-from test_fmu_native_hosts import (CYCLES, SANITIZE, STEPS, VALGRIND, assert_fmutool_compliant,
-                                   assert_sanitizers_clean, assert_valgrind_clean, compile_host,
-                                   fmutool_check, last_step_te, nan_table_resources,
-                                   sanitized_library, tool, without_line)
-from test_fmu_native_hosts import fmutool  # noqa: F401 - fmu-manipulation-toolbox's command
 
 HOST_SOURCE = Path(__file__).with_name("native3_host_cycles.c")
 LIBRARY = "binaries/x86_64-linux/RVReducer.so"
@@ -58,19 +80,27 @@ FMI3_COSIMULATION_FUNCTIONS = (
     "EnterConfigurationMode ExitConfigurationMode GetIntervalDecimal GetIntervalFraction "
     "GetShiftDecimal GetShiftFraction SetIntervalDecimal SetIntervalFraction SetShiftDecimal "
     "SetShiftFraction EvaluateDiscreteStates UpdateDiscreteStates EnterStepMode "
-    "GetOutputDerivatives DoStep").split()
+    "GetOutputDerivatives DoStep"
+).split()
 # the rest of the API, exported too (importers look every function up), refusing every call
 FMI3_OTHER_FUNCTIONS = (
     "EnterContinuousTimeMode CompletedIntegratorStep SetTime SetContinuousStates "
     "GetContinuousStateDerivatives GetEventIndicators GetContinuousStates "
     "GetNominalsOfContinuousStates GetNumberOfEventIndicators GetNumberOfContinuousStates "
-    "ActivateModelPartition").split()
+    "ActivateModelPartition"
+).split()
 
 
 @pytest.fixture(scope="module")
 def native3(tmp_path_factory, rv40, seed002):
-    path = fmu_build(rv40, seed002, tmp_path_factory.mktemp("native3") / "RVReducer3.fmu",
-                     points=MAP_POINTS, native=True, fmi_version=3)
+    path = fmu_build(
+        rv40,
+        seed002,
+        tmp_path_factory.mktemp("native3") / "RVReducer3.fmu",
+        points=MAP_POINTS,
+        native=True,
+        fmi_version=3,
+    )
     return path, read_model_description(str(path))
 
 
@@ -92,9 +122,12 @@ class Instance3(Instance):
     def __init__(self, fmu_path, description, name="reducer", reals=None, unzipped=None):
         self.vr = {v.name: v.valueReference for v in description.modelVariables}
         unzipped = unzipped or extract(str(fmu_path))
-        self.fmu = FMU3Slave(guid=description.guid, unzipDirectory=unzipped,
-                             modelIdentifier=description.coSimulation.modelIdentifier,
-                             instanceName=name)
+        self.fmu = FMU3Slave(
+            guid=description.guid,
+            unzipDirectory=unzipped,
+            modelIdentifier=description.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
         self.fmu.instantiate(loggingOn=True)
         Instance.opened.append(self.fmu)
         self.start(reals)
@@ -116,6 +149,7 @@ class Instance3(Instance):
 
 
 # -- the same outputs, refusals and log lines as the FMI 2.0 native FMU ---------------------
+
 
 def test_outputs_equal_the_fmi2_fmus_over_a_long_varying_run(native, native3, rv40):
     """Speed swinging 200..1800 rpm, held still, a load reversing through +-2.7 x rated."""
@@ -151,12 +185,13 @@ def test_bad_inputs_end_the_simulation_with_the_fmi2_fmus_log_lines(native, nati
             inst.set(**values)
             with pytest.raises(Exception, match=r"status 3 \(error\)"):
                 inst.step(STEP, size)
-            assert inst.get(*OUTPUTS) == good                     # the step changed nothing
+            assert inst.get(*OUTPUTS) == good  # the step changed nothing
             inst.set(theta_in=0.6, tau_load=-100.0)
             with pytest.raises(Exception, match=r"status 3 \(error\)"):
-                inst.step(STEP, STEP)                             # ended: good inputs refused too
-        logs[make] = [line for line in capfd.readouterr().out.splitlines()
-                      if not line.startswith("[OK]")]             # the resets, with logging on
+                inst.step(STEP, STEP)  # ended: good inputs refused too
+        logs[make] = [
+            line for line in capfd.readouterr().out.splitlines() if not line.startswith("[OK]")
+        ]  # the resets, with logging on
     assert len(logs[Instance3]) == 2 * len(BAD_STEPS)
     for k, (_, _, expected) in enumerate(BAD_STEPS):
         assert logs[Instance3][2 * k].startswith(f"[ERROR] {expected}"), logs[Instance3][2 * k]
@@ -171,32 +206,35 @@ def test_a_load_above_the_momentary_class_warns_once_as_in_fmi2(native, native3,
         inst = make(*fmu)
         capfd.readouterr()
         for k, load in enumerate((-2.0 * rated, -3.0 * rated, 4.0 * rated, -4.9 * rated)):
-            inst.set(theta_in=0.5 + 0.5 * k, tau_load=load)      # 39 rpm out: no speed warning
-            inst.step(k * STEP, STEP)                             # computed: no exception
+            inst.set(theta_in=0.5 + 0.5 * k, tau_load=load)  # 39 rpm out: no speed warning
+            inst.step(k * STEP, STEP)  # computed: no exception
         logs[make] = capfd.readouterr().out.splitlines()
-    assert logs[Instance3] == logs[Instance] == [
-        "[WARNING] input tau_load = -1236 N*m is 3 x the rated torque 412 N*m, above the "
-        "momentary maximum class (2.5 x): the small-displacement model is stretched; treat "
-        "the results with care"]
+    assert (
+        logs[Instance3]
+        == logs[Instance]
+        == [
+            "[WARNING] input tau_load = -1236 N*m is 3 x the rated torque 412 N*m, above the "
+            "momentary maximum class (2.5 x): the small-displacement model is stretched; treat "
+            "the results with care"
+        ]
+    )
 
 
 def test_step_results_say_a_refused_input_ends_the_simulation(native3, capfd):
     inst = Instance3(*native3)
-    do_step = inst.fmu.dll.fmi3DoStep                     # the C function: its status and flags
-    flags = [fmi3Boolean(True) for _ in range(3)]         # eventHandlingNeeded, terminate, early
+    do_step = inst.fmu.dll.fmi3DoStep  # the C function: its status and flags
+    flags = [fmi3Boolean(True) for _ in range(3)]  # eventHandlingNeeded, terminate, early
     reached = fmi3Float64()
     inst.set(theta_in=0.5)
     status = do_step(inst.fmu.component, 0.5, STEP, True, *map(byref, flags), byref(reached))
     assert status == fmi3OK and [f.value for f in flags] == [False, False, False]
     assert reached.value == 0.5 + STEP
     inst.set(theta_in=float("nan"))
-    status = do_step(inst.fmu.component, 0.5 + STEP, STEP, True, *map(byref, flags),
-                     byref(reached))
+    status = do_step(inst.fmu.component, 0.5 + STEP, STEP, True, *map(byref, flags), byref(reached))
     assert status == fmi3Error and [f.value for f in flags] == [False, True, False]
-    assert reached.value == 0.5 + STEP                    # it did not get past the start
-    inst.set(theta_in=0.6)                                # good inputs: the simulation has ended
-    status = do_step(inst.fmu.component, 0.5 + STEP, STEP, True, *map(byref, flags),
-                     byref(reached))
+    assert reached.value == 0.5 + STEP  # it did not get past the start
+    inst.set(theta_in=0.6)  # good inputs: the simulation has ended
+    status = do_step(inst.fmu.component, 0.5 + STEP, STEP, True, *map(byref, flags), byref(reached))
     assert status == fmi3Error and flags[1].value
     # bad initial inputs: fmi3ExitInitializationMode refuses, and every step after it
     inst.fmu.reset()
@@ -205,24 +243,27 @@ def test_step_results_say_a_refused_input_ends_the_simulation(native3, capfd):
     inst.fmu.enterInitializationMode(startTime=0.0)
     with pytest.raises(Exception, match=r"status 3"):
         inst.fmu.exitInitializationMode()
-    assert "[ERROR] initialisation failed: input theta_in = nan: must be finite" in \
-        capfd.readouterr().out
+    assert "[ERROR] initialisation failed: input theta_in = nan: must be finite" in capfd.readouterr().out
     inst.set(theta_in=1.0, tau_load=0.0)
     status = do_step(inst.fmu.component, 0.0, STEP, True, *map(byref, flags), byref(reached))
-    assert status == fmi3Error and flags[1].value         # terminateSimulation
+    assert status == fmi3Error and flags[1].value  # terminateSimulation
     inst.fmu.reset()
     inst.start()
     inst.step(0.0, STEP)
 
 
-@pytest.mark.parametrize("how, reason", [
-    ("nan", "non-finite values in the torque levels, te, tau_in or the friction"),
-    ("magic", "not a TE map table (no RVTEMAP magic)"),
-    ("truncated", "6240 angle points x 16 torque levels, 259 speeds and 49 temperatures do not fit its"),
-    ("missing", "cannot be opened"),
-])
-def test_a_corrupt_table_fails_instantiation_with_the_reason_logged(native3, unzipped3, tmp_path,
-                                                                  capfd, how, reason):
+@pytest.mark.parametrize(
+    "how, reason",
+    [
+        ("nan", "non-finite values in the torque levels, te, tau_in or the friction"),
+        ("magic", "not a TE map table (no RVTEMAP magic)"),
+        ("truncated", "6240 angle points x 16 torque levels, 259 speeds and 49 temperatures do not fit its"),
+        ("missing", "cannot be opened"),
+    ],
+)
+def test_a_corrupt_table_fails_instantiation_with_the_reason_logged(
+    native3, unzipped3, tmp_path, capfd, how, reason
+):
     copy = tmp_path / "fmu"
     shutil.copytree(unzipped3, copy)
     table = copy / "resources" / TABLE_NAME
@@ -230,8 +271,9 @@ def test_a_corrupt_table_fails_instantiation_with_the_reason_logged(native3, unz
         table.unlink()
     else:
         table.write_bytes(corrupt(bytearray(table.read_bytes()), how))
-    fmu = FMU3Slave(guid=native3[1].guid, unzipDirectory=str(copy), modelIdentifier="RVReducer",
-                    instanceName="bad")
+    fmu = FMU3Slave(
+        guid=native3[1].guid, unzipDirectory=str(copy), modelIdentifier="RVReducer", instanceName="bad"
+    )
     capfd.readouterr()
     with pytest.raises(Exception, match="Failed to instantiate"):
         fmu.instantiate(loggingOn=False)
@@ -241,26 +283,41 @@ def test_a_corrupt_table_fails_instantiation_with_the_reason_logged(native3, unz
 
 # -- the FMU: description, sources, binaries, the CLI ---------------------------------------
 
+
 def test_validates_with_the_fmi2_fmus_variables_units_and_value_references(native, native3):
     path, md = native3
     assert validate_fmu(str(path)) == []
-    assert md.fmiVersion == "3.0" and md.guid.startswith("{")        # the instantiationToken
+    assert md.fmiVersion == "3.0" and md.guid.startswith("{")  # the instantiationToken
     cs = md.coSimulation
     assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
     assert cs.canHandleVariableCommunicationStepSize and not cs.hasEventMode
     assert float(md.defaultExperiment.stepSize) == STEP
     time, *variables = md.modelVariables
-    assert (time.name, time.causality, time.unit, time.valueReference) == \
-        ("time", "independent", "s", len(VARIABLES))
+    assert (time.name, time.causality, time.unit, time.valueReference) == (
+        "time",
+        "independent",
+        "s",
+        len(VARIABLES),
+    )
     two = native[1]
-    assert [v.name for v in variables] == [v.name for v in two.modelVariables] == \
-        list(VARIABLES) + list(PARAMETERS)
+    assert (
+        [v.name for v in variables]
+        == [v.name for v in two.modelVariables]
+        == list(VARIABLES) + list(PARAMETERS)
+    )
     for v, t in zip(variables, two.modelVariables):
         assert v.type == "Float64"
-        assert (v.valueReference, v.causality, v.variability, v.initial, v.unit, v.description) == \
-               (t.valueReference, t.causality, t.variability, t.initial, t.unit, t.description)
-    assert {(u.name, str(u.baseUnit)) for u in md.unitDefinitions} == \
-           {(u.name, str(u.baseUnit)) for u in two.unitDefinitions}
+        assert (v.valueReference, v.causality, v.variability, v.initial, v.unit, v.description) == (
+            t.valueReference,
+            t.causality,
+            t.variability,
+            t.initial,
+            t.unit,
+            t.description,
+        )
+    assert {(u.name, str(u.baseUnit)) for u in md.unitDefinitions} == {
+        (u.name, str(u.baseUnit)) for u in two.unitDefinitions
+    }
     outputs = [v for v in variables if v.causality == "output"]
     assert [u.variable for u in md.outputs] == outputs
     assert [u.variable for u in md.initialUnknowns] == outputs
@@ -269,9 +326,19 @@ def test_validates_with_the_fmi2_fmus_variables_units_and_value_references(nativ
     assert source_set.sourceFiles == list(FMI3_SOURCE_FILES) and source_set.language == "C99"
     with zipfile.ZipFile(path) as archive:
         names = set(archive.namelist())
-    assert {LIBRARY, DLL, "sources/buildDescription.xml", "sources/fmi3Functions.c",
-            "sources/model.c", "sources/model.h", "sources/instance.c", "sources/instance.h",
-            f"resources/{TABLE_NAME}", "resources/design.toml", "resources/errors.toml"} <= names
+    assert {
+        LIBRARY,
+        DLL,
+        "sources/buildDescription.xml",
+        "sources/fmi3Functions.c",
+        "sources/model.c",
+        "sources/model.h",
+        "sources/instance.c",
+        "sources/instance.h",
+        f"resources/{TABLE_NAME}",
+        "resources/design.toml",
+        "resources/errors.toml",
+    } <= names
     assert not any("fmi2" in n or "python" in n.lower() or n.endswith(".py") for n in names)
     assert native_platforms(path) == ["x86_64-linux", "x86_64-windows"]
 
@@ -284,8 +351,9 @@ def test_model_c_is_the_fmi2_fmus_to_the_byte(unzipped3, native):
 
 def test_fmu_info_says_the_fmi_version(native, native3):
     for fmu, version in ((native3, "3.0"), (native, "2.0")):
-        assert fmu_info(fmu[0]).splitlines()[0] == \
-            f"RVReducer  FMI {version} co-simulation  (rvte (native FMU))"
+        assert (
+            fmu_info(fmu[0]).splitlines()[0] == f"RVReducer  FMI {version} co-simulation  (rvte (native FMU))"
+        )
 
 
 def test_the_cli_builds_it_and_refuses_other_versions_and_fmi3_without_native(tmp_path, capsys):
@@ -299,31 +367,49 @@ def test_the_cli_builds_it_and_refuses_other_versions_and_fmi3_without_native(tm
 
     printed = io.StringIO()
     with mock.patch("shutil.which", hidden), contextlib.redirect_stdout(printed):
-        assert cli.main(["fmu", "build", "RV-40E-121", "--native", "--fmi-version", "3",
-                         "--points", "624", "-o", str(path)]) in (0, None)
-    assert "binaries: x86_64-linux; no win64: x86_64-w64-mingw32-gcc was not found" in \
-        printed.getvalue()
+        assert cli.main(
+            [
+                "fmu",
+                "build",
+                "RV-40E-121",
+                "--native",
+                "--fmi-version",
+                "3",
+                "--points",
+                "624",
+                "-o",
+                str(path),
+            ]
+        ) in (0, None)
+    assert "binaries: x86_64-linux; no win64: x86_64-w64-mingw32-gcc was not found" in printed.getvalue()
     assert native_platforms(path) == ["x86_64-linux"] and validate_fmu(str(path)) == []
     inst = Instance3(path, read_model_description(str(path)))
     inst.set(theta_in=1.0, tau_load=-412.0)
     inst.step(0.0, STEP)
-    assert inst.get("te")[0] < 0                       # a resisting load winds the output back
+    assert inst.get("te")[0] < 0  # a resisting load winds the output back
     assert cli.main(["fmu", "info", str(path)]) in (0, None)
     assert "FMI 3.0 co-simulation" in capsys.readouterr().out
     for argv, message in (
-            (["--native", "--fmi-version", "4"],
-             "fmi_version = '4': must be 2 or 3 (FMI 2.0 or FMI 3.0)"),
-            (["--native", "--fmi-version", "3.1"], "fmi_version = '3.1': must be 2 or 3"),
-            (["--fmi-version", "3"], "fmi_version = '3': FMI 3.0 needs the native FMU (--native): "
-                                     "the pythonfmu FMU is FMI 2.0 only")):
+        (["--native", "--fmi-version", "4"], "fmi_version = '4': must be 2 or 3 (FMI 2.0 or FMI 3.0)"),
+        (["--native", "--fmi-version", "3.1"], "fmi_version = '3.1': must be 2 or 3"),
+        (
+            ["--fmi-version", "3"],
+            "fmi_version = '3': FMI 3.0 needs the native FMU (--native): the pythonfmu FMU is FMI 2.0 only",
+        ),
+    ):
         assert cli.main(["fmu", "build", "RV-40E-121", *argv, "-o", str(tmp_path / "x.fmu")]) == 2
         assert f"rvte fmu: error: {message}" in capsys.readouterr().err
     assert not (tmp_path / "x.fmu").exists()
 
 
 def test_the_fmi_version_is_2_or_3_and_3_is_native_only():
-    for given, native_fmu, version in ((2, False, 2), ("2", True, 2), ("3", True, 3),
-                                       (3.0, True, 3), ("3.0", True, 3)):
+    for given, native_fmu, version in (
+        (2, False, 2),
+        ("2", True, 2),
+        ("3", True, 3),
+        (3.0, True, 3),
+        ("3.0", True, 3),
+    ):
         assert check_fmi_version(given, native_fmu) == version
     for given in (1, 4, "2.5", "three", True, None, ""):
         with pytest.raises(InputError, match="fmi_version = .*: must be 2 or 3"):
@@ -332,8 +418,7 @@ def test_the_fmi_version_is_2_or_3_and_3_is_native_only():
         check_fmi_version(3, False)
 
 
-def test_a_tool_compiles_the_sources_from_build_description_alone(native3, unzipped3, rv40,
-                                                                  tmp_path):
+def test_a_tool_compiles_the_sources_from_build_description_alone(native3, unzipped3, rv40, tmp_path):
     """What `fmpy compile` does: binaries/ removed, the library rebuilt from sources/ as
     buildDescription.xml lists them (no flag of ours), and it steps as the shipped one."""
     from fmpy.build import build_platform_binary
@@ -347,37 +432,40 @@ def test_a_tool_compiles_the_sources_from_build_description_alone(native3, unzip
     assert (copy / LIBRARY).is_file()
     theta_in, tau_load = varying_run(rv40.rated_torque, steps=400)
     rebuilt = drive(Instance3(*native3, unzipped=str(copy), name="rebuilt"), theta_in, tau_load)
-    shipped = drive(Instance3(*native3, unzipped=str(unzipped3), name="shipped"), theta_in,
-                    tau_load)
+    shipped = drive(Instance3(*native3, unzipped=str(unzipped3), name="shipped"), theta_in, tau_load)
     np.testing.assert_allclose(rebuilt, shipped, rtol=1e-12, atol=1e-15)
 
 
 def test_the_shared_library_exports_only_the_fmi3_functions(unzipped3):
-    exported = subprocess.run(["nm", "-D", "--defined-only", str(unzipped3 / LIBRARY)],
-                              capture_output=True, text=True, check=True).stdout.split()
-    assert {name for name in exported if name.startswith("fmi")} == \
-        {f"fmi3{f}" for f in FMI3_COSIMULATION_FUNCTIONS + FMI3_OTHER_FUNCTIONS}
+    exported = subprocess.run(
+        ["nm", "-D", "--defined-only", str(unzipped3 / LIBRARY)], capture_output=True, text=True, check=True
+    ).stdout.split()
+    assert {name for name in exported if name.startswith("fmi")} == {
+        f"fmi3{f}" for f in FMI3_COSIMULATION_FUNCTIONS + FMI3_OTHER_FUNCTIONS
+    }
     assert not {"te_map_read", "reducer_step", "core_step"} & set(exported)
 
 
 def test_win64_is_a_pe_dll_exporting_every_fmi3_cosimulation_function(native3, unzipped3):
     tool(WIN64_COMPILER, "mingw-w64")
-    dump = subprocess.run(["x86_64-w64-mingw32-objdump", "-p", str(unzipped3 / DLL)],
-                          capture_output=True, text=True, check=True).stdout
+    dump = subprocess.run(
+        ["x86_64-w64-mingw32-objdump", "-p", str(unzipped3 / DLL)], capture_output=True, text=True, check=True
+    ).stdout
     assert "pei-x86-64" in dump and "DLL" in dump
-    exports = dump[dump.index("[Ordinal/Name Pointer] Table"):]
+    exports = dump[dump.index("[Ordinal/Name Pointer] Table") :]
     exported = {line.split()[-1] for line in exports.splitlines() if "] fmi" in line}
     assert exported == {f"fmi3{f}" for f in FMI3_COSIMULATION_FUNCTIONS + FMI3_OTHER_FUNCTIONS}
     imported = {line.split()[-1].lower() for line in dump.splitlines() if "DLL Name:" in line}
-    assert imported <= {"kernel32.dll", "msvcrt.dll"}            # no libgcc DLL to ship
+    assert imported <= {"kernel32.dll", "msvcrt.dll"}  # no libgcc DLL to ship
 
 
 # -- states, reset, instances ---------------------------------------------------------------
 
+
 def test_state_roll_back_serialisation_and_reset(native3):
     inst = Instance3(*native3, reals={"theta_in": 9.9, "tau_load": -50.0})
     start = inst.get(*OUTPUTS)
-    assert start[1] == 0.0 and start[0] != 0.0                    # from the initial inputs
+    assert start[1] == 0.0 and start[0] != 0.0  # from the initial inputs
     inst.set(theta_in=10.0, tau_load=-200.0)
     inst.step(0.0, STEP)
     state = inst.fmu.getFMUState()
@@ -387,14 +475,14 @@ def test_state_roll_back_serialisation_and_reset(native3):
     first = inst.get(*OUTPUTS)
     assert first[1] != 0.0
     inst.set(theta_in=55.0, tau_load=100.0)
-    inst.step(2 * STEP, 1.0)                                      # 45 rad in 1 s, not in 1 ms
+    inst.step(2 * STEP, 1.0)  # 45 rad in 1 s, not in 1 ms
     inst.fmu.setFMUState(state)
     assert inst.get("theta_in", "tau_load", "time") == [10.0, -200.0, STEP]
     inst.set(theta_in=10.1, tau_load=-300.0)
     inst.step(STEP, STEP)
     assert inst.get(*OUTPUTS) == first
     inst.fmu.freeFMUState(state)
-    other = Instance3(*native3, name="other")                      # read back in another instance
+    other = Instance3(*native3, name="other")  # read back in another instance
     restored = other.fmu.deserializeFMUState(serialized)
     other.fmu.setFMUState(restored)
     other.set(theta_in=10.1, tau_load=-300.0)
@@ -414,11 +502,10 @@ def test_state_roll_back_serialisation_and_reset(native3):
 def test_several_instances_of_both_standards_in_one_process_stay_independent(native, native3, rv40):
     theta_in, tau_load = varying_run(rv40.rated_torque, steps=300)
     alone = drive(Instance3(*native3, name="alone"), theta_in, tau_load)
-    insts = [Instance3(*native3, name="a"), Instance(*native, name="b"),
-             Instance3(*native3, name="c")]
+    insts = [Instance3(*native3, name="a"), Instance(*native, name="b"), Instance3(*native3, name="c")]
     rows = [[], [], []]
     for k, (theta, load) in enumerate(zip(theta_in, tau_load)):
-        for j, inst in enumerate(insts):                           # interleaved, c half a rad on
+        for j, inst in enumerate(insts):  # interleaved, c half a rad on
             inst.set(theta_in=theta + (0.5 if j == 2 else 0.0), tau_load=load)
             inst.step(k * STEP, STEP)
             rows[j].append(inst.get(*OUTPUTS))
@@ -467,20 +554,38 @@ with open(f"{out}/report.json", "w") as handle:
 
 
 def test_fmpy_simulates_it_as_the_fmi2_fmu_in_a_process_without_rvte_nor_python_variables(
-        native, native3, unzipped3, rv40, tmp_path):
-    needed = subprocess.run(["readelf", "-d", str(unzipped3 / LIBRARY)], capture_output=True,
-                            text=True, check=True).stdout
+    native, native3, unzipped3, rv40, tmp_path
+):
+    needed = subprocess.run(
+        ["readelf", "-d", str(unzipped3 / LIBRARY)], capture_output=True, text=True, check=True
+    ).stdout
     assert "NEEDED" in needed and "python" not in needed.lower()
     script = tmp_path / "clean_host.py"
     script.write_text(CLEAN_HOST)
-    site = os.pathsep.join(dict.fromkeys(p for p in sys.path
-                                         if Path(p).name in ("site-packages", "dist-packages")))
+    site = os.pathsep.join(
+        dict.fromkeys(p for p in sys.path if Path(p).name in ("site-packages", "dist-packages"))
+    )
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON") and k != "LD_PRELOAD"}
     work = tmp_path / "cwd"
     work.mkdir()
-    done = subprocess.run([sys.executable, "-I", "-S", str(script), site, str(native3[0]),
-                           str(native[0]), str(work), repr(rv40.rated_torque)],
-                          env=env, cwd=work, capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-I",
+            "-S",
+            str(script),
+            site,
+            str(native3[0]),
+            str(native[0]),
+            str(work),
+            repr(rv40.rated_torque),
+        ],
+        env=env,
+        cwd=work,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr[-4000:]
     report = json.loads((work / "report.json").read_text())
     assert report["environment"] == [] and report["loaded"] == []
@@ -493,8 +598,7 @@ def test_fmpy_simulates_it_as_the_fmi2_fmu_in_a_process_without_rvte_nor_python_
     assert np.ptp(three["te_arcsec"]) > 10.0 and (three["P_loss"] > 0).any()
 
 
-def test_the_fmu_manipulation_toolbox_checker_finds_it_fmi3_compliant(native3, unzipped3, fmutool,
-                                                                       tmp_path):
+def test_the_fmu_manipulation_toolbox_checker_finds_it_fmi3_compliant(native3, unzipped3, fmutool, tmp_path):
     assert_fmutool_compliant(fmutool, native3[0], "3.0")
     # and it does catch what it checks: an output left out of <ModelStructure> (tau_in's)
     broken = without_line(unzipped3, tmp_path, '<Output valueReference="6" />')
@@ -541,29 +645,55 @@ def test_the_ecos_engine_steps_it_as_fmpy_does(native3, rv40, tmp_path):
     assert find_spec("ecospy"), "ecospy not installed (pyproject's [test] extra, with tbb)"
 
     theta_in, tau_load = varying_run(rv40.rated_torque, steps=1500)
-    (tmp_path / "inputs.json").write_text(json.dumps({"theta_in": theta_in.tolist(),
-                                                      "tau_load": tau_load.tolist()}))
+    (tmp_path / "inputs.json").write_text(
+        json.dumps({"theta_in": theta_in.tolist(), "tau_load": tau_load.tolist()})
+    )
     (tmp_path / "ecos_host.py").write_text(ECOS_HOST)
-    done = subprocess.run([sys.executable, str(tmp_path / "ecos_host.py"), str(native3[0]),
-                           str(tmp_path / "inputs.json"), str(tmp_path / "out.json"), *OUTPUTS],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [
+            sys.executable,
+            str(tmp_path / "ecos_host.py"),
+            str(native3[0]),
+            str(tmp_path / "inputs.json"),
+            str(tmp_path / "out.json"),
+            *OUTPUTS,
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, (done.stdout + done.stderr)[-4000:]
     by_ecos = np.array(json.loads((tmp_path / "out.json").read_text()))
     by_fmpy = drive(Instance3(*native3, name="fmpy"), theta_in, tau_load)
     assert by_ecos.shape == by_fmpy.shape == (1500, len(OUTPUTS))
     # ecos keeps time as a sum of steps, fmpy's as k h here: omega_out and the friction that goes
     # with it divide by step sizes that differ by a rounding error
-    np.testing.assert_array_equal(by_ecos[:, [0, 2, 3]], by_fmpy[:, [0, 2, 3]])   # angles, TE
+    np.testing.assert_array_equal(by_ecos[:, [0, 2, 3]], by_fmpy[:, [0, 2, 3]])  # angles, TE
     np.testing.assert_allclose(by_ecos, by_fmpy, rtol=1e-12, atol=1e-12)
     assert np.ptp(by_ecos[:, 2]) > 1e-5
 
 
 # -- memory checkers ---------------------------------------------------------------------
 
+
 def run_cycles(host, library, unzipped, bad_resources, token, prefix=(), env=None):
-    return subprocess.run([*prefix, str(host), str(library), f"{unzipped / 'resources'}/",
-                           f"{bad_resources}/", token, str(CYCLES), str(STEPS)],
-                          capture_output=True, text=True, timeout=300, env=env)
+    return subprocess.run(
+        [
+            *prefix,
+            str(host),
+            str(library),
+            f"{unzipped / 'resources'}/",
+            f"{bad_resources}/",
+            token,
+            str(CYCLES),
+            str(STEPS),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
 
 
 def assert_summary(done, unzipped):
@@ -573,29 +703,35 @@ def assert_summary(done, unzipped):
     # 11 steps refused per cycle (as the FMI 2.0 host); a load above the momentary class and
     # a speed above the allowable one warn; 21 errors logged per cycle and 4 for the instances
     # that are never made
-    head = (f"cycles {CYCLES} steps {STEPS} refused {11 * CYCLES} warnings {2 * CYCLES} "
-            f"errors {21 * CYCLES + 4} sum ")
+    head = (
+        f"cycles {CYCLES} steps {STEPS} refused {11 * CYCLES} warnings {2 * CYCLES} "
+        f"errors {21 * CYCLES + 4} sum "
+    )
     line = done.stdout.strip()
     assert line.startswith(head) and line.endswith(f" last te {last_te.hex()}"), (line, head)
     assert "[logStatusError] TE map table" in done.stderr
     assert "non-finite values in the torque levels, te, tau_in or the friction" in done.stderr
 
 
-def test_valgrind_finds_no_error_nor_leak_over_100_instantiate_free_cycles(native3, unzipped3,
-                                                                        bad_resources, tmp_path):
+def test_valgrind_finds_no_error_nor_leak_over_100_instantiate_free_cycles(
+    native3, unzipped3, bad_resources, tmp_path
+):
     valgrind = tool("valgrind", "valgrind")
     host = compile_host(tmp_path / "host", source=HOST_SOURCE)
-    done = run_cycles(host, unzipped3 / LIBRARY, unzipped3, bad_resources, native3[1].guid,
-                      prefix=[valgrind, *VALGRIND])
+    done = run_cycles(
+        host, unzipped3 / LIBRARY, unzipped3, bad_resources, native3[1].guid, prefix=[valgrind, *VALGRIND]
+    )
     assert_summary(done, unzipped3)
     assert_valgrind_clean(done.stderr)
 
 
 def test_address_and_undefined_behaviour_sanitizers_find_nothing_over_the_same_cycles(
-        native3, unzipped3, bad_resources, tmp_path):
+    native3, unzipped3, bad_resources, tmp_path
+):
     """The FMU's own sources/ rebuilt with the sanitizers (and its C_FLAGS: the same numbers)."""
-    library, env = sanitized_library(unzipped3 / "sources", FMI3_SOURCE_FILES,
-                                     tmp_path / "RVReducer_sanitized.so")
+    library, env = sanitized_library(
+        unzipped3 / "sources", FMI3_SOURCE_FILES, tmp_path / "RVReducer_sanitized.so"
+    )
     host = compile_host(tmp_path / "host_sanitized", *SANITIZE, source=HOST_SOURCE)
     done = run_cycles(host, library, unzipped3, bad_resources, native3[1].guid, env=env)
     assert_summary(done, unzipped3)

@@ -14,25 +14,27 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
+from test_fmu import (
+    Instance,
+    free_instances,  # noqa: F401 - frees every instance after a test
+)
+from test_fmu_native import STEP, drive, varying_run
+from test_fmu_native3 import Instance3
 
-from rvfmu.core.checks import InputError
-from rvfmu.core.friction import RPM, efficiency_map, load_free_torques
-from rvfmu.core.reducer_model import (
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import ARCSEC
+from rvfmu.core.losses.friction import RPM, efficiency_map, load_free_torques
+from rvfmu.core.steppers.reducer_model import (
     FRICTION_SPEED_SCALE,
     STRIBECK_SPEED,
     QuasiStaticReducer,
     friction_step,
     stribeck_decay,
 )
-from rvfmu.core.te_map import DRAG_TEMPERATURES, LOAD_FREE_INTERPOLATION_BOUND, TEMap
-from rvfmu.core.units import ARCSEC
+from rvfmu.core.steppers.te_map import DRAG_TEMPERATURES, LOAD_FREE_INTERPOLATION_BOUND, TEMap
 from rvfmu.fmu.api import fmu_build
 from rvfmu.fmu.build import build_fmu
 from rvfmu.fmu.native import TABLE_NAME, read_table
-from test_fmu import Instance
-from test_fmu import free_instances  # noqa: F401 - frees every instance after a test
-from test_fmu_native import STEP, drive, varying_run
-from test_fmu_native3 import Instance3
 
 POINTS = 624  # a coarse map: the friction, not the TE, is under test
 OUTPUT_RPM = 10.0  # the no-load runs' output speed [rpm]

@@ -6,37 +6,52 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import ROOT, unit
-from rvfmu import api
-from rvfmu.core import friction
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import PRESET_NAMES, preset, preset_file
-from rvfmu.core.equivalent import EquivalentModel
-from rvfmu.core.hysteresis import hysteresis
-from rvfmu.core.quasistatic import equilibria, te_curve, windup
-from rvfmu.core.reducer_model import FRICTION_SPEED_SCALE, QuasiStaticReducer, friction_step
-from rvfmu.core.te_map import build_te_map
-from rvfmu.core.stiffness import transverse_contact_ratio
-from rvfmu.core.units import DEG, MM
 from test_cli import rvte
+
+from rvfmu import api
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import DEG, MM
+from rvfmu.core.laws.stiffness import transverse_contact_ratio
+from rvfmu.core.losses import friction
+from rvfmu.core.losses.hysteresis import hysteresis
+from rvfmu.core.reducer.design import PRESET_NAMES, preset, preset_file
+from rvfmu.core.statics.equivalent import EquivalentModel
+from rvfmu.core.statics.quasistatic import equilibria, te_curve, windup
+from rvfmu.core.steppers.reducer_model import FRICTION_SPEED_SCALE, QuasiStaticReducer, friction_step
+from rvfmu.core.steppers.te_map import build_te_map
 from tolerance.evaluate import evaluate
 from tolerance.sampling import errors_from_unit
 from tolerance.study import load_study
 
-FRICTION_FIELDS = ("pin_disc_friction", "pin_groove_friction", "mesh_friction", "needle_friction",
-                   "tapered_friction", "main_bearing_friction", "bearing_drag_factor",
-                   "seal_torque", "lubricant_fill", "seal_friction_K_S1", "seal_friction_K_S2")
+FRICTION_FIELDS = (
+    "pin_disc_friction",
+    "pin_groove_friction",
+    "mesh_friction",
+    "needle_friction",
+    "tapered_friction",
+    "main_bearing_friction",
+    "bearing_drag_factor",
+    "seal_torque",
+    "lubricant_fill",
+    "seal_friction_K_S1",
+    "seal_friction_K_S2",
+)
 NO_FRICTION = {name: 0.0 for name in FRICTION_FIELDS}
 
 
 @pytest.fixture(scope="module")
 def rv40_map():
-    return friction.efficiency_map(preset("RV-40E-121"), output_speed_rpm=[5.0, 15.0, 30.0, 60.0],
-                                   load_Nm=[103.0, 206.0, 412.0], points=12)
+    return friction.efficiency_map(
+        preset("RV-40E-121"),
+        output_speed_rpm=[5.0, 15.0, 30.0, 60.0],
+        load_Nm=[103.0, 206.0, 412.0],
+        points=12,
+    )
 
 
 # -- the laws alone ---------------------------------------------------------------------------
+
 
 def test_mesh_loss_factor_by_hand():
     """H_V = pi (u+1)/(z_1 u) (1 - eps_a + eps_1^2 + eps_2^2) (ISO/TR 14179-2), the addendum
@@ -48,19 +63,21 @@ def test_mesh_loss_factor_by_hand():
     assert h_v == pytest.approx(math.pi * 2.0 / 20.0 * (1.0 - eps + 2.0 * (eps / 2.0) ** 2), rel=1e-12)
     assert h_v == pytest.approx(0.2058, abs=2e-4)
     h_v, eps_1, eps_2 = friction.mesh_loss_factor(12, 36, 20.0 * DEG)
-    assert eps_1 + eps_2 == pytest.approx(transverse_contact_ratio(12, 36, 1.5 * MM, 20.0 * DEG),
-                                          rel=1e-12)
-    assert h_v == pytest.approx(math.pi * (3.0 + 1.0) / 36.0 * (1.0 - eps_1 - eps_2 + eps_1 ** 2
-                                                                  + eps_2 ** 2), rel=1e-12)
+    assert eps_1 + eps_2 == pytest.approx(transverse_contact_ratio(12, 36, 1.5 * MM, 20.0 * DEG), rel=1e-12)
+    assert h_v == pytest.approx(
+        math.pi * (3.0 + 1.0) / 36.0 * (1.0 - eps_1 - eps_2 + eps_1**2 + eps_2**2), rel=1e-12
+    )
 
 
 def test_palmgren_drag_by_hand():
     # 1e-7 f0 (nu n)^(2/3) d_m^3 N*mm: f0 = 2, nu = 100 cSt, n = 1000 rpm, d_m = 20 mm
     assert friction.bearing_drag_moment(2.0, 100.0, 1000.0, 20 * MM) == pytest.approx(
-        1e-7 * 2.0 * 1e5 ** (2.0 / 3.0) * 8000.0 * 1e-3, rel=1e-12)
+        1e-7 * 2.0 * 1e5 ** (2.0 / 3.0) * 8000.0 * 1e-3, rel=1e-12
+    )
     # below nu n = 2000 Palmgren's constant 160e-7 f0 d_m^3
     assert friction.bearing_drag_moment(2.0, 100.0, 5.0, 20 * MM) == pytest.approx(
-        160e-7 * 2.0 * 8000.0 * 1e-3, rel=1e-12)
+        160e-7 * 2.0 * 8000.0 * 1e-3, rel=1e-12
+    )
     # continuous and rising with speed
     speeds = np.linspace(0.0, 100.0, 2001)
     drag = friction.bearing_drag_moment(2.0, 100.0, speeds, 20 * MM)
@@ -75,19 +92,25 @@ def test_the_disc_slides_past_each_pin_about_its_pitch_point():
     d = preset("RV-40E-121")
     theta_in = np.array([0.0, 0.7, 2.3])
     model = EquivalentModel(d, theta_in)
-    h = 1e-6 * d.ratio        # an output step of 1e-6 rad
+    h = 1e-6 * d.ratio  # an output step of 1e-6 rad
 
     def disc_point(theta_in_now, point, theta_in_then):
         """Where the disc's material point `point` (at theta_in_then) is at theta_in_now."""
         out_then, out_now = theta_in_then / d.ratio, theta_in_now / d.ratio
+
         def psi(out):
             return -d.z_c * out + np.array([0.0, np.pi])
 
         c_then, c_now = d.e * unit(psi(out_then)), d.e * unit(psi(out_now))
         turn = out_now - out_then
         rel = point - c_then[..., None, :]
-        rotated = np.stack([math.cos(turn) * rel[..., 0] - math.sin(turn) * rel[..., 1],
-                            math.sin(turn) * rel[..., 0] + math.cos(turn) * rel[..., 1]], axis=-1)
+        rotated = np.stack(
+            [
+                math.cos(turn) * rel[..., 0] - math.sin(turn) * rel[..., 1],
+                math.sin(turn) * rel[..., 0] + math.cos(turn) * rel[..., 1],
+            ],
+            axis=-1,
+        )
         return c_now[..., None, :] + rotated
 
     pins = d.R_p * unit(2 * np.pi * np.arange(d.z_p) / d.z_p)
@@ -96,7 +119,7 @@ def test_the_disc_slides_past_each_pin_about_its_pitch_point():
         pitch = d.z_p * d.e * unit(psi)
         normal = pins[None] - pitch[:, None]
         normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
-        contact = pins[None] - d.r_rp * normal                                   # (2, z_p, 2)
+        contact = pins[None] - d.r_rp * normal  # (2, z_p, 2)
         velocity = (disc_point(t + h, contact, t) - disc_point(t - h, contact, t)) / (2e-6)
         speed = np.linalg.norm(velocity, axis=-1)
         assert speed == pytest.approx(model.pin_slide_arm[a], rel=1e-6)
@@ -112,7 +135,7 @@ def test_the_pins_carry_the_housing_torque_with_the_lever_the_losses_use(rv40_he
     loads = friction.contact_loads(d, None, [-torque], friction.crank_turn_angles(d, 6))
     assert loads.converged.all()
     model = EquivalentModel(d, friction.crank_turn_angles(d, 6))
-    psi = model.pose.psi                                                          # (A, 2)
+    psi = model.pose.psi  # (A, 2)
     pin_angle = 2 * np.pi * np.arange(d.z_p) / d.z_p
     reach = model.pin_slide_arm + d.r_rp
     arm_about_centre = d.R_p * d.z_p * d.e * np.abs(np.sin(pin_angle - psi[..., None])) / reach
@@ -125,16 +148,17 @@ def test_the_pins_carry_the_housing_torque_with_the_lever_the_losses_use(rv40_he
 
 # -- the power balance ------------------------------------------------------------------------
 
+
 def test_without_friction_the_efficiency_is_one_and_nothing_else_moves(rv40_hertz, seed002):
-    d = rv40_hertz.with_fields(needle_pitch_diameter=21 * MM, tapered_pitch_diameter=22 * MM,
-                               main_bearing_pitch_diameter=128 * MM)
+    d = rv40_hertz.with_fields(
+        needle_pitch_diameter=21 * MM, tapered_pitch_diameter=22 * MM, main_bearing_pitch_diameter=128 * MM
+    )
     free = d.with_fields(**NO_FRICTION)
     m = friction.efficiency_map(free, output_speed_rpm=[5.0, 60.0], load_Nm=[100.0, 400.0], points=4)
     assert np.all(m.efficiency == 1.0) and np.all(m.backdriving_efficiency == 1.0)
     assert np.all(m.loss_W == 0.0) and np.all(m.no_load_running_torque_Nm == 0.0)
     assert m.starting_torque_input_Nm == 0.0 and m.backdriving_torque_output_Nm == 0.0
-    assert m.input_torque_Nm == pytest.approx(np.broadcast_to([100.0, 400.0], (2, 2)) / d.ratio,
-                                              rel=1e-14)
+    assert m.input_torque_Nm == pytest.approx(np.broadcast_to([100.0, 400.0], (2, 2)) / d.ratio, rel=1e-14)
     # the elastic model knows nothing of friction: TE at no load and under load bit for bit
     for load in (0.0, 200.0):
         with_friction = te_curve(d, seed002, tau_load=-load, points=24)
@@ -165,8 +189,9 @@ def test_backdriving_below_forward_and_running_torque_rising_with_speed(rv40_map
     assert np.all(np.diff(m.no_load_running_torque_Nm) > 0.0)
     # from rest the Coulomb contacts and the seals break away above their running friction
     assert m.starting_torque_input_Nm > m.no_load_running_torque_Nm[0]
-    assert m.backdriving_torque_output_Nm == pytest.approx(m.design.ratio * m.starting_torque_input_Nm,
-                                                           rel=1e-12)
+    assert m.backdriving_torque_output_Nm == pytest.approx(
+        m.design.ratio * m.starting_torque_input_Nm, rel=1e-12
+    )
 
 
 def test_load_free_losses_make_the_efficiency_rise_with_torque():
@@ -175,15 +200,24 @@ def test_load_free_losses_make_the_efficiency_rise_with_torque():
     proportion to the torque, which leaves the efficiency nearly flat (the pins that the
     load brings into contact have a longer sliding arm for their lever)."""
     d = preset("RV-40E-121")
-    coulomb = {"pin_disc_friction", "pin_groove_friction", "mesh_friction", "needle_friction",
-               "tapered_friction", "main_bearing_friction"}
+    coulomb = {
+        "pin_disc_friction",
+        "pin_groove_friction",
+        "mesh_friction",
+        "needle_friction",
+        "tapered_friction",
+        "main_bearing_friction",
+    }
     drag_only = d.with_fields(**{k: 0.0 for k in coulomb}, seal_torque=1.0)
     kw = dict(output_speed_rpm=[5.0, 30.0], load_Nm=[50.0, 150.0, 300.0, 412.0], points=6)
     m = friction.efficiency_map(drag_only, **kw)
     assert np.all(np.diff(m.efficiency, axis=1) > 0.0)
-    m = friction.efficiency_map(d.with_fields(bearing_drag_factor=0.0, lubricant_fill=0.0,
-                                              seal_friction_K_S1=0.0, seal_friction_K_S2=0.0),
-                                **kw)
+    m = friction.efficiency_map(
+        d.with_fields(
+            bearing_drag_factor=0.0, lubricant_fill=0.0, seal_friction_K_S1=0.0, seal_friction_K_S2=0.0
+        ),
+        **kw,
+    )
     assert np.ptp(m.efficiency) < 0.01
     # at a given torque, a Coulomb loss is proportional to speed and the efficiency the same
     assert m.efficiency[0] == pytest.approx(m.efficiency[1], rel=1e-12)
@@ -194,13 +228,15 @@ def test_a_pin_loses_with_the_smaller_of_its_two_coefficients():
     kw = dict(output_speed_rpm=[15.0], load_Nm=[300.0], points=4)
     base = friction.efficiency_map(d, **kw).losses["pins"]
     assert friction.efficiency_map(d.with_fields(pin_groove_friction=0.0), **kw).losses["pins"] == 0.0
-    assert friction.efficiency_map(d.with_fields(pin_disc_friction=0.2), **kw).losses["pins"] == \
-        pytest.approx(base, rel=1e-12)
+    assert friction.efficiency_map(d.with_fields(pin_disc_friction=0.2), **kw).losses[
+        "pins"
+    ] == pytest.approx(base, rel=1e-12)
     both = friction.efficiency_map(d.with_fields(pin_disc_friction=0.1, pin_groove_friction=0.1), **kw)
     assert both.losses["pins"] == pytest.approx(2.0 * base, rel=1e-12)
 
 
 # -- the presets' geometry and the job --------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", PRESET_NAMES)
 def test_preset_pitch_diameters_follow_their_rule(name):
@@ -211,21 +247,41 @@ def test_preset_pitch_diameters_follow_their_rule(name):
 
 def test_efficiency_job_json_and_plot(tmp_path):
     plot = tmp_path / "efficiency.png"
-    proc = rvte("efficiency", "RV-40E-121", "--errors", ROOT / "studies" / "seed002_errors.toml",
-                "--speeds", "5,30", "--loads", "200,412", "--json", "--plot", plot)
+    proc = rvte(
+        "efficiency",
+        "RV-40E-121",
+        "--errors",
+        ROOT / "studies" / "seed002_errors.toml",
+        "--speeds",
+        "5,30",
+        "--loads",
+        "200,412",
+        "--json",
+        "--plot",
+        plot,
+    )
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
-    assert {"map", "no_load_running_torque", "starting_torque_input_Nm",
-            "backdriving_torque_output_Nm"} <= set(data)
+    assert {
+        "map",
+        "no_load_running_torque",
+        "starting_torque_input_Nm",
+        "backdriving_torque_output_Nm",
+    } <= set(data)
     assert len(data["map"]) == 4 and len(data["no_load_running_torque"]) == 2
     for point in data["map"]:
-        assert {"output_speed_rpm", "load_Nm", "efficiency", "backdriving_efficiency",
-                "input_torque_Nm"} <= set(point)
+        assert {
+            "output_speed_rpm",
+            "load_Nm",
+            "efficiency",
+            "backdriving_efficiency",
+            "input_torque_Nm",
+        } <= set(point)
         assert 0.0 < point["backdriving_efficiency"] < point["efficiency"] < 1.0
-    report = api.efficiency("RV-40E-121", ROOT / "studies" / "seed002_errors.toml",
-                            speeds=[5, 30], loads=[200, 412])
-    assert data["map"][-1]["efficiency"] == pytest.approx(float(report.map.efficiency[-1, -1]),
-                                                          rel=1e-12)
+    report = api.efficiency(
+        "RV-40E-121", ROOT / "studies" / "seed002_errors.toml", speeds=[5, 30], loads=[200, 412]
+    )
+    assert data["map"][-1]["efficiency"] == pytest.approx(float(report.map.efficiency[-1, -1]), rel=1e-12)
     assert plot.read_bytes()[:4] == b"\x89PNG"
 
 
@@ -246,6 +302,7 @@ def test_efficiency_command_checks_its_inputs_first(tmp_path):
 
 # -- the hysteresis loop ----------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def rv40_loop():
     return hysteresis(preset("RV-40E-121"), positions=4)
@@ -257,7 +314,8 @@ def test_the_loop_reads_the_windup_tests_figures_and_its_area_is_the_friction_wo
     wind = windup(h.design, positions=4)
     assert h.lost_motion_arcmin == pytest.approx(wind.lost_motion_arcmin()[0], rel=1e-9)
     assert h.torsional_rigidity_Nm_per_arcmin == pytest.approx(
-        wind.torsional_rigidity_Nm_per_arcmin()[0], rel=1e-9)
+        wind.torsional_rigidity_Nm_per_arcmin()[0], rel=1e-9
+    )
     work = sum(h.friction_work_J.values())
     assert work > 0.0 and h.area_J == pytest.approx(work, rel=1e-9)
     assert all(v >= 0.0 for v in h.friction_work_J.values())
@@ -278,12 +336,14 @@ def test_friction_opens_the_loop_in_proportion_to_the_coefficients(rv40_loop):
     assert free.area_J <= 1e-9 * rv40_loop.area_J
     assert rv40_loop.hysteresis_loss_arcmin > free.hysteresis_loss_arcmin > 0.0
     coulomb = d.with_fields(bearing_drag_factor=0.0)
-    doubled = coulomb.with_fields(**{k: 2.0 * getattr(coulomb, k) for k in FRICTION_FIELDS
-                                     if k != "bearing_drag_factor"})
+    doubled = coulomb.with_fields(
+        **{k: 2.0 * getattr(coulomb, k) for k in FRICTION_FIELDS if k != "bearing_drag_factor"}
+    )
     once, twice = (hysteresis(x, positions=4) for x in (coulomb, doubled))
     for name in friction.LOSS_NAMES:
-        assert twice.friction_work_J[name] == pytest.approx(2.0 * once.friction_work_J[name],
-                                                            rel=1e-12, abs=1e-18), name
+        assert twice.friction_work_J[name] == pytest.approx(
+            2.0 * once.friction_work_J[name], rel=1e-12, abs=1e-18
+        ), name
 
 
 def test_hysteresis_job_json_plot_and_errors(tmp_path):
@@ -323,8 +383,13 @@ position_um = 9.0
 """
 
 
-def study_file(tmp_path, metrics='["efficiency", "no_load_running_torque"]', load=300.0,
-               speed="output_speed_rpm = 30.0", spec="efficiency = 0.9"):
+def study_file(
+    tmp_path,
+    metrics='["efficiency", "no_load_running_torque"]',
+    load=300.0,
+    speed="output_speed_rpm = 30.0",
+    spec="efficiency = 0.9",
+):
     path = tmp_path / "fric.toml"
     path.write_text(STUDY.format(metrics=metrics, load=load, speed=speed, spec=spec))
     return path
@@ -339,8 +404,7 @@ def test_study_metrics_are_the_efficiency_maps(tmp_path):
     assert converged.all()
     errors = errors_from_unit(study, X)
     for s in range(3):
-        m = friction.efficiency_map(study.design, errors, output_speed_rpm=[30.0], load_Nm=[300.0],
-                                    sample=s)
+        m = friction.efficiency_map(study.design, errors, output_speed_rpm=[30.0], load_Nm=[300.0], sample=s)
         assert Y[s, 0] == pytest.approx(m.efficiency[0, 0], rel=1e-12)
         assert Y[s, 1] == pytest.approx(m.no_load_running_torque_Nm[0], rel=1e-12)
     # the output speed is part of the identity only where a friction metric is asked for
@@ -355,11 +419,14 @@ def test_study_friction_metrics_check_their_operating_point(tmp_path):
     with pytest.raises(InputError, match="operating.output_speed_rpm = -5"):
         load_study(study_file(tmp_path, speed="output_speed_rpm = -5.0"))
     # the running torque alone is fine without a load
-    assert load_study(study_file(tmp_path, metrics='["no_load_running_torque"]', load=0.0,
-                                 spec="")).load_Nm == 0.0
+    assert (
+        load_study(study_file(tmp_path, metrics='["no_load_running_torque"]', load=0.0, spec="")).load_Nm
+        == 0.0
+    )
 
 
 # -- the FMUs' friction ---------------------------------------------------------------------
+
 
 def test_the_te_map_carries_the_friction_of_the_same_solves(seed002):
     """The map's TE and input torque are the quasi-static model's to the bit (the same solves
@@ -371,11 +438,9 @@ def test_the_te_map_carries_the_friction_of_the_same_solves(seed002):
         eq = equilibria(d, seed002, te_map.theta_in, sign * te_map.torque_magnitude, zero_side=side)
         assert np.array_equal(te_map.te[branch], eq.te[0])
         assert np.array_equal(te_map.tau_in[branch], eq.tau_in[0])
-    m = friction.efficiency_map(d, seed002, output_speed_rpm=[7.0], load_Nm=[0.5 * d.rated_torque],
-                                points=6)
+    m = friction.efficiency_map(d, seed002, output_speed_rpm=[7.0], load_Nm=[0.5 * d.rated_torque], points=6)
     # the map's Coulomb torque, averaged over its angles, is the efficiency map's loss / speed
-    coulomb = m.loss_W[0, 0] / (7.0 * friction.RPM) - sum(
-        friction.load_free_torques(d, [7.0]).values())[0]
+    coulomb = m.loss_W[0, 0] / (7.0 * friction.RPM) - sum(friction.load_free_torques(d, [7.0]).values())[0]
     assert te_map.friction[0, 1].mean() == pytest.approx(coulomb, rel=0.05)
     speeds = np.geomspace(1e-3, 20.0, 50)
     exact = sum(friction.load_free_torques(d, speeds / friction.RPM).values())
@@ -400,20 +465,22 @@ def test_without_friction_the_reducer_models_input_torque_is_the_maps(seed002):
 def test_friction_step_by_hand():
     """Coulomb beyond the speed scale, proportional within it; efficiency both ways."""
     scale = FRICTION_SPEED_SCALE
-    tau_in, p_loss, eta = friction_step(-2.0, 12.1, 121.0, 5.0)         # driving forward
+    tau_in, p_loss, eta = friction_step(-2.0, 12.1, 121.0, 5.0)  # driving forward
     assert tau_in == pytest.approx(-2.1) and p_loss == pytest.approx(0.5)
     assert eta == pytest.approx(10.0 / 10.5)
-    tau_in, p_loss, eta = friction_step(2.0, 12.1, 121.0, 5.0)          # backdriven
+    tau_in, p_loss, eta = friction_step(2.0, 12.1, 121.0, 5.0)  # backdriven
     assert tau_in == pytest.approx(1.9) and eta == pytest.approx(9.5 / 10.0)
     tau_in, p_loss, eta = friction_step(2.0, 12.1, 121.0, -0.5 * scale)  # within the scale
     assert tau_in == pytest.approx(2.05) and p_loss == pytest.approx(0.05 * 0.5 * scale)
-    assert friction_step(0.05, 12.1, 121.0, 5.0)[2] == 0.0              # cannot backdrive
-    assert friction_step(2.0, 12.1, 121.0, 0.0) == (2.0, 0.0, 0.0)      # standstill
+    assert friction_step(0.05, 12.1, 121.0, 5.0)[2] == 0.0  # cannot backdrive
+    assert friction_step(2.0, 12.1, 121.0, 0.0) == (2.0, 0.0, 0.0)  # standstill
 
 
 def test_the_jobs_report_progress_to_their_total():
-    for job, kwargs in ((api.efficiency, dict(speeds=[5.0], loads=[100.0, 200.0])),
-                        (api.hysteresis, dict(max_load=103.0))):
+    for job, kwargs in (
+        (api.efficiency, dict(speeds=[5.0], loads=[100.0, 200.0])),
+        (api.hysteresis, dict(max_load=103.0)),
+    ):
         seen = []
         job("RV-40E-121", progress=lambda total, done: seen.append((total, done)), **kwargs)
         assert seen and seen[-1][0] == seen[-1][1]

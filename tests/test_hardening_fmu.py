@@ -25,23 +25,25 @@ from unittest import mock
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description
+from test_fmu_native_hosts import HEADERS, compile_host, nan_table_resources
 
 from rvfmu import cli
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import preset
-from rvfmu.core.limits import SPEED_FACTOR, check_load, check_speed
-from rvfmu.core.units import RPM
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import RPM
+from rvfmu.core.reducer.design import preset
+from rvfmu.core.reducer.limits import SPEED_FACTOR, check_load, check_speed
 from rvfmu.fmu.api import fmu_build
 from rvfmu.fmu.build import GUARD_SOURCE, PYTHONFMU_LIBRARY
 from rvfmu.fmu.native import FMI_VERSIONS, TABLE_NAME, table_limits
-from test_fmu_native_hosts import HEADERS, compile_host, nan_table_resources
 
-DESIGN = "RV-40E-121"          # allowable output speed 70 rpm, ratio 121, rated torque 412 N*m
-POINTS = 624                   # a coarse map: these tests are about statuses, not TE values
+DESIGN = "RV-40E-121"  # allowable output speed 70 rpm, ratio 121, rated torque 412 N*m
+POINTS = 624  # a coarse map: these tests are about statuses, not TE values
 STEP = 1e-3
-HOST_LIMIT = 60                # [s] a host that has not finished by then is taken to hang
-CYCLES_SOURCE = {2: Path(__file__).with_name("native_host_cycles.c"),
-                 3: Path(__file__).with_name("native3_host_cycles.c")}
+HOST_LIMIT = 60  # [s] a host that has not finished by then is taken to hang
+CYCLES_SOURCE = {
+    2: Path(__file__).with_name("native_host_cycles.c"),
+    3: Path(__file__).with_name("native3_host_cycles.c"),
+}
 LIBRARY = {2: "binaries/linux64/RVReducer.so", 3: "binaries/x86_64-linux/RVReducer.so"}
 
 
@@ -54,19 +56,21 @@ def design():
 def native(tmp_path_factory, design):
     """{FMI version: the native FMU's path}, one build each."""
     folder = tmp_path_factory.mktemp("native")
-    return {version: fmu_build(design, None, folder / f"RVReducer{version}.fmu", points=POINTS,
-                               native=True, fmi_version=version)
-            for version in FMI_VERSIONS}
+    return {
+        version: fmu_build(
+            design, None, folder / f"RVReducer{version}.fmu", points=POINTS, native=True, fmi_version=version
+        )
+        for version in FMI_VERSIONS
+    }
 
 
 @pytest.fixture(scope="module")
 def python_fmu(tmp_path_factory, design):
-    return fmu_build(design, None, tmp_path_factory.mktemp("python") / "RVReducer.fmu",
-                     points=POINTS)
+    return fmu_build(design, None, tmp_path_factory.mktemp("python") / "RVReducer.fmu", points=POINTS)
 
 
 def speed_message(design, theta_before, theta_in, step=STEP):
-    """What rvfmu.core.limits says of the step from theta_before to theta_in [rad] in `step`
+    """What rvfmu.core.reducer.limits says of the step from theta_before to theta_in [rad] in `step`
     [s]: the refusal's text (as the FMUs log it, after "input "), or the warning's, or None."""
     theta_before, theta_in = float(theta_before), float(theta_in)
     speed = (theta_in - theta_before) / step / design.ratio
@@ -82,11 +86,13 @@ def refusals(design):
     signal before 50 ms is theta_in = 100 t [rad] (7.9 rpm out), tau_load = -100 N*m."""
     with pytest.raises(InputError) as beyond:
         check_load("tau_load", -1e9, design.rated_torque)
-    return [("theta_in", "nan", "input theta_in = nan: must be finite"),
-            ("tau_load", "nan", "input tau_load = nan: must be finite"),
-            ("tau_load", "-inf", "input tau_load = -inf: must be finite"),
-            ("tau_load", "-1e9", f"input {beyond.value}"),
-            ("theta_in", "1e6", speed_message(design, 4.9, 1e6))]
+    return [
+        ("theta_in", "nan", "input theta_in = nan: must be finite"),
+        ("tau_load", "nan", "input tau_load = nan: must be finite"),
+        ("tau_load", "-inf", "input tau_load = -inf: must be finite"),
+        ("tau_load", "-1e9", f"input {beyond.value}"),
+        ("theta_in", "1e6", speed_message(design, 4.9, 1e6)),
+    ]
 
 
 # -- fmpy -----------------------------------------------------------------------------------
@@ -122,12 +128,13 @@ print(json.dumps(results))
 '''
 
 
-@pytest.mark.parametrize("fmu, version, model", [("native", 2, None), ("native", 3, None),
-                                                 ("python", 2, "quasistatic"),
-                                                 ("python", 2, "dynamic")])
-def test_fmpy_stops_with_an_error_on_every_input_no_retry_can_make_valid(native, python_fmu,
-                                                                          design, fmu, version,
-                                                                          model, tmp_path):
+@pytest.mark.parametrize(
+    "fmu, version, model",
+    [("native", 2, None), ("native", 3, None), ("python", 2, "quasistatic"), ("python", 2, "dynamic")],
+)
+def test_fmpy_stops_with_an_error_on_every_input_no_retry_can_make_valid(
+    native, python_fmu, design, fmu, version, model, tmp_path
+):
     """A NaN angle; a NaN, -inf, -1e9 N*m load; 1e6 rad in 1 ms.  fmpy 0.3.32 retried the
     native FMU's discarded step for ever (FMI 2.0); the pythonfmu FMU's run ended early with
     no exception and nothing logged, and 1e6 rad in 1 ms was taken (omega_out 8.3e6 rad/s).
@@ -138,10 +145,18 @@ def test_fmpy_stops_with_an_error_on_every_input_no_retry_can_make_valid(native,
     script.write_text(FMPY_HOST)
     path = native[version] if fmu == "native" else python_fmu
     start_values = {"model": model} if model else {}
-    done = subprocess.run([sys.executable, str(script), str(path),
-                           json.dumps([[name, value] for name, value, _ in cases]),
-                           json.dumps(start_values)],
-                          capture_output=True, text=True, timeout=HOST_LIMIT)
+    done = subprocess.run(
+        [
+            sys.executable,
+            str(script),
+            str(path),
+            json.dumps([[name, value] for name, value, _ in cases]),
+            json.dumps(start_values),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=HOST_LIMIT,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     results = json.loads(done.stdout)
     assert len(results) == len(cases)
@@ -181,8 +196,7 @@ print(json.dumps(out))
 '''
 
 
-def test_a_speed_above_the_allowable_one_is_computed_with_one_warning(native, python_fmu, design,
-                                                                       tmp_path):
+def test_a_speed_above_the_allowable_one_is_computed_with_one_warning(native, python_fmu, design, tmp_path):
     """1.5 x the allowable output speed for 0.1 s: every row computed, status OK, one warning
     naming theta_in, the speed and the limit, in the three FMUs (and both pythonfmu models).
     In a host process of its own: fmpy keeps the logger of the last simulate_fmu in one global
@@ -192,9 +206,18 @@ def test_a_speed_above_the_allowable_one_is_computed_with_one_warning(native, py
     script.write_text(SPEED_HOST)
     runs = [(native[2], [{}]), (native[3], [{}]), (python_fmu, [{}, {"model": "dynamic"}])]
     for fmu, start_values in runs:
-        done = subprocess.run([sys.executable, str(script), str(fmu),
-                               repr(output_speed * design.ratio), json.dumps(start_values)],
-                              capture_output=True, text=True, timeout=HOST_LIMIT)
+        done = subprocess.run(
+            [
+                sys.executable,
+                str(script),
+                str(fmu),
+                repr(output_speed * design.ratio),
+                json.dumps(start_values),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=HOST_LIMIT,
+        )
         assert done.returncode == 0, done.stderr[-3000:]
         for values, result in zip(start_values, json.loads(done.stdout)):
             assert result["time"][-1] == pytest.approx(0.1)
@@ -202,14 +225,15 @@ def test_a_speed_above_the_allowable_one_is_computed_with_one_warning(native, py
             warning = speed_message(design, result["theta_in"][1], result["theta_in"][2])
             assert warning.startswith("input theta_in = 1.33046") and warning.endswith(
                 " is an output speed of 105 rpm, 1.5 x the allowable output speed 70 rpm of "
-                "RV-40E-121: no rating covers it; treat the results with care"), warning
+                "RV-40E-121: no rating covers it; treat the results with care"
+            ), warning
             warnings = [message for status, message in result["log"] if status == 1]
             assert warnings == [warning], (fmu, values)
             assert not [message for status, message in result["log"] if status > 1]
             omega = np.array(result["omega_out"])
             moving = omega[52:] if values else omega[2:]
             np.testing.assert_allclose(moving.mean(), output_speed, rtol=0.01)
-            if not values:                                  # quasi-static: every step
+            if not values:  # quasi-static: every step
                 np.testing.assert_allclose(moving, output_speed, rtol=0.01)
 
 
@@ -252,21 +276,26 @@ def test_libcosim_fails_the_step_and_logs_why(native, python_fmu, design, fmu, t
     pythonfmu FMU with libpython preloaded (the README's recipe)."""
     from test_fmu import native_env
 
-    cases = [("theta_in", "nan", "input theta_in = nan: must be finite"),
-             ("tau_load", "-1e9", refusals(design)[3][2]),
-             ("theta_in", "1e6", speed_message(design, 4.9, 1e6))]
+    cases = [
+        ("theta_in", "nan", "input theta_in = nan: must be finite"),
+        ("tau_load", "-1e9", refusals(design)[3][2]),
+        ("theta_in", "1e6", speed_message(design, 4.9, 1e6)),
+    ]
     script = tmp_path / "cosim_host.py"
     script.write_text(COSIM_HOST)
     if fmu == "native":
         path = native[2]
-        env = {k: v for k, v in os.environ.items()
-               if not k.startswith("PYTHON") and k != "LD_PRELOAD"}
+        env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON") and k != "LD_PRELOAD"}
     else:
         path = python_fmu
         env = native_env(":".join(p for p in sys.path if p.endswith("site-packages")))
-    done = subprocess.run([sys.executable, str(script), str(path),
-                           json.dumps([[name, value] for name, value, _ in cases])],
-                          capture_output=True, text=True, timeout=HOST_LIMIT, env=env)
+    done = subprocess.run(
+        [sys.executable, str(script), str(path), json.dumps([[name, value] for name, value, _ in cases])],
+        capture_output=True,
+        text=True,
+        timeout=HOST_LIMIT,
+        env=env,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     reports = [line for line in done.stdout.splitlines() if line.startswith("failed steps: ")]
     assert reports == ["failed steps: [50, 50, 50]"]
@@ -276,9 +305,11 @@ def test_libcosim_fails_the_step_and_logs_why(native, python_fmu, design, fmu, t
 
 # -- the plain C hosts --------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("version", FMI_VERSIONS)
-def test_the_c_hosts_see_every_refusal_end_the_simulation(native, design, version, tmp_path,
-                                                          tmp_path_factory):
+def test_the_c_hosts_see_every_refusal_end_the_simulation(
+    native, design, version, tmp_path, tmp_path_factory
+):
     """tests/native_host_cycles.c and native3_host_cycles.c, built with -Wall -Wextra -Werror:
     each refusal ends the simulation with fmi2Error / fmi3Error (and the terminate flag), the
     next step is refused too, a reset starts again; the host finishes within the time limit."""
@@ -290,22 +321,30 @@ def test_the_c_hosts_see_every_refusal_end_the_simulation(native, design, versio
         where = [(unzipped / "resources").as_uri(), bad.as_uri(), md.guid]
     else:
         where = [f"{unzipped / 'resources'}/", f"{bad}/", md.instantiationToken]
-    done = subprocess.run([str(host), str(unzipped / LIBRARY[version]), *where, "2", "300"],
-                          capture_output=True, text=True, timeout=HOST_LIMIT)
+    done = subprocess.run(
+        [str(host), str(unzipped / LIBRARY[version]), *where, "2", "300"],
+        capture_output=True,
+        text=True,
+        timeout=HOST_LIMIT,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     never_made = 3 if version == 2 else 4
-    assert done.stdout.startswith(f"cycles 2 steps 300 refused 22 warnings 4 "
-                                  f"errors {21 * 2 + never_made} sum ")
+    assert done.stdout.startswith(
+        f"cycles 2 steps 300 refused 22 warnings 4 errors {21 * 2 + never_made} sum "
+    )
     # the first cycle's log: each refusal twice (the step, and the next one), the warnings once
     lines = done.stderr.splitlines()
     prefix = "[logStatusError] cycle: " if version == 2 else "[logStatusError] "
-    for message in ("input theta_in = nan: must be finite", "input tau_load = inf: must be finite",
-                    "communication step size = 0.0: must be a number > 0",
-                    "input tau_load = -1000000.0: must be within +-5 x the rated torque 412 N*m",
-                    "input theta_in = 999980.37: is an output speed of 7.892e+07 rpm: must be "
-                    "within 2 x the allowable output speed 70 rpm of RV-40E-121 (140 rpm out, "
-                    "16940 rpm in)",
-                    "initialisation failed: input theta_in = nan: must be finite"):
+    for message in (
+        "input theta_in = nan: must be finite",
+        "input tau_load = inf: must be finite",
+        "communication step size = 0.0: must be a number > 0",
+        "input tau_load = -1000000.0: must be within +-5 x the rated torque 412 N*m",
+        "input theta_in = 999980.37: is an output speed of 7.892e+07 rpm: must be "
+        "within 2 x the allowable output speed 70 rpm of RV-40E-121 (140 rpm out, "
+        "16940 rpm in)",
+        "initialisation failed: input theta_in = nan: must be finite",
+    ):
         assert sum(line.startswith(prefix + message) for line in lines) == 2, message
     speed = speed_message(design, 0.37 * 150 - 20.0, 0.37 * 151 - 20.0 + 1.2)
     assert speed.startswith("input theta_in = 37.07 is an output speed of 123.9 rpm, 1.8 x")
@@ -317,20 +356,53 @@ def test_the_fmu_sources_compile_without_warnings(native, python_fmu, tmp_path):
     opens pythonfmu's library, carried beside it, by its path)."""
     with zipfile.ZipFile(python_fmu) as archive:
         names = set(archive.namelist())
-    assert {"binaries/linux64/RVReducer.so", f"binaries/linux64/{PYTHONFMU_LIBRARY}",
-            "binaries/win64/RVReducer.dll"} <= names
-    done = subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-fPIC",
-                           f"-I{HEADERS}", "-c", str(GUARD_SOURCE), "-o", str(tmp_path / "g.o")],
-                          capture_output=True, text=True)
+    assert {
+        "binaries/linux64/RVReducer.so",
+        f"binaries/linux64/{PYTHONFMU_LIBRARY}",
+        "binaries/win64/RVReducer.dll",
+    } <= names
+    done = subprocess.run(
+        [
+            "gcc",
+            "-std=c99",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            "-O2",
+            "-fPIC",
+            f"-I{HEADERS}",
+            "-c",
+            str(GUARD_SOURCE),
+            "-o",
+            str(tmp_path / "g.o"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 0 and done.stderr == "", done.stderr
     for version in FMI_VERSIONS:
         sources = Path(extract(str(native[version]), unzipdir=tmp_path / str(version))) / "sources"
         glue = "fmi2Functions.c" if version == 2 else "fmi3Functions.c"
         for name in ("model.c", "instance.c", glue):
-            done = subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2",
-                                   "-ffp-contract=off", f"-I{HEADERS}", f"-I{sources}", "-c",
-                                   str(sources / name), "-o", str(tmp_path / f"{version}{name}.o")],
-                                  capture_output=True, text=True)
+            done = subprocess.run(
+                [
+                    "gcc",
+                    "-std=c99",
+                    "-Wall",
+                    "-Wextra",
+                    "-Werror",
+                    "-O2",
+                    "-ffp-contract=off",
+                    f"-I{HEADERS}",
+                    f"-I{sources}",
+                    "-c",
+                    str(sources / name),
+                    "-o",
+                    str(tmp_path / f"{version}{name}.o"),
+                ],
+                capture_output=True,
+                text=True,
+            )
             assert done.returncode == 0 and done.stderr == "", (version, name, done.stderr)
 
 
@@ -356,42 +428,55 @@ except Exception as exc:
 '''
 
 
-def test_two_pythonfmu_fmus_in_one_process_each_run_their_own_library(python_fmu, design,
-                                                                        tmp_path):
+def test_two_pythonfmu_fmus_in_one_process_each_run_their_own_library(python_fmu, design, tmp_path):
     """A second FMU's guard once took the first one's pythonfmu library (the dynamic loader
     matched it by its soname), whose folder fmpy had deleted: the host crashed on the second
     FMU's first log message."""
     other = fmu_build(design, None, tmp_path / "Other.fmu", points=POINTS)
     script = tmp_path / "two_fmus.py"
     script.write_text(TWO_FMUS_HOST)
-    done = subprocess.run([sys.executable, str(script), str(python_fmu), str(other)],
-                          capture_output=True, text=True, timeout=HOST_LIMIT)
+    done = subprocess.run(
+        [sys.executable, str(script), str(python_fmu), str(other)],
+        capture_output=True,
+        text=True,
+        timeout=HOST_LIMIT,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
-    assert done.stdout.splitlines() == ["21", "21", "[ERROR] input tau_load = nan: must be finite",
-                                        "fmi2DoStep failed with status 3 (error)."]
+    assert done.stdout.splitlines() == [
+        "21",
+        "21",
+        "[ERROR] input tau_load = nan: must be finite",
+        "fmi2DoStep failed with status 3 (error).",
+    ]
 
 
 # -- the table carries the speed limit ----------------------------------------------------------
+
 
 def test_the_table_carries_the_designs_speed_limit(native, design, tmp_path):
     with zipfile.ZipFile(native[2]) as archive:
         (tmp_path / TABLE_NAME).write_bytes(archive.read(f"resources/{TABLE_NAME}"))
     assert table_limits(tmp_path / TABLE_NAME) == {
-        "allowable_output_speed": design.allowable_output_speed, "speed_factor": SPEED_FACTOR,
-        "design": "RV-40E-121"}
+        "allowable_output_speed": design.allowable_output_speed,
+        "speed_factor": SPEED_FACTOR,
+        "design": "RV-40E-121",
+    }
     assert design.allowable_output_speed == pytest.approx(70 * RPM)
 
 
 # -- rvte fmu build -o ------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", ["x.zip", "x", "x.fmu.zip", "RVReducer."])
 def test_an_output_not_ending_in_fmu_is_refused_before_any_build(name, tmp_path, capsys):
     """`-o x.zip` wrote x.fmu; now one line naming the option, the value and the rule, before
     the TE map is solved (nothing written)."""
     output = tmp_path / name
-    with mock.patch("rvfmu.fmu.build.prepare", side_effect=AssertionError("built")), \
-            mock.patch("rvfmu.fmu.native.prepare", side_effect=AssertionError("built")), \
-            mock.patch("rvfmu.core.te_map.build_te_map", side_effect=AssertionError("solved")):
+    with (
+        mock.patch("rvfmu.fmu.build.prepare", side_effect=AssertionError("built")),
+        mock.patch("rvfmu.fmu.native.prepare", side_effect=AssertionError("built")),
+        mock.patch("rvfmu.core.steppers.te_map.build_te_map", side_effect=AssertionError("solved")),
+    ):
         for native in ([], ["--native"]):
             assert cli.main(["fmu", "build", DESIGN, "-o", str(output), *native]) == 2
             err = capsys.readouterr().err.strip()
@@ -404,8 +489,10 @@ def test_an_existing_fmu_is_replaced_as_the_help_says(native, tmp_path, capsys):
     output = tmp_path / "RVReducer.fmu"
     shutil.copy(native[2], output)
     before = read_model_description(str(output)).guid
-    assert cli.main(["fmu", "build", DESIGN, "--native", "--points", str(POINTS),
-                     "-o", str(output)]) in (0, None)
+    assert cli.main(["fmu", "build", DESIGN, "--native", "--points", str(POINTS), "-o", str(output)]) in (
+        0,
+        None,
+    )
     assert f"wrote {output}" in capsys.readouterr().out
     assert read_model_description(str(output)).guid != before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["RVReducer.fmu"]

@@ -18,23 +18,37 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import ROOT
 from rvfmu import api, cli
-from rvfmu.core.budget import WEAK_SPRINGS, compliance_budget
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import (DESIGN_FIELDS, SERIES_WINDUP_MAX, STIFFNESS_FIELDS, STIFFNESS_RANGE,
-                               STIFFNESS_SPREAD, preset)
-from rvfmu.core.equivalent import EquivalentModel
-from rvfmu.core.errors import (ERROR_FRACTION, ERROR_NAMES, PHASED, error_limits,
-                               errors_from_file_values, stack, toml_text, zero_errors)
-from rvfmu.core.solver import REGULARISATION, SUN_SUPPORT_WEIGHT, weak_stiffness
-from rvfmu.core.units import ARCSEC, UM
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import ARCSEC, UM
+from rvfmu.core.reducer.design import (
+    DESIGN_FIELDS,
+    SERIES_WINDUP_MAX,
+    STIFFNESS_FIELDS,
+    STIFFNESS_RANGE,
+    STIFFNESS_SPREAD,
+    preset,
+)
+from rvfmu.core.reducer.errors import (
+    ERROR_FRACTION,
+    ERROR_NAMES,
+    PHASED,
+    error_limits,
+    errors_from_file_values,
+    stack,
+    toml_text,
+    zero_errors,
+)
+from rvfmu.core.statics.budget import WEAK_SPRINGS, compliance_budget
+from rvfmu.core.statics.equivalent import EquivalentModel
+from rvfmu.core.statics.solver import REGULARISATION, SUN_SUPPORT_WEIGHT, weak_stiffness
 
 SEED002 = ROOT / "studies" / "seed002_errors.toml"
-HOST_SECONDS = 60.0   # one CLI run of these small jobs; a stalled Newton iteration took 40-200 s
+HOST_SECONDS = 60.0  # one CLI run of these small jobs; a stalled Newton iteration took 40-200 s
 
 
 def run(args):
@@ -61,13 +75,16 @@ def assert_one_line_refusal(code, out, err, command, *pieces):
 
 # -- 1. stiffnesses ---------------------------------------------------------------------------
 
+
 def test_pins_of_1e15_n_per_m_are_refused_naming_the_range(tmp_path):
     """Once 288.7 N*m/arcmin for a frame of 108, a third of it the weak springs'."""
-    design = toml_file(tmp_path, "d.toml", 'preset = "RV-40E-121"\n'
-                                           "pin_disc_stiffness_N_per_m = 1e15\n")
-    assert_one_line_refusal(*run(["stiffness", design]), "stiffness",
-                            "pin_disc_stiffness_N_per_m = 1000000000000000.0",
-                            "must be from 1e+05 to 1e+12 N/m")
+    design = toml_file(tmp_path, "d.toml", 'preset = "RV-40E-121"\npin_disc_stiffness_N_per_m = 1e15\n')
+    assert_one_line_refusal(
+        *run(["stiffness", design]),
+        "stiffness",
+        "pin_disc_stiffness_N_per_m = 1000000000000000.0",
+        "must be from 1e+05 to 1e+12 N/m",
+    )
 
 
 @pytest.mark.parametrize("field", STIFFNESS_FIELDS)
@@ -81,13 +98,20 @@ def test_every_stiffness_outside_the_physical_range_is_refused(field, value):
 
 def test_stiffnesses_far_apart_are_refused_naming_the_softest_and_its_range(tmp_path):
     """Pins of 1e5 N/m beside meshes of 1e12: the Newton iteration stalled (conditioning 1e13)."""
-    design = toml_file(tmp_path, "d.toml", 'preset = "RV-40E-121-estimate"\n'
-                       "needle_rollers = 0\ntapered_rollers = 0\n"
-                       "pin_disc_stiffness_N_per_m = 1e5\nmesh_stiffness_N_per_m = 1e12\n")
-    assert_one_line_refusal(*run(["stiffness", design]), "stiffness",
-                            "pin_disc_stiffness_N_per_m = 100000.0",
-                            f"must be from {1e12 / STIFFNESS_SPREAD:.4g} to 1e+12 N/m",
-                            "mesh_stiffness_N_per_m = 1e+12")
+    design = toml_file(
+        tmp_path,
+        "d.toml",
+        'preset = "RV-40E-121-estimate"\n'
+        "needle_rollers = 0\ntapered_rollers = 0\n"
+        "pin_disc_stiffness_N_per_m = 1e5\nmesh_stiffness_N_per_m = 1e12\n",
+    )
+    assert_one_line_refusal(
+        *run(["stiffness", design]),
+        "stiffness",
+        "pin_disc_stiffness_N_per_m = 100000.0",
+        f"must be from {1e12 / STIFFNESS_SPREAD:.4g} to 1e+12 N/m",
+        "mesh_stiffness_N_per_m = 1e+12",
+    )
 
 
 def test_the_sun_support_is_not_held_to_the_spread():
@@ -98,15 +122,19 @@ def test_the_sun_support_is_not_held_to_the_spread():
 
 
 def test_a_series_compliance_winding_up_more_than_a_degree_at_rated_torque_is_refused(tmp_path):
-    limit = SERIES_WINDUP_MAX / 412.0 / ARCSEC          # RV-40E: 8.738 arcsec per N*m
-    design = toml_file(tmp_path, "d.toml", 'preset = "RV-40E-121"\n'
-                                           "output_compliance_arcsec_per_Nm = 100.0\n")
-    assert_one_line_refusal(*run(["stiffness", design]), "stiffness",
-                            "output_compliance_arcsec_per_Nm = 100.0",
-                            f"must be from 0 to {limit:.4g} arcsec/(N*m)")
+    limit = SERIES_WINDUP_MAX / 412.0 / ARCSEC  # RV-40E: 8.738 arcsec per N*m
+    design = toml_file(tmp_path, "d.toml", 'preset = "RV-40E-121"\noutput_compliance_arcsec_per_Nm = 100.0\n')
+    assert_one_line_refusal(
+        *run(["stiffness", design]),
+        "stiffness",
+        "output_compliance_arcsec_per_Nm = 100.0",
+        f"must be from 0 to {limit:.4g} arcsec/(N*m)",
+    )
     assert f"{limit:.4g}" == "8.738"
-    preset("RV-40E-121").with_fields(carrier_compliance=0.99 * limit * ARCSEC)   # taken
-    with pytest.raises(InputError, match=r"carrier_compliance_arcsec_per_Nm = 8\.82\d*: must be from 0 to 8\.738"):
+    preset("RV-40E-121").with_fields(carrier_compliance=0.99 * limit * ARCSEC)  # taken
+    with pytest.raises(
+        InputError, match=r"carrier_compliance_arcsec_per_Nm = 8\.82\d*: must be from 0 to 8\.738"
+    ):
         preset("RV-40E-121").with_fields(carrier_compliance=1.01 * limit * ARCSEC)
 
 
@@ -115,18 +143,22 @@ def test_every_shipped_preset_lies_well_inside_the_ranges():
         for design in (preset(name), preset(name + "-estimate")):
             held = [getattr(design, f) for f in STIFFNESS_FIELDS if f != "sun_support_stiffness"]
             assert max(held) / min(held) < 1e-2 * STIFFNESS_SPREAD
-            assert all(5 * STIFFNESS_RANGE[0] < getattr(design, f) < STIFFNESS_RANGE[1] / 5
-                       for f in STIFFNESS_FIELDS)
+            assert all(
+                5 * STIFFNESS_RANGE[0] < getattr(design, f) < STIFFNESS_RANGE[1] / 5 for f in STIFFNESS_FIELDS
+            )
 
 
 # -- 2. the weak springs ----------------------------------------------------------------------
 
+
 def test_the_weak_springs_scale_with_the_softest_element(rv40):
     """The sun support counted SUN_SUPPORT_WEIGHT times (it is felt only through the meshes)."""
-    for changes, softest in (({}, rv40.mesh_stiffness),
-                             ({"pin_disc_stiffness": 1e12}, rv40.mesh_stiffness),
-                             ({"main_bearing_stiffness": 1e7}, 1e7),
-                             ({"sun_support_stiffness": 1e5}, SUN_SUPPORT_WEIGHT * 1e5)):
+    for changes, softest in (
+        ({}, rv40.mesh_stiffness),
+        ({"pin_disc_stiffness": 1e12}, rv40.mesh_stiffness),
+        ({"main_bearing_stiffness": 1e7}, 1e7),
+        ({"sun_support_stiffness": 1e5}, SUN_SUPPORT_WEIGHT * 1e5),
+    ):
         model = EquivalentModel(rv40.with_fields(**changes), np.zeros(2))
         assert weak_stiffness(model) == pytest.approx(REGULARISATION * softest, rel=1e-15)
 
@@ -152,9 +184,12 @@ def test_a_soft_sun_support_with_large_clearances_leaves_the_weak_springs_no_vis
     scaled with the meshes carried 1.9e-4 of the windup here, now 3.4e-6."""
     design = rv40.with_fields(sun_support_stiffness=1e5)
     errors = zero_errors(design).replace(
-        crank_disc_clearance=np.array([100.0 * UM]), crank_carrier_clearance=np.array([100.0 * UM]),
-        main_bearing_clearance=np.array([100.0 * UM]), carrier_assembly=np.array([100.0 * UM + 0j]),
-        crank_cam_eccentricity=np.full((1, 2, 2), 100.0 * UM + 0j))
+        crank_disc_clearance=np.array([100.0 * UM]),
+        crank_carrier_clearance=np.array([100.0 * UM]),
+        main_bearing_clearance=np.array([100.0 * UM]),
+        carrier_assembly=np.array([100.0 * UM + 0j]),
+        crank_cam_eccentricity=np.full((1, 2, 2), 100.0 * UM + 0j),
+    )
     budget = compliance_budget(design, errors)
     assert budget.converged and abs(budget.share_sum - 1.0) < 1e-6
     assert 0.0 <= budget.regularisation / budget.work < 1e-4
@@ -178,41 +213,54 @@ def test_the_published_figures_of_the_rv40e_121_with_the_seed_002_errors_hold():
 
 # -- 3. errors --------------------------------------------------------------------------------
 
+
 def test_a_carrier_assembly_error_of_a_kilometre_is_refused(tmp_path):
     """Once a lost motion of 2256 arcmin and budget shares of 56 280 % and -35 341 %."""
     errors = toml_file(tmp_path, "e.toml", "carrier_assembly = [1e9, 30.0]\n")
-    assert_one_line_refusal(*run(["stiffness", "RV-40E-121", "--errors", errors]), "stiffness",
-                            "e.toml: carrier_assembly = 1000000000.0",
-                            "must be at most 130 um, 0.1 x the eccentricity e = 1.3 mm")
+    assert_one_line_refusal(
+        *run(["stiffness", "RV-40E-121", "--errors", errors]),
+        "stiffness",
+        "e.toml: carrier_assembly = 1000000000.0",
+        "must be at most 130 um, 0.1 x the eccentricity e = 1.3 mm",
+    )
 
 
 def test_a_per_tooth_error_is_named_with_its_index(tmp_path):
     pitch = [0.0] * 40
-    pitch[7] = -140.0                                    # |deviation| counts, either sign
+    pitch[7] = -140.0  # |deviation| counts, either sign
     errors = toml_file(tmp_path, "e.toml", f"pin_pitch = {pitch}\n")
-    assert_one_line_refusal(*run(["te", "RV-40E-121", "--errors", errors]), "te",
-                            "pin_pitch[7] = 140.0", "must be at most 130 um")
+    assert_one_line_refusal(
+        *run(["te", "RV-40E-121", "--errors", errors]), "te", "pin_pitch[7] = 140.0", "must be at most 130 um"
+    )
 
 
 def test_a_nested_error_is_named_with_both_indices(tmp_path):
     cams = [[[3.5, 30.0], [4.0, 140.0]], [[135.0, 195.0], [4.5, 85.0]]]
     errors = toml_file(tmp_path, "e.toml", f"crank_cam_eccentricity = {cams}\n")
-    assert_one_line_refusal(*run(["stiffness", "RV-40E-121", "--errors", errors]), "stiffness",
-                            "crank_cam_eccentricity[1][0] = 135.0",
-                            "its magnitude E must be at most 130 um")
+    assert_one_line_refusal(
+        *run(["stiffness", "RV-40E-121", "--errors", errors]),
+        "stiffness",
+        "crank_cam_eccentricity[1][0] = 135.0",
+        "its magnitude E must be at most 130 um",
+    )
 
 
-@pytest.mark.parametrize("name", ["crank_disc_clearance", "crank_carrier_clearance",
-                                  "main_bearing_clearance"])
+@pytest.mark.parametrize(
+    "name", ["crank_disc_clearance", "crank_carrier_clearance", "main_bearing_clearance"]
+)
 def test_a_clearance_larger_than_a_tenth_of_the_eccentricity_is_refused(name, tmp_path):
-    errors = toml_file(tmp_path, "e.toml", f"{name} = 91.0\n")       # RV-20E: e = 0.9 mm
-    assert_one_line_refusal(*run(["stiffness", "RV-20E", "--errors", errors]), "stiffness",
-                            f"{name} = 91.0", "a clearance must be at most 90 um",
-                            "eccentricity e = 0.9 mm")
+    errors = toml_file(tmp_path, "e.toml", f"{name} = 91.0\n")  # RV-20E: e = 0.9 mm
+    assert_one_line_refusal(
+        *run(["stiffness", "RV-20E", "--errors", errors]),
+        "stiffness",
+        f"{name} = 91.0",
+        "a clearance must be at most 90 um",
+        "eccentricity e = 0.9 mm",
+    )
 
 
 def test_stage_1_errors_are_held_to_a_tenth_of_the_module():
-    design = preset("RV-40E-121")                       # m = 1.5 mm, e = 1.3 mm
+    design = preset("RV-40E-121")  # m = 1.5 mm, e = 1.3 mm
     errors_from_file_values(design, {"sun_eccentricity": [149.0, 10.0]})
     with pytest.raises(InputError) as caught:
         errors_from_file_values(design, {"planet_eccentricity": [[3.0, 0.0], [151.0, 0.0]]})
@@ -239,11 +287,11 @@ def test_errors_a_poor_real_reducer_has_are_taken():
     values = {}
     for name, array in zero_errors(design).arrays().items():
         shape = array.shape[1:]
-        if name in PHASED:                  # [E, beta] pairs
+        if name in PHASED:  # [E, beta] pairs
             values[name] = np.stack([np.full(shape, 80.0), np.full(shape, 33.0)], -1).tolist()
-        elif shape:                         # per-tooth deviations, either sign
+        elif shape:  # per-tooth deviations, either sign
             values[name] = np.full(shape, -80.0).tolist()
-        else:                               # clearances
+        else:  # clearances
             values[name] = 80.0
     errors = errors_from_file_values(design, values)
     assert errors.check(design) is errors
@@ -263,7 +311,7 @@ def cases(draw):
     geometry fields and the series compliance overridden, and one to four errors; each value
     inside what is allowed three times in four, else outside.  Hypothesis draws the seed of
     the choices (drawn field by field, its shrinking would keep to the first names)."""
-    rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
 
     def inside():
         return rng.random() < 0.75
@@ -272,24 +320,28 @@ def cases(draw):
     file = preset(base).file_values()
     design = {"preset": base}
     for key in map(str, rng.choice(STIFFNESS_KEYS, rng.integers(0, 3), replace=False)):
-        design[key] = float(file[key] * 10.0 ** rng.uniform(-1.0, 0.3) if inside()
-                            else 10.0 ** rng.choice([rng.uniform(1.0, 4.9), rng.uniform(12.1, 16.0)]))
+        design[key] = float(
+            file[key] * 10.0 ** rng.uniform(-1.0, 0.3)
+            if inside()
+            else 10.0 ** rng.choice([rng.uniform(1.0, 4.9), rng.uniform(12.1, 16.0)])
+        )
     for key in map(str, rng.choice(GEOMETRY, rng.integers(0, 3), replace=False)):
-        design[key] = float(file[key] * (rng.uniform(0.95, 1.05) if inside()
-                                         else rng.choice([-1.0, 0.0, 0.3, 3.0, 30.0])))
+        design[key] = float(
+            file[key] * (rng.uniform(0.95, 1.05) if inside() else rng.choice([-1.0, 0.0, 0.3, 3.0, 30.0]))
+        )
     if rng.random() < 0.5:
-        design["output_compliance_arcsec_per_Nm"] = float(rng.uniform(0.0, 1.0) if inside()
-                                                          else 10.0 ** rng.uniform(1.3, 6.0))
+        design["output_compliance_arcsec_per_Nm"] = float(
+            rng.uniform(0.0, 1.0) if inside() else 10.0 ** rng.uniform(1.3, 6.0)
+        )
     shapes = {name: array.shape[1:] for name, array in zero_errors(preset(base)).arrays().items()}
     errors = {}
     for name in map(str, rng.choice(ERROR_NAMES, rng.integers(1, 5), replace=False)):
         # um: up to 50 inside (every limit is 90 um or more); 300 um to a kilometre outside
         size = 10.0 ** (rng.uniform(-1.0, 1.7) if inside() else rng.uniform(2.5, 9.0))
-        if name in PHASED:                                  # [E, beta], beta any angle
+        if name in PHASED:  # [E, beta], beta any angle
             magnitude = size * rng.uniform(0.5, 1.0, shapes[name])
-            errors[name] = np.stack([magnitude, rng.uniform(-720.0, 720.0, shapes[name])],
-                                    axis=-1).tolist()
-        elif shapes[name] == ():                             # a clearance: negative is refused
+            errors[name] = np.stack([magnitude, rng.uniform(-720.0, 720.0, shapes[name])], axis=-1).tolist()
+        elif shapes[name] == ():  # a clearance: negative is refused
             errors[name] = float(size * (1.0 if inside() else -1.0))
         else:
             errors[name] = (size * rng.uniform(-1.0, 1.0, shapes[name])).tolist()
@@ -308,13 +360,18 @@ def check_refusal_or_invariants(command, code, out, err, given_names):
         named = re.search(r"(\w+)(\[\d+\])* = ", err)
         assert named and named.group(1) in FIELD_NAMES, err
         if not any(f"{name} = " in err or f"{name}[" in err for name in given_names):
-            assert named.group(1) in GEOMETRY + STIFFNESS_KEYS, err    # a relation between fields
+            assert named.group(1) in GEOMETRY + STIFFNESS_KEYS, err  # a relation between fields
         return None
     return out
 
 
-@settings(max_examples=40, deadline=None, derandomize=True, database=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@settings(
+    max_examples=40,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 @given(cases())
 def test_random_design_and_error_files_give_a_sound_result_or_one_line(case):
     design_values, error_values = case
@@ -334,7 +391,7 @@ def test_random_design_and_error_files_give_a_sound_result_or_one_line(case):
         assert np.all(np.isfinite(shares))
         assert abs(shares.sum() - 1.0) < 1e-3
         weak = [e["share"] for e in report["elements"] if e["name"] == WEAK_SPRINGS]
-        assert abs(weak[0]) < 1e-4                        # never a visible share
+        assert abs(weak[0]) < 1e-4  # never a visible share
         rigidity = report["torsional_rigidity_Nm_per_arcmin"]
         assert math.isfinite(rigidity) and rigidity > 0.0
         lost_motion = report["lost_motion_arcmin"]

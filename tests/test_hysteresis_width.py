@@ -8,15 +8,15 @@ import time
 
 import numpy as np
 import pytest
-
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import preset
-from rvfmu.core.hysteresis import hysteresis
-from rvfmu.core.units import ARCMIN
-from rvfmu.jobs.hysteresis import HysteresisReport, branch_angle, loop_width, width_reach
-from rvfmu.plots import INSET_FRICTION_TORQUES, figure_hysteresis
 from test_friction import NO_FRICTION
 from test_hardening import run_cli
+
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import ARCMIN
+from rvfmu.core.losses.hysteresis import hysteresis
+from rvfmu.core.reducer.design import preset
+from rvfmu.jobs.hysteresis import HysteresisReport, branch_angle, loop_width, width_reach
+from rvfmu.plots import INSET_FRICTION_TORQUES, figure_hysteresis
 
 
 @pytest.fixture(scope="module")
@@ -44,14 +44,14 @@ def close_figure(fig):
 
 # -- synthetic loops: the width against its closed form -----------------------------------------
 
+
 def test_a_constant_angle_offset_between_the_branches_is_the_width_everywhere(report):
     """Branches on the same torques, the unloading one 0.5 arcmin above along a curved path:
     the width is 0.5 arcmin at every torque, on the corners and between them."""
     torque = np.linspace(-300.0, 300.0, 41)
     angle = (0.01 * torque + 0.3 * np.tanh(torque / 20.0)) * ARCMIN
     offset = 0.5
-    loop = closed_loop(np.column_stack([torque, angle]),
-                       np.column_stack([torque, angle + offset * ARCMIN]))
+    loop = closed_loop(np.column_stack([torque, angle]), np.column_stack([torque, angle + offset * ARCMIN]))
     synthetic = HysteresisReport(dataclasses.replace(report.loop, loop=loop))
     queries = np.concatenate([torque, np.linspace(-299.9, 299.9, 307)])
     np.testing.assert_allclose(synthetic.width_arcmin(queries), offset, rtol=0, atol=1e-12)
@@ -64,7 +64,7 @@ def test_a_linear_path_shifted_by_the_friction_torque_is_twice_it_over_the_rigid
     """The construction of `core.hysteresis` on a path theta = tau / k: branches at tau + c
     (loading) and tau - c (unloading), so the width is 2 c / k [arcmin] wherever both reach
     (-max + c to max - c), and nowhere else."""
-    k, c, top = 108.0, 2.25, 412.0                 # N*m/arcmin, N*m, N*m
+    k, c, top = 108.0, 2.25, 412.0  # N*m/arcmin, N*m, N*m
     tau = np.linspace(-top, top, 81)
     up = np.column_stack([tau + c, tau / k * ARCMIN])
     down = np.column_stack([tau - c, tau / k * ARCMIN])
@@ -83,11 +83,16 @@ def test_a_branch_whose_torque_steps_back_is_read_where_the_output_has_got_to():
     (-1, 0), (1, 1), (0, 1), (2, 2), the torque falling from the top: 1.25 at 0.5 N*m, 0.5 at
     0 N*m (where the segment from (1, 1) falls below 0 again), 0.25 at -0.5 N*m."""
     up = np.array([[0.0, 0.0], [2.0, 1.0], [1.0, 1.0], [3.0, 2.0]])
-    np.testing.assert_allclose(branch_angle(up, np.array([1.5, 2.0, 2.5, 3.0]), True),
-                               [0.75, 1.5, 1.75, 2.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        branch_angle(up, np.array([1.5, 2.0, 2.5, 3.0]), True), [0.75, 1.5, 1.75, 2.0], rtol=0, atol=1e-15
+    )
     down = np.array([[-1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [2.0, 2.0]])
-    np.testing.assert_allclose(branch_angle(down, np.array([0.5, 0.0, -0.5, -1.0]), False),
-                               [1.25, 0.5, 0.25, 0.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        branch_angle(down, np.array([0.5, 0.0, -0.5, -1.0]), False),
+        [1.25, 0.5, 0.25, 0.0],
+        rtol=0,
+        atol=1e-15,
+    )
 
 
 def test_torques_the_branches_do_not_both_reach_are_refused(report):
@@ -97,8 +102,10 @@ def test_torques_the_branches_do_not_both_reach_are_refused(report):
     with pytest.raises(InputError) as err:
         report.width_arcmin([0.0, 412.0])
     assert err.value.field == "torques" and err.value.value == 412.0
-    assert str(err.value) == (f"torques = 412.0: must be within {lo:.6g} to {hi:.6g} N*m, "
-                              "the torques both branches of the loop reach")
+    assert str(err.value) == (
+        f"torques = 412.0: must be within {lo:.6g} to {hi:.6g} N*m, "
+        "the torques both branches of the loop reach"
+    )
     with pytest.raises(InputError, match=r"^torques = \[0.0, nan\]: must be a list of finite "):
         report.width_arcmin([0.0, float("nan")])
     with pytest.raises(InputError, match=r"^torques = 'zero': must be output torques \[N\*m\]"):
@@ -106,6 +113,7 @@ def test_torques_the_branches_do_not_both_reach_are_refused(report):
 
 
 # -- RV-40E-121: the width the loop's friction gives -----------------------------------------------
+
 
 def test_rv40_width_is_the_path_read_at_plus_and_minus_the_friction_torque(report):
     """Where an interval's shifted segments hold torque tau on both branches (tau +- T_f inside
@@ -117,11 +125,16 @@ def test_rv40_width_is_the_path_read_at_plus_and_minus_the_friction_torque(repor
     mid = 0.5 * (tau[1:] + tau[:-1])
     before = np.concatenate([[np.inf], t_f[:-1]])
     after = np.concatenate([t_f[1:], [np.inf]])
-    held = ((mid - t_f >= tau[:-1]) & (mid + t_f <= tau[1:])
-            & (tau[:-1] + before <= mid) & (tau[1:] - after >= mid))
+    held = (
+        (mid - t_f >= tau[:-1])
+        & (mid + t_f <= tau[1:])
+        & (tau[:-1] + before <= mid)
+        & (tau[1:] - after >= mid)
+    )
     assert held.sum() == 84
-    expected = (np.interp(mid[held] + t_f[held], tau, path)
-                - np.interp(mid[held] - t_f[held], tau, path)) / ARCMIN
+    expected = (
+        np.interp(mid[held] + t_f[held], tau, path) - np.interp(mid[held] - t_f[held], tau, path)
+    ) / ARCMIN
     np.testing.assert_allclose(report.width_arcmin(mid[held]), expected, rtol=1e-12)
 
 
@@ -135,7 +148,8 @@ def test_rv40_width_is_positive_and_of_the_size_of_the_loops_friction(report):
     for torque in (-300.0, 300.0):
         t_f = h.friction_torque[np.searchsorted(h.tau_load, torque) - 1]
         assert report.width_arcmin(torque)[0] == pytest.approx(
-            2.0 * t_f / h.torsional_rigidity_Nm_per_arcmin, rel=0.02)
+            2.0 * t_f / h.torsional_rigidity_Nm_per_arcmin, rel=0.02
+        )
     # at zero torque: the record's hysteresis loss (the path at +-T_f across the clearance)
     assert report.width_at_zero_arcmin == pytest.approx(h.hysteresis_loss_arcmin, rel=2e-3)
     # the widest is where the branches cross the clearance, within T_f of zero
@@ -158,6 +172,7 @@ def test_without_friction_the_branches_are_one_line(rv40_121):
 
 # -- what the engineer gets: JSON, summary, figure ----------------------------------------------
 
+
 def test_json_and_summary_carry_the_width(report, capsys, tmp_path):
     plot = tmp_path / "loop.png"
     start = time.perf_counter()
@@ -170,9 +185,11 @@ def test_json_and_summary_carry_the_width(report, capsys, tmp_path):
     assert data["width_max_torque_Nm"] == pytest.approx(report.width_max_torque_Nm, rel=1e-12)
     assert plot.read_bytes()[:4] == b"\x89PNG" and plot.stat().st_size > 20_000
     line = next(x for x in report.summary().splitlines() if x.startswith("loop width"))
-    assert line == (f"loop width         {60 * report.width_at_zero_arcmin:.3g} arcsec at zero "
-                    f"torque, {60 * report.width_arcmin(206.0)[0]:.3g} arcsec at 206 N*m (the "
-                    "unloading branch's angle less the loading one's)")
+    assert line == (
+        f"loop width         {60 * report.width_at_zero_arcmin:.3g} arcsec at zero "
+        f"torque, {60 * report.width_arcmin(206.0)[0]:.3g} arcsec at 206 N*m (the "
+        "unloading branch's angle less the loading one's)"
+    )
 
 
 def test_the_figure_draws_the_width_and_the_branches_apart(report):
@@ -191,8 +208,9 @@ def test_the_figure_draws_the_width_and_the_branches_apart(report):
         assert [line.get_label() for line in inset.lines[:2]] == ["loading", "unloading"]
         mid = 0.5 * (h.tau_load[1:] + h.tau_load[:-1])
         held = float(np.interp(0.0, mid, h.friction_torque))
-        assert inset.get_xlim() == pytest.approx((-INSET_FRICTION_TORQUES * held,
-                                                  INSET_FRICTION_TORQUES * held))
+        assert inset.get_xlim() == pytest.approx(
+            (-INSET_FRICTION_TORQUES * held, INSET_FRICTION_TORQUES * held)
+        )
         half = h.loop.shape[0] // 2
         np.testing.assert_array_equal(inset.lines[0].get_xydata()[:, 0], h.loop[:half, 0])
     finally:

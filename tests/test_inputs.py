@@ -14,10 +14,16 @@ import numpy as np
 import pytest
 
 from rvfmu import cli
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import DESIGN_FIELDS, PRESET_NAMES, design_from_file_values, load_design, preset
-from rvfmu.core.errors import error_file_values, errors_from_file_values, load_errors
-from rvfmu.core.units import DEG, MM, UM
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import DEG, MM, UM
+from rvfmu.core.reducer.design import (
+    DESIGN_FIELDS,
+    PRESET_NAMES,
+    design_from_file_values,
+    load_design,
+    preset,
+)
+from rvfmu.core.reducer.errors import error_file_values, errors_from_file_values, load_errors
 
 BASE = "RV-40E-121"  # z_p = 40, z_c = 39, n_c = 2, R_p = 64.05 mm, e = 1.3 mm
 SEED002 = Path(__file__).resolve().parent.parent / "studies" / "seed002_errors.toml"
@@ -56,8 +62,12 @@ def complete_design_text(**changes) -> str:
 BAD_DESIGNS = {
     "z_c not z_p - 1": ({"z_c": 40}, "z_c", "40", "must be z_p - 1 = 39"),
     "e too large": ({"e_mm": 2.0}, "e_mm", "2.0", "must be < R_p/z_p = 1.601 mm"),
-    "negative stiffness": ({"mesh_stiffness_N_per_m": -1.0e8}, "mesh_stiffness_N_per_m",
-                           "-100000000.0", "must be > 0"),
+    "negative stiffness": (
+        {"mesh_stiffness_N_per_m": -1.0e8},
+        "mesh_stiffness_N_per_m",
+        "-100000000.0",
+        "must be > 0",
+    ),
     "negative mass": ({"disc_mass_kg": -0.5}, "disc_mass_kg", "-0.5", "must be > 0"),
     "unknown key": ({"pin_radius_mm": 3.0}, "pin_radius_mm", "3.0", "is not a design key"),
     "NaN": ({"R_p_mm": math.nan}, "R_p_mm", "nan", "must be finite"),
@@ -166,8 +176,7 @@ def test_complete_design_file_loads_as_the_preset(tmp_path):
     path.write_text(complete_design_text())
     loaded, reference = load_design(path), preset(BASE)
     for spec in DESIGN_FIELDS:
-        assert getattr(loaded, spec.field) == pytest.approx(getattr(reference, spec.field),
-                                                            rel=1e-12)
+        assert getattr(loaded, spec.field) == pytest.approx(getattr(reference, spec.field), rel=1e-12)
 
 
 def test_preset_override_gives_overridden_value_in_si(tmp_path):
@@ -193,30 +202,45 @@ BAD_ERRORS = {
     "unknown name": ({"pin_wobble": [1.0] * 40}, "pin_wobble", "is not an error name"),
     "pin list of 39": ({"pin_radial": [1.0] * 39}, "pin_radial", "must be shaped 40, got 39"),
     "pin list of 41": ({"pin_pitch": [1.0] * 41}, "pin_pitch", "must be shaped 40, got 41"),
-    "NaN in a list": ({"pin_radius": [0.0] * 20 + [math.nan] + [0.0] * 19}, "pin_radius",
-                      "must be finite"),
-    "negative magnitude": ({"carrier_assembly": [-2.0, 30.0]}, "carrier_assembly",
-                           "magnitude E must be >= 0"),
-    "negative magnitude deep": ({"crank_cam_eccentricity": [[[3.5, 30.0], [4.0, 140.0]],
-                                                            [[-3.0, 195.0], [4.5, 85.0]]]},
-                                "crank_cam_eccentricity", "magnitude E must be >= 0"),
-    "negative clearance": ({"crank_disc_clearance": -1.0}, "crank_disc_clearance",
-                           "must be >= 0"),
-    "cam nesting too flat": ({"crank_cam_eccentricity": CAM_OK[0]}, "crank_cam_eccentricity",
-                             "must be shaped 2 x 2 x 2, got 2 x 2"),
-    "cam nesting swapped": ({"crank_cam_eccentricity": [[3.5, 30.0, 4.0, 140.0],
-                                                        [3.0, 195.0, 4.5, 85.0]]},
-                            "crank_cam_eccentricity", "must be shaped 2 x 2 x 2, got 2 x 4"),
-    "cam pair incomplete": ({"crank_cam_eccentricity": [[[3.5, 30.0], [4.0, 140.0]],
-                                                        [[3.0, 195.0], [4.5]]]},
-                            "crank_cam_eccentricity", "must be numbers shaped 2 x 2 x 2"),
-    "clearance as a list": ({"main_bearing_clearance": [5.0]}, "main_bearing_clearance",
-                            "must be shaped a scalar"),
-    "clearance as text": ({"crank_disc_clearance": "5"}, "crank_disc_clearance",
-                          "must be numbers"),
+    "NaN in a list": ({"pin_radius": [0.0] * 20 + [math.nan] + [0.0] * 19}, "pin_radius", "must be finite"),
+    "negative magnitude": (
+        {"carrier_assembly": [-2.0, 30.0]},
+        "carrier_assembly",
+        "magnitude E must be >= 0",
+    ),
+    "negative magnitude deep": (
+        {"crank_cam_eccentricity": [[[3.5, 30.0], [4.0, 140.0]], [[-3.0, 195.0], [4.5, 85.0]]]},
+        "crank_cam_eccentricity",
+        "magnitude E must be >= 0",
+    ),
+    "negative clearance": ({"crank_disc_clearance": -1.0}, "crank_disc_clearance", "must be >= 0"),
+    "cam nesting too flat": (
+        {"crank_cam_eccentricity": CAM_OK[0]},
+        "crank_cam_eccentricity",
+        "must be shaped 2 x 2 x 2, got 2 x 2",
+    ),
+    "cam nesting swapped": (
+        {"crank_cam_eccentricity": [[3.5, 30.0, 4.0, 140.0], [3.0, 195.0, 4.5, 85.0]]},
+        "crank_cam_eccentricity",
+        "must be shaped 2 x 2 x 2, got 2 x 4",
+    ),
+    "cam pair incomplete": (
+        {"crank_cam_eccentricity": [[[3.5, 30.0], [4.0, 140.0]], [[3.0, 195.0], [4.5]]]},
+        "crank_cam_eccentricity",
+        "must be numbers shaped 2 x 2 x 2",
+    ),
+    "clearance as a list": (
+        {"main_bearing_clearance": [5.0]},
+        "main_bearing_clearance",
+        "must be shaped a scalar",
+    ),
+    "clearance as text": ({"crank_disc_clearance": "5"}, "crank_disc_clearance", "must be numbers"),
     "pins as true/false": ({"pin_radial": [True] * 40}, "pin_radial", "must be numbers"),
-    "disc lobes of z_p": ({"disc_profile": [[0.0] * 40, [0.0] * 40]}, "disc_profile",
-                          "must be shaped 2 x 39, got 2 x 40"),
+    "disc lobes of z_p": (
+        {"disc_profile": [[0.0] * 40, [0.0] * 40]},
+        "disc_profile",
+        "must be shaped 2 x 39, got 2 x 40",
+    ),
 }
 
 
@@ -237,13 +261,18 @@ def test_wrong_pin_count_message_names_40():
 
 
 def test_good_error_values_convert_to_si():
-    errors = errors_from_file_values(preset(BASE), {
-        "carrier_assembly": [4.0, 30.0], "crank_cam_eccentricity": CAM_OK,
-        "pin_pitch": [0.5 * k for k in range(40)], "crank_disc_clearance": 5.0})
+    errors = errors_from_file_values(
+        preset(BASE),
+        {
+            "carrier_assembly": [4.0, 30.0],
+            "crank_cam_eccentricity": CAM_OK,
+            "pin_pitch": [0.5 * k for k in range(40)],
+            "crank_disc_clearance": 5.0,
+        },
+    )
     assert errors.carrier_assembly[0] == pytest.approx(4.0 * UM * np.exp(1j * 30.0 * DEG))
     # [crank i][disc j]: crank 1, disc 0 is [3.0, 195.0]
-    assert errors.crank_cam_eccentricity[0, 1, 0] == pytest.approx(
-        3.0 * UM * np.exp(1j * 195.0 * DEG))
+    assert errors.crank_cam_eccentricity[0, 1, 0] == pytest.approx(3.0 * UM * np.exp(1j * 195.0 * DEG))
     assert errors.pin_pitch[0, 39] == pytest.approx(19.5 * UM)
     assert errors.crank_disc_clearance[0] == pytest.approx(5.0 * UM)
     assert not np.any(errors.pin_radial)  # a missing key means zero
@@ -278,8 +307,7 @@ def test_shipped_seed002_error_file_loads_and_round_trips():
     design = preset(BASE)
     errors = load_errors(SEED002, design)
     # Table 2: crank 0, disc 1 = [4.0 um, 140 deg]
-    assert errors.crank_cam_eccentricity[0, 0, 1] == pytest.approx(
-        4.0 * UM * np.exp(1j * 140.0 * DEG))
+    assert errors.crank_cam_eccentricity[0, 0, 1] == pytest.approx(4.0 * UM * np.exp(1j * 140.0 * DEG))
     again = errors_from_file_values(design, error_file_values(errors))
     for name, array in errors.arrays().items():
         np.testing.assert_allclose(getattr(again, name), array, rtol=0, atol=1e-15, err_msg=name)
@@ -294,10 +322,12 @@ def test_error_file_lengths_follow_the_design():
 
 # -- the command line ---------------------------------------------------------------------
 
+
 def run_rvte(*args) -> subprocess.CompletedProcess:
     # A bad input must stop before any solve; the timeout only guards a regression.
-    return subprocess.run([sys.executable, "-m", "rvfmu.cli", *map(str, args)],
-                          capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "rvfmu.cli", *map(str, args)], capture_output=True, text=True, timeout=120
+    )
 
 
 def assert_clean_failure(result, *expected):
@@ -314,10 +344,11 @@ def assert_clean_failure(result, *expected):
 BAD_DESIGN_FILES = {
     "z_c": ('preset = "RV-40E-121"\nz_c = 40\n', ["z_c = 40", "z_p - 1"]),
     "e": ('preset = "RV-40E-121"\ne_mm = 1.65\n', ["e_mm = 1.65", "R_p/z_p"]),
-    "negative stiffness": ('preset = "RV-40E-121"\npin_disc_stiffness_N_per_m = -2.7e8\n',
-                           ["pin_disc_stiffness_N_per_m = -270000000.0", "> 0"]),
-    "unknown key": ('preset = "RV-40E-121"\nR_pin_mm = 64.05\n',
-                    ["R_pin_mm = 64.05", "not a design key"]),
+    "negative stiffness": (
+        'preset = "RV-40E-121"\npin_disc_stiffness_N_per_m = -2.7e8\n',
+        ["pin_disc_stiffness_N_per_m = -270000000.0", "> 0"],
+    ),
+    "unknown key": ('preset = "RV-40E-121"\nR_pin_mm = 64.05\n', ["R_pin_mm = 64.05", "not a design key"]),
     "NaN": ('preset = "RV-40E-121"\nR_p_mm = nan\n', ["R_p_mm = nan", "finite"]),
     "text": ('preset = "RV-40E-121"\ne_mm = "1.3"\n', ["e_mm = '1.3'", "must be a number"]),
     "z_s": ('preset = "RV-40E-121"\nz_s = 13\n', ["z_s = 13", "n_c = 2"]),
@@ -346,10 +377,11 @@ BAD_ERROR_FILES = {
     "unknown name": ("pin_wobble = 1.0\n", ["pin_wobble = 1.0", "not an error name"]),
     "short pin list": ("pin_pitch = [0.0, 1.2, 2.3]\n", ["pin_pitch = ", "shaped 40, got 3"]),
     "NaN in list": ("carrier_assembly = [4.0, nan]\n", ["carrier_assembly = ", "finite"]),
-    "negative clearance": ("main_bearing_clearance = -3.0\n",
-                           ["main_bearing_clearance = -3.0", ">= 0"]),
-    "cam nesting": ("crank_cam_eccentricity = [[3.5, 30.0], [4.0, 140.0]]\n",
-                    ["crank_cam_eccentricity = ", "2 x 2 x 2"]),
+    "negative clearance": ("main_bearing_clearance = -3.0\n", ["main_bearing_clearance = -3.0", ">= 0"]),
+    "cam nesting": (
+        "crank_cam_eccentricity = [[3.5, 30.0], [4.0, 140.0]]\n",
+        ["crank_cam_eccentricity = ", "2 x 2 x 2"],
+    ),
 }
 
 
@@ -371,5 +403,4 @@ def test_cli_main_returns_2_in_process(tmp_path, capsys):
     assert cli.main(["te", str(path)]) == 2
     captured = capsys.readouterr()
     assert captured.out == ""
-    assert captured.err.strip() == ("rvte te: error: RV-20E (modified): n_c = 4: "
-                                    "must be 2 or 3 crankshafts")
+    assert captured.err.strip() == ("rvte te: error: RV-20E (modified): n_c = 4: must be 2 or 3 crankshafts")

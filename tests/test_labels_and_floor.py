@@ -3,16 +3,22 @@ and the S1 > ST note of the Sobol table."""
 
 import numpy as np
 import pytest
+from tolerance_toy import write_study
 
-from rvfmu.core.design import preset
-from rvfmu.core.metrics import (NOISE_FLOOR_ARCSEC, NOISE_FLOOR_RELATIVE, highest_significant_order,
-                                largest_orders, noise_floor, significant_orders)
-from rvfmu.core.quasistatic import TECurve, input_angles
-from rvfmu.core.units import rad_to_arcsec
+from rvfmu.core.base.units import rad_to_arcsec
+from rvfmu.core.reducer.design import preset
+from rvfmu.core.statics.metrics import (
+    NOISE_FLOOR_ARCSEC,
+    NOISE_FLOOR_RELATIVE,
+    highest_significant_order,
+    largest_orders,
+    noise_floor,
+    significant_orders,
+)
+from rvfmu.core.statics.quasistatic import TECurve, input_angles
 from tolerance import sobol, summaries
 from tolerance.montecarlo import analyze as analyze_mc
 from tolerance.study import load_study
-from tolerance_toy import write_study
 
 N = 280
 
@@ -23,8 +29,9 @@ def angles(n=N):
 
 # -- 1. noise floor ---------------------------------------------------------------------------
 
+
 def test_floor_values_and_their_ground():
-    from rvfmu.core import solver
+    from rvfmu.core.statics import solver
 
     assert NOISE_FLOOR_ARCSEC == 1e-3
     # The relative floor is the solver's regularisation: finer than that the model says nothing.
@@ -33,8 +40,12 @@ def test_floor_values_and_their_ground():
 
 def test_a_flat_te_has_no_significant_order():
     rng = np.random.default_rng(1)
-    te = np.stack([np.full(N, -73.2) + 1e-12 * rng.standard_normal(N),   # round-off on a windup
-                   np.zeros(N)])
+    te = np.stack(
+        [
+            np.full(N, -73.2) + 1e-12 * rng.standard_normal(N),  # round-off on a windup
+            np.zeros(N),
+        ]
+    )
     orders, amplitudes = significant_orders(te)
     assert [o.size for o in orders] == [0, 0] and [a.size for a in amplitudes] == [0, 0]
     np.testing.assert_array_equal(highest_significant_order(te), [0, 0])
@@ -46,10 +57,16 @@ def test_a_flat_te_has_no_significant_order():
 
 def test_significant_orders_drop_those_below_the_floor():
     theta = angles()
-    te = (4.0 + 3.0 * np.sin(7 * theta) + 1.5 * np.cos(2 * theta + 0.3)
-          + 2e-3 * np.sin(40 * theta) + 5e-4 * np.cos(90 * theta) + 1e-9 * np.sin(120 * theta))
+    te = (
+        4.0
+        + 3.0 * np.sin(7 * theta)
+        + 1.5 * np.cos(2 * theta + 0.3)
+        + 2e-3 * np.sin(40 * theta)
+        + 5e-4 * np.cos(90 * theta)
+        + 1e-9 * np.sin(120 * theta)
+    )
     orders, amplitudes = significant_orders(te, count=5)
-    np.testing.assert_array_equal(orders[0], [7, 2, 40])        # 90 and 120 are below 1e-3
+    np.testing.assert_array_equal(orders[0], [7, 2, 40])  # 90 and 120 are below 1e-3
     np.testing.assert_allclose(amplitudes[0], [3.0, 1.5, 2e-3], rtol=1e-9)
     assert highest_significant_order(te)[0] == 40
     orders, _ = significant_orders(te, count=2)
@@ -68,8 +85,7 @@ def test_the_relative_floor_scales_with_the_largest_harmonic():
 
 def test_significant_orders_per_curve_of_a_batch():
     theta = angles()
-    te = np.stack([np.sin(3 * theta) + 2.0 * np.sin(5 * theta), np.full(N, 2.0),
-                   0.5 * np.sin(100 * theta)])
+    te = np.stack([np.sin(3 * theta) + 2.0 * np.sin(5 * theta), np.full(N, 2.0), 0.5 * np.sin(100 * theta)])
     orders, amplitudes = significant_orders(te, count=3)
     assert len(orders) == len(amplitudes) == 3
     np.testing.assert_array_equal(orders[0], [5, 3])
@@ -80,17 +96,17 @@ def test_significant_orders_per_curve_of_a_batch():
 
 # -- 2. TE figure -----------------------------------------------------------------------------
 
+
 def fake_curve(te_arcsec, design="RV-40E-121"):
     """A TECurve of one reducer whose TE is given [arcsec], on len(te_arcsec) points."""
     d = preset(design)
     te = np.atleast_2d(te_arcsec) / rad_to_arcsec(1.0)
     theta_in = input_angles(d, te.shape[-1])
-    return TECurve(d, -100.0, theta_in, theta_in / d.ratio + te, te, np.ones(1, bool),
-                   np.zeros_like(te))
+    return TECurve(d, -100.0, theta_in, theta_in / d.ratio + te, te, np.ones(1, bool), np.zeros_like(te))
 
 
 def spectrum_texts(fig):
-    ax_sp = fig.axes[-1]          # the spectrum: the last panel (a zoom may sit above it)
+    ax_sp = fig.axes[-1]  # the spectrum: the last panel (a zoom may sit above it)
     return ax_sp, [t.get_text() for t in ax_sp.texts]
 
 
@@ -101,8 +117,7 @@ def test_te_figure_markers_and_order_axis():
     pin = d.z_p * d.z_c
     points = 8 * pin
     theta = angles(points)
-    te = (-20.0 + 3.0 * np.sin(d.z_p * theta) + 1.0 * np.sin(pin * theta)
-          + 1e-11 * np.sin(3000 * theta))
+    te = -20.0 + 3.0 * np.sin(d.z_p * theta) + 1.0 * np.sin(pin * theta) + 1e-11 * np.sin(3000 * theta)
     ax_sp, texts = spectrum_texts(figure_te(fake_curve(te)))
     assert any(t.startswith("crank order (z_p)") for t in texts)
     assert any(t.startswith("pin-passing order (z_p·z_c)") for t in texts)
@@ -137,30 +152,40 @@ def test_plot_te_still_writes_the_file(tmp_path):
 
 # -- 3. human labels --------------------------------------------------------------------------
 
-@pytest.mark.parametrize("column, label", [
-    ("te_pp_arcsec", "TE peak-to-peak [arcsec]"),
-    ("rms_arcsec", "TE RMS about the mean [arcsec]"),
-    ("lost_motion_arcmin", "lost motion [arcmin]"),
-    ("torsional_rigidity_Nm_per_arcmin", "torsional rigidity [N·m/arcmin]"),
-    ("order_40_arcsec", "TE order 40 amplitude [arcsec]"),
-    ("order_1560_arcsec", "TE order 1560 amplitude [arcsec]"),
-    ("something_else", "something_else"),
-])
+
+@pytest.mark.parametrize(
+    "column, label",
+    [
+        ("te_pp_arcsec", "TE peak-to-peak [arcsec]"),
+        ("rms_arcsec", "TE RMS about the mean [arcsec]"),
+        ("lost_motion_arcmin", "lost motion [arcmin]"),
+        ("torsional_rigidity_Nm_per_arcmin", "torsional rigidity [N·m/arcmin]"),
+        ("order_40_arcsec", "TE order 40 amplitude [arcsec]"),
+        ("order_1560_arcsec", "TE order 1560 amplitude [arcsec]"),
+        ("something_else", "something_else"),
+    ],
+)
 def test_column_label(column, label):
     assert summaries.column_label(column) == label
 
 
-COLUMNS = ("te_pp_arcsec", "rms_arcsec", "lost_motion_arcmin", "torsional_rigidity_Nm_per_arcmin",
-           "order_40_arcsec")
+COLUMNS = (
+    "te_pp_arcsec",
+    "rms_arcsec",
+    "lost_motion_arcmin",
+    "torsional_rigidity_Nm_per_arcmin",
+    "order_40_arcsec",
+)
 
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    path = write_study(tmp_path_factory.mktemp("labels"),
-                       study={"metrics": ["te_pp", "rms", "lost_motion", "torsional_rigidity",
-                                          "order_40"]},
-                       operating={"points": 128},
-                       spec={"te_pp_arcsec": 30.0, "torsional_rigidity_Nm_per_arcmin": 300.0})
+    path = write_study(
+        tmp_path_factory.mktemp("labels"),
+        study={"metrics": ["te_pp", "rms", "lost_motion", "torsional_rigidity", "order_40"]},
+        operating={"points": 128},
+        spec={"te_pp_arcsec": 30.0, "torsional_rigidity_Nm_per_arcmin": 300.0},
+    )
     study = load_study(path)
     assert study.metric_columns == COLUMNS
     return study
@@ -206,7 +231,7 @@ def test_mc_figure_labels_are_for_people(study, tmp_path):
     assert rigidity_legend == ["spec ≥ 300 N·m/arcmin"]
     assert "yield" in fig.axes[1].get_title()
     no_column_names(all_texts(fig))
-    path = summaries.plot_mc(study, Y, analysis, tmp_path / "mc.png")   # the writer still works
+    path = summaries.plot_mc(study, Y, analysis, tmp_path / "mc.png")  # the writer still works
     assert path.is_file()
 
 
@@ -243,17 +268,19 @@ def test_tables_and_json_keep_the_column_names(study, analyses):
 
 # -- 4. S1 > ST -------------------------------------------------------------------------------
 
+
 def test_s1_above_st_beyond_their_intervals_is_flagged():
     S1 = np.array([0.015, 0.015, 0.60, 0.30])
     S1_conf = np.array([0.005, 0.012, 0.05, 0.02])
     ST = np.array([0.004, 0.004, 0.55, 0.50])
     ST_conf = np.array([0.003, 0.003, 0.05, 0.04])
-    ind = sobol.Indices(("pin_radial", "within", "overlap", "fine"), 64, S1, S1_conf, ST, ST_conf,
-                        None, None, 0.95)
+    ind = sobol.Indices(
+        ("pin_radial", "within", "overlap", "fine"), 64, S1, S1_conf, ST, ST_conf, None, None, 0.95
+    )
     flags = ind.flags()
     assert flags[0] == ["S1 0.015 > ST 0.004 beyond their CIs: sampling noise, raise n"]
-    assert flags[1] == []      # 0.015 - 0.012 < 0.004 + 0.003: within the noise, no note
-    assert flags[2] == []      # 0.60 - 0.05 < 0.55 + 0.05
+    assert flags[1] == []  # 0.015 - 0.012 < 0.004 + 0.003: within the noise, no note
+    assert flags[2] == []  # 0.60 - 0.05 < 0.55 + 0.05
     assert flags[3] == []
 
 
@@ -263,14 +290,13 @@ def test_the_sobol_table_explains_its_notes(study):
     S1[0] = 0.015
     ST = np.full(G, 0.3)
     ST[0] = 0.004
-    ind = sobol.Indices(study.groups, 64, S1, np.full(G, 0.005), ST, np.full(G, 0.003), None, None,
-                        0.95)
+    ind = sobol.Indices(study.groups, 64, S1, np.full(G, 0.005), ST, np.full(G, 0.003), None, None, 0.95)
     conv = sobol.Convergence((16, 32, 64), np.tile(S1, (3, 1)), np.tile(ST, (3, 1)))
     analyses = {"te_pp_arcsec": sobol.SobolAnalysis("te_pp_arcsec", ind, conv)}
     text = summaries.sobol_table(study, analyses, 64, 64 * (G + 2), False)
     row = next(line for line in text.splitlines() if study.groups[0] + " " in line)
     assert "S1 0.015 > ST 0.004 beyond their CIs: sampling noise, raise n" in row
-    legend = text[text.index("Notes:"):]
+    legend = text[text.index("Notes:") :]
     assert "S1 > ST" in legend and "never exceeds ST" in legend
     assert "sampling noise around zero" in legend and "CI wide" in legend
     data = summaries.sobol_json(study, analyses, 64, 64 * (G + 2), False, {})

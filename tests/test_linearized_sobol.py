@@ -8,9 +8,11 @@ import json
 
 import numpy as np
 import pytest
+from test_hardening import run_cli
+from tolerance_toy import write_study
 
-from rvfmu.core.checks import InputError
-from rvfmu.core.quasistatic import te_curve
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.statics.quasistatic import te_curve
 from tolerance import linearized, sobol
 from tolerance.error_rows import clearance_components, error_set, error_vector
 from tolerance.evaluate import Outputs
@@ -18,24 +20,29 @@ from tolerance.montecarlo import rows
 from tolerance.run import run_sobol
 from tolerance.sampling import errors_from_unit
 from tolerance.study import load_study
-from tolerance_toy import write_study
-from test_hardening import run_cli
 
 evaluate_module = importlib.import_module("tolerance.evaluate")
 RATED = 412.0
-TOLERANCES = {"crank_cam_eccentricity": {"position_um": 9.0},
-              "disc_crank_hole": {"position_um": 7.0},
-              "disc_profile": {"band_um": 8.0},
-              "pin_pitch": {"cumulative_um": 8.0, "single_um": 2.5},
-              "crank_disc_clearance": {"min_um": 2.0, "max_um": 28.0}}
+TOLERANCES = {
+    "crank_cam_eccentricity": {"position_um": 9.0},
+    "disc_crank_hole": {"position_um": 7.0},
+    "disc_profile": {"band_um": 8.0},
+    "pin_pitch": {"cumulative_um": 8.0, "single_um": 2.5},
+    "crank_disc_clearance": {"min_um": 2.0, "max_um": 28.0},
+}
 
 
-def loaded_study(folder, name="rated", load=RATED, n=256, solved_n=32, metrics=("te_pp", "rms"),
-                 tolerances=None):
-    return write_study(folder, name=name, tolerances=tolerances or TOLERANCES,
-                       study={"metrics": list(metrics), "batch_size": 32},
-                       operating={"points": 64, "load_Nm": load},
-                       sobol={"n": n, "resamples": 100, "solved_n": solved_n})
+def loaded_study(
+    folder, name="rated", load=RATED, n=256, solved_n=32, metrics=("te_pp", "rms"), tolerances=None
+):
+    return write_study(
+        folder,
+        name=name,
+        tolerances=tolerances or TOLERANCES,
+        study={"metrics": list(metrics), "batch_size": 32},
+        operating={"points": 64, "load_Nm": load},
+        sobol={"n": n, "resamples": 100, "solved_n": solved_n},
+    )
 
 
 def test_error_vectors_carry_every_component_and_come_back_unchanged(tmp_path):
@@ -48,9 +55,10 @@ def test_error_vectors_carry_every_component_and_come_back_unchanged(tmp_path):
     sizes = sum(a[0].size * (2 if np.iscomplexobj(a) else 1) for a in errors.arrays().values())
     assert vectors.shape == (5, sizes)
     marks = clearance_components(errors.take([0]))
-    assert marks.sum() == sum(errors.arrays()[k][0].size for k in
-                              ("crank_disc_clearance", "crank_carrier_clearance",
-                               "main_bearing_clearance"))
+    assert marks.sum() == sum(
+        errors.arrays()[k][0].size
+        for k in ("crank_disc_clearance", "crank_carrier_clearance", "main_bearing_clearance")
+    )
     assert np.all(vectors[:, marks] >= 0.0)
 
 
@@ -59,8 +67,10 @@ def test_each_slope_is_the_central_difference_of_two_independent_solves(tmp_path
     lin = linearized.linearize(study)
     points, active, steps, like = linearized.difference_points(study)
     assert lin.solves == 2 * active.size + 1 == points.shape[0]
-    curve = lambda v: te_curve(study.design, error_set(v, like), tau_load=-RATED,  # noqa: E731
-                               points=study.points).te_arcsec[0]
+
+    def curve(v):
+        return te_curve(study.design, error_set(v, like), tau_load=-RATED, points=study.points).te_arcsec[0]
+
     np.testing.assert_allclose(lin.te0, curve(points[0]), rtol=0, atol=1e-9)
     marks = clearance_components(like)[active]
     for j in (0, int(np.flatnonzero(marks)[0]), active.size - 1):
@@ -75,9 +85,11 @@ def test_each_slope_is_the_central_difference_of_two_independent_solves(tmp_path
 
 def linear_outputs(weights):
     """A reducer model that is linear in the error vector: the TE curve = weights . e."""
+
     def outputs(study, errors):
         te = error_vector(errors) @ weights
         return Outputs(te, {}, np.ones(errors.samples, dtype=bool))
+
     return outputs
 
 
@@ -111,6 +123,7 @@ def test_a_discontinuous_output_fails_the_check_and_falls_back_to_saltelli(tmp_p
         step = (error_vector(errors)[:, column] > centre).astype(float)
         te = step[:, None] * np.sin(np.linspace(0, 6.28, study.points))[None] * 10.0
         return Outputs(te, {}, np.ones(errors.samples, dtype=bool))
+
     monkeypatch.setattr(evaluate_module, "outputs", outputs)
     result = run_sobol(path, method="linearized", plots=False)
     assert np.all(result.check.q2 < linearized.Q2_MIN)
@@ -165,6 +178,7 @@ def interrupting(after):
         if calls["n"] > after:
             raise KeyboardInterrupt
         return real(study, errors)
+
     return outputs
 
 
@@ -180,9 +194,8 @@ def test_interrupted_linearization_resumes_with_the_same_indices(tmp_path, monke
     assert kept == 2
     resumed = run_sobol(path, method="linearized", plots=False, output=tmp_path / "cut")
     for column in clean.analyses:
-        np.testing.assert_array_equal(resumed.analyses[column].indices.ST,
-                                      clean.analyses[column].indices.ST)
-    assert study.sobol_method == "saltelli"     # the file's default: the method came from the call
+        np.testing.assert_array_equal(resumed.analyses[column].indices.ST, clean.analyses[column].indices.ST)
+    assert study.sobol_method == "saltelli"  # the file's default: the method came from the call
 
 
 @pytest.mark.parametrize("backend", [{"processes": 2}, {"workers": 2}], ids=["processes", "dask"])
@@ -193,14 +206,15 @@ def test_the_linearization_resumes_on_other_backends_with_the_same_indices(tmp_p
     study = load_study(path, tmp_path / "there")
     points = linearized.difference_points(study)[0]
     from tolerance.run import compute
+
     te_columns = evaluate_module.output_columns(study)[0]
     like = errors_from_unit(study, rows(study, 0, 1))
-    compute(study, linearized.JOB, points.shape[0] // 2, lambda s, e: points[s:e],
-            columns=te_columns, like=like)
+    compute(
+        study, linearized.JOB, points.shape[0] // 2, lambda s, e: points[s:e], columns=te_columns, like=like
+    )
     there = run_sobol(path, method="linearized", plots=False, output=tmp_path / "there", **backend)
     for column in here.analyses:
-        np.testing.assert_array_equal(there.analyses[column].indices.ST,
-                                      here.analyses[column].indices.ST)
+        np.testing.assert_array_equal(there.analyses[column].indices.ST, here.analyses[column].indices.ST)
 
 
 def test_a_method_the_study_or_the_command_does_not_know_is_refused(tmp_path, capsys):
@@ -233,6 +247,7 @@ def test_the_json_and_the_frame_say_the_method_and_its_check(tmp_path):
 
 # -- the corrected estimator on functions with known indices -------------------------------
 
+
 def ishigami(X, a=7.0, b=0.1):
     return np.sin(X[:, 0]) + a * np.sin(X[:, 1]) ** 2 + b * X[:, 2] ** 4 * np.sin(X[:, 0])
 
@@ -240,13 +255,12 @@ def ishigami(X, a=7.0, b=0.1):
 def test_the_corrected_estimator_finds_ishigamis_indices_from_a_cruder_function():
     a, b = 7.0, 0.1
     problem = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[-np.pi, np.pi]] * 3}
-    variance = a ** 2 / 8 + b * np.pi ** 4 / 5 + b ** 2 * np.pi ** 8 / 18 + 0.5
-    first = np.array([0.5 * (1 + b * np.pi ** 4 / 5) ** 2, a ** 2 / 8, 0.0]) / variance
-    total = first + np.array([8 * b ** 2 * np.pi ** 8 / 225, 0.0, 8 * b ** 2 * np.pi ** 8 / 225]) \
-        / variance
+    variance = a**2 / 8 + b * np.pi**4 / 5 + b**2 * np.pi**8 / 18 + 0.5
+    first = np.array([0.5 * (1 + b * np.pi**4 / 5) ** 2, a**2 / 8, 0.0]) / variance
+    total = first + np.array([8 * b**2 * np.pi**8 / 225, 0.0, 8 * b**2 * np.pi**8 / 225]) / variance
     X = sobol.sample(problem, 4096, seed=11)
     m = 256 * sobol.rows_per_base_sample(problem)
-    crude = ishigami(X, 6.0, 0.08)            # the "linearization": other coefficients
+    crude = ishigami(X, 6.0, 0.08)  # the "linearization": other coefficients
     result = linearized.corrected_indices(problem, crude, ishigami(X[:m]), resamples=300, seed=5)
     assert np.all(np.abs(result.ST - total) <= result.ST_conf)
     assert np.all(np.abs(result.S1 - first) <= result.S1_conf)
@@ -265,8 +279,7 @@ def g_function(X, a):
 def test_the_corrected_estimator_finds_the_grouped_g_functions_indices():
     a = np.array([0.0, 1.0, 4.5, 9.0, 99.0, 99.0])
     groups = ["g1", "g1", "g2", "g2", "g3", "g3"]
-    problem = {"num_vars": 6, "names": [f"x{i}" for i in range(6)], "bounds": [[0, 1]] * 6,
-               "groups": groups}
+    problem = {"num_vars": 6, "names": [f"x{i}" for i in range(6)], "bounds": [[0, 1]] * 6, "groups": groups}
     partial = (1 / 3) / (1 + a) ** 2
     variance = np.prod(1 + partial) - 1
     first, total = [], []
@@ -277,7 +290,6 @@ def test_the_corrected_estimator_finds_the_grouped_g_functions_indices():
     X = sobol.sample(problem, 4096, seed=3)
     m = 256 * sobol.rows_per_base_sample(problem)
     crude = g_function(X, a + 0.3)
-    result = linearized.corrected_indices(problem, crude, g_function(X[:m], a), resamples=300,
-                                          seed=2)
+    result = linearized.corrected_indices(problem, crude, g_function(X[:m], a), resamples=300, seed=2)
     assert np.all(np.abs(result.ST - np.array(total)) <= result.ST_conf)
     assert np.all(np.abs(result.S1 - np.array(first)) <= result.S1_conf)

@@ -15,18 +15,18 @@ import numpy as np
 import pytest
 
 from rvfmu import api
-from rvfmu.cli import main
-from rvfmu.core.checks import InputError
 from rvfmu.bench.measured import measure_te
-from rvfmu.core.units import ARCSEC
+from rvfmu.cli import main
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import ARCSEC
 
 RATIO = 81.0
 # The reducer's TE: (order per output revolution, amplitude ["], phase [rad]); 39 is the
 # disc's lobe order of a 40-pin RV, 78 its second harmonic.
 TE_ORDERS = ((2, 12.0, -0.4), (39, 20.0, 1.0), (78, 6.0, -2.0))
 # The bench's runout, as measure reports it: A cos(k theta - phase), [", deg].
-OUTPUT_RUNOUT = (15.0, 40.0)    # output encoder eccentricity, order 1 of the output
-INPUT_RUNOUT = (8.0, -30.0)     # input coupling, order 1 of the input
+OUTPUT_RUNOUT = (15.0, 40.0)  # output encoder eccentricity, order 1 of the output
+INPUT_RUNOUT = (8.0, -30.0)  # input coupling, order 1 of the input
 INPUT_RPM = 600.0
 
 
@@ -46,12 +46,17 @@ def bench(revolutions=2.0, per_rev=2048, sense=1, noise_arcsec=0.2, seed=1, rati
     te = reducer_te(theta_in)
     theta_out = theta_in / ratio + te * ARCSEC + 0.01
     (a_out, p_out), (a_in, p_in) = OUTPUT_RUNOUT, INPUT_RUNOUT
-    read_out = theta_out + ARCSEC * (a_out * np.cos(theta_out - np.radians(p_out))
-                                     + a_in * np.cos(theta_in - np.radians(p_in)))
+    read_out = theta_out + ARCSEC * (
+        a_out * np.cos(theta_out - np.radians(p_out)) + a_in * np.cos(theta_in - np.radians(p_in))
+    )
     rng = np.random.default_rng(seed)
     noise = noise_arcsec * ARCSEC
-    return dict(time_s=time, theta_in=theta_in + rng.normal(0, noise * ratio, rows),
-                theta_out=read_out + rng.normal(0, noise, rows), te=te)
+    return dict(
+        time_s=time,
+        theta_in=theta_in + rng.normal(0, noise * ratio, rows),
+        theta_out=read_out + rng.normal(0, noise, rows),
+        te=te,
+    )
 
 
 def write(path, columns):
@@ -86,8 +91,14 @@ def record():
 
 @pytest.fixture(scope="module")
 def measured(record):
-    return measure_te(record["theta_in"], record["theta_out"], RATIO, record["time_s"],
-                      remove_orders=(1,), remove_input_orders=(1,))
+    return measure_te(
+        record["theta_in"],
+        record["theta_out"],
+        RATIO,
+        record["time_s"],
+        remove_orders=(1,),
+        remove_input_orders=(1,),
+    )
 
 
 def test_recovers_the_reducer_te_and_the_runout(record, measured):
@@ -106,8 +117,7 @@ def test_recovers_the_reducer_te_and_the_runout(record, measured):
         assert abs((found[key].phase_deg - phase + 180) % 360 - 180) < 2.0
     # and it is what was removed, row by row
     (a_out, p_out), (a_in, p_in) = OUTPUT_RUNOUT, INPUT_RUNOUT
-    runout = (a_out * np.cos(m.theta_out - np.radians(p_out))
-              + a_in * np.cos(m.theta_in - np.radians(p_in)))
+    runout = a_out * np.cos(m.theta_out - np.radians(p_out)) + a_in * np.cos(m.theta_in - np.radians(p_in))
     assert np.max(np.abs(m.runout_arcsec - runout)) < 0.05 * a_out
     # the spectrum by order sees the reducer's orders where they are
     reducer_orders = [order for order, _ in m.largest_orders(3)[1]]
@@ -122,37 +132,60 @@ def test_keep_orders_keeps_the_output_order(record):
 
 
 def test_wrapped_counts_deg_and_rad_give_the_same_te(tmp_path, record):
-    counts = (2**20, 2**23)     # input, output encoder
-    c_in, c_out = (np.round(record[role] / (2 * np.pi) * n)
-                   for role, n in zip(("theta_in", "theta_out"), counts))
+    counts = (2**20, 2**23)  # input, output encoder
+    c_in, c_out = (
+        np.round(record[role] / (2 * np.pi) * n) for role, n in zip(("theta_in", "theta_out"), counts)
+    )
     files = {
-        "counts": write(tmp_path / "counts.csv", {"time_s": record["time_s"],
-                                                  "theta_in_counts": c_in % counts[0],
-                                                  "theta_out_counts": c_out % counts[1]}),
-        "deg": write(tmp_path / "deg.csv", {"time_s": record["time_s"],
-                                            "theta_in_deg": c_in * 360.0 / counts[0],
-                                            "theta_out_deg": c_out * 360.0 / counts[1]}),
-        "rad": write(tmp_path / "rad.csv", {"time_s": record["time_s"],
-                                            "theta_in_rad": c_in * 2 * np.pi / counts[0],
-                                            "theta_out_rad": c_out * 2 * np.pi / counts[1]}),
-        "named": write(tmp_path / "named.csv", {"t": record["time_s"], "enc_in": c_in % counts[0],
-                                                "enc_out": c_out % counts[1]}),
+        "counts": write(
+            tmp_path / "counts.csv",
+            {
+                "time_s": record["time_s"],
+                "theta_in_counts": c_in % counts[0],
+                "theta_out_counts": c_out % counts[1],
+            },
+        ),
+        "deg": write(
+            tmp_path / "deg.csv",
+            {
+                "time_s": record["time_s"],
+                "theta_in_deg": c_in * 360.0 / counts[0],
+                "theta_out_deg": c_out * 360.0 / counts[1],
+            },
+        ),
+        "rad": write(
+            tmp_path / "rad.csv",
+            {
+                "time_s": record["time_s"],
+                "theta_in_rad": c_in * 2 * np.pi / counts[0],
+                "theta_out_rad": c_out * 2 * np.pi / counts[1],
+            },
+        ),
+        "named": write(
+            tmp_path / "named.csv",
+            {"t": record["time_s"], "enc_in": c_in % counts[0], "enc_out": c_out % counts[1]},
+        ),
     }
     reports = {
         "counts": api.measure(files["counts"], RATIO, counts_per_rev=counts, remove_input_orders=(1,)),
         "deg": api.measure(files["deg"], RATIO, remove_input_orders=(1,)),
         "rad": api.measure(files["rad"], RATIO, remove_input_orders=(1,)),
-        "named": api.measure(files["named"], RATIO, columns=("enc_in", "enc_out", "t"),
-                             units="counts", counts_per_rev=counts, remove_input_orders=(1,)),
+        "named": api.measure(
+            files["named"],
+            RATIO,
+            columns=("enc_in", "enc_out", "t"),
+            units="counts",
+            counts_per_rev=counts,
+            remove_input_orders=(1,),
+        ),
     }
     rollovers = reports["counts"].measured.rollovers
-    assert rollovers[0] > 100 and rollovers[1] == 2       # the counts did wrap, and unwrapped
+    assert rollovers[0] > 100 and rollovers[1] == 2  # the counts did wrap, and unwrapped
     assert reports["deg"].measured.rollovers == (0, 0)
     base = reports["deg"].measured
     for name, report in reports.items():
         m = report.measured
-        np.testing.assert_allclose(m.te_reducer_arcsec, base.te_reducer_arcsec, atol=1e-6,
-                                   err_msg=name)
+        np.testing.assert_allclose(m.te_reducer_arcsec, base.te_reducer_arcsec, atol=1e-6, err_msg=name)
         np.testing.assert_allclose(m.te_pp_arcsec, base.te_pp_arcsec, atol=1e-6, err_msg=name)
         for c, b in zip(m.components, base.components):
             assert abs(c.amplitude_arcsec - b.amplitude_arcsec) < 1e-6
@@ -168,8 +201,7 @@ def test_wrapped_degrees_give_the_unwrapped_te(tmp_path, record):
 
 def test_negative_sense_gives_the_same_te(record, measured):
     back = bench(sense=-1, seed=2)
-    m = measure_te(back["theta_in"], back["theta_out"], RATIO, back["time_s"],
-                   remove_input_orders=(1,))
+    m = measure_te(back["theta_in"], back["theta_out"], RATIO, back["time_s"], remove_input_orders=(1,))
     assert m.sense == -1 and m.revolutions == 2
     assert m.measured_ratio == pytest.approx(RATIO, rel=1e-4)
     true = back["te"][: m.rows] - back["te"][: m.rows].mean()
@@ -208,7 +240,7 @@ def _bad(tmp_path, record, case):
     """(file, extra arguments, column, row) of one bad-data case (unequal lengths, NaN, time, too short, unknown column)."""
     path = deg_file(tmp_path / f"{case}.csv", record)
     lines = _lines(path)
-    if case == "short row":                     # unequal column lengths in a file
+    if case == "short row":  # unequal column lengths in a file
         lines[40] = ",".join(lines[40].split(",")[:2])
         column, row = "theta_out_deg", 41
     elif case == "nan":
@@ -261,8 +293,9 @@ def test_core_checks_name_column_and_row(record):
     with pytest.raises(InputError, match="the output turns the other way"):
         measure_te(record["theta_in"], -record["theta_out"], RATIO)
     with pytest.raises(InputError, match="remove_input_orders = 1: input order 1 is output order 81"):
-        measure_te(record["theta_in"], record["theta_out"], RATIO, remove_orders=(1, 81),
-                   remove_input_orders=(1,))
+        measure_te(
+            record["theta_in"], record["theta_out"], RATIO, remove_orders=(1, 81), remove_input_orders=(1,)
+        )
     with pytest.raises(InputError, match="keep_orders = 2"):
         measure_te(record["theta_in"], record["theta_out"], RATIO, keep_orders=(2,))
 
@@ -284,7 +317,7 @@ def test_hz_spectrum_only_with_time_and_order_one_at_the_output_speed(tmp_path, 
     low = m.hz <= 1.5 * speed
     line = m.hz[low][np.argmax(m.spectrum_hz[0][low] * (m.hz[low] > 0))]
     assert line == pytest.approx(m.output_speed_hz, rel=1e-9)
-    assert abs(line - speed) < 0.5 / (m.revolutions / speed)    # within half a bin of the truth
+    assert abs(line - speed) < 0.5 / (m.revolutions / speed)  # within half a bin of the truth
     # the lobe order 39 sits at 39 x the output speed
     assert m.largest_lines_hz(1)[1][0][0] == pytest.approx(39 * speed, rel=1e-9)
 
@@ -292,20 +325,45 @@ def test_hz_spectrum_only_with_time_and_order_one_at_the_output_speed(tmp_path, 
 def test_cli_json_csv_and_plot(tmp_path, record):
     path = deg_file(tmp_path / "b.csv", record)
     out_csv, out_png = tmp_path / "te.csv", tmp_path / "te.png"
-    proc = subprocess.run([sys.executable, "-m", "rvfmu.cli", "measure", str(path), "--ratio", "81",
-                           "--remove-input-orders", "1", "--csv", str(out_csv), "--plot",
-                           str(out_png), "--json"], capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rvfmu.cli",
+            "measure",
+            str(path),
+            "--ratio",
+            "81",
+            "--remove-input-orders",
+            "1",
+            "--csv",
+            str(out_csv),
+            "--plot",
+            str(out_png),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
     assert summary["ratio"] == 81 and summary["measured_ratio"] == pytest.approx(81, rel=1e-4)
     assert summary["te_pp_arcsec"]["measured"] > summary["te_pp_arcsec"]["without_runout"]
     assert {(c["shaft"], c["order"]) for c in summary["removed"]} == {("output", 1), ("input", 1)}
     data = np.genfromtxt(out_csv, delimiter=",", names=True)
-    assert data.dtype.names == ("time_s", "theta_in_rad", "theta_out_rad", "te_arcsec",
-                                "runout_arcsec", "te_reducer_arcsec")
+    assert data.dtype.names == (
+        "time_s",
+        "theta_in_rad",
+        "theta_out_rad",
+        "te_arcsec",
+        "runout_arcsec",
+        "te_reducer_arcsec",
+    )
     assert data.size == summary["rows"]["used"]
     residual = data["te_arcsec"] - data["runout_arcsec"] - data["te_reducer_arcsec"]
-    assert np.ptp(residual) < 1e-5      # the fit's constant, the same on every row
+    assert np.ptp(residual) < 1e-5  # the fit's constant, the same on every row
     assert np.ptp(data["te_reducer_arcsec"]) == pytest.approx(
-        summary["te_pp_arcsec"]["without_runout"], abs=1e-5)
+        summary["te_pp_arcsec"]["without_runout"], abs=1e-5
+    )
     assert out_png.read_bytes()[:4] == b"\x89PNG"

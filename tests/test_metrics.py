@@ -3,8 +3,14 @@
 import numpy as np
 import pytest
 
-from rvfmu.core.metrics import (amplitude_at_order, largest_orders, order_spectrum, te_mean,
-                                te_pp, te_rms)
+from rvfmu.core.statics.metrics import (
+    amplitude_at_order,
+    largest_orders,
+    order_spectrum,
+    te_mean,
+    te_pp,
+    te_rms,
+)
 
 N = 280  # points per revolution: a multiple of 4*7, so the sine of order 7 hits its peaks
 
@@ -72,8 +78,13 @@ def test_metrics_are_per_sample():
 
 def test_largest_orders_ranks_the_harmonics():
     theta = angles()
-    te = (4.0 + 3.0 * np.sin(7 * theta) + 1.5 * np.cos(2 * theta + 0.3)
-          + 0.5 * np.sin(13 * theta) + 0.2 * np.cos(40 * theta))
+    te = (
+        4.0
+        + 3.0 * np.sin(7 * theta)
+        + 1.5 * np.cos(2 * theta + 0.3)
+        + 0.5 * np.sin(13 * theta)
+        + 0.2 * np.cos(40 * theta)
+    )
     orders, amplitudes = largest_orders(te, count=4)
     assert orders.shape == amplitudes.shape == (1, 4)
     np.testing.assert_array_equal(orders[0], [7, 2, 13, 40])  # the mean (order 0) left out
@@ -82,8 +93,7 @@ def test_largest_orders_ranks_the_harmonics():
 
 def test_largest_orders_of_a_batch():
     theta = angles()
-    te = np.stack([np.sin(3 * theta) + 2.0 * np.sin(5 * theta),
-                   2.0 * np.sin(3 * theta) + np.sin(5 * theta)])
+    te = np.stack([np.sin(3 * theta) + 2.0 * np.sin(5 * theta), 2.0 * np.sin(3 * theta) + np.sin(5 * theta)])
     orders, amplitudes = largest_orders(te, count=2)
     np.testing.assert_array_equal(orders, [[5, 3], [3, 5]])
     np.testing.assert_allclose(amplitudes, [[2.0, 1.0], [2.0, 1.0]], rtol=1e-10)

@@ -8,12 +8,12 @@ from unittest import mock
 import numpy as np
 import pytest
 
-from rvfmu.core import design as design_module
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import preset
-from rvfmu.core.dynamic import INPUT_SHAFT_FACTOR, DynamicModel, ramp_motion
-from rvfmu.core.errors import zero_errors
-from rvfmu.core.modes import MODES_NO_LOAD_PROBE, campbell, modes
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.dynamics.dynamic import INPUT_SHAFT_FACTOR, DynamicModel, ramp_motion
+from rvfmu.core.dynamics.modes import MODES_NO_LOAD_PROBE, campbell, modes
+from rvfmu.core.reducer import design as design_module
+from rvfmu.core.reducer.design import preset
+from rvfmu.core.reducer.errors import zero_errors
 
 # Factor on every bearing, the sun support and the pins: "rigid" against the meshes.  Stage 2
 # multiplies the mesh force by about r_b,planet / e (20 on the RV-40E-121) on its way to the cam
@@ -26,18 +26,21 @@ LABEL = re.compile(r"^(sun|carrier|crank \d|disc [01]) (translation|torsion)$")
 
 def stiff_mechanism(design, carrier_inertia_factor=1.0, stiff=STIFF):
     """Every bearing, the sun support and the pins `stiff` times stiffer: only the meshes and the
-    input shaft stay soft.  That rigid limit is no reducer (rvfmu/core/design.py refuses
+    input shaft stay soft.  That rigid limit is no reducer (rvfmu/core/reducer/design.py refuses
     stiffnesses beyond STIFFNESS_RANGE and STIFFNESS_SPREAD): those bounds are lifted while
     this verification's design is built."""
-    with mock.patch.object(design_module, "STIFFNESS_RANGE", (0.0, math.inf)), \
-            mock.patch.object(design_module, "STIFFNESS_SPREAD", math.inf):
+    with (
+        mock.patch.object(design_module, "STIFFNESS_RANGE", (0.0, math.inf)),
+        mock.patch.object(design_module, "STIFFNESS_SPREAD", math.inf),
+    ):
         return design.with_fields(
             crank_carrier_bearing_stiffness=stiff * design.crank_carrier_bearing_stiffness,
             crank_disc_bearing_stiffness=stiff * design.crank_disc_bearing_stiffness,
             main_bearing_stiffness=stiff * design.main_bearing_stiffness,
             sun_support_stiffness=stiff * design.sun_support_stiffness,
             pin_disc_stiffness=stiff * design.pin_disc_stiffness,
-            carrier_inertia=carrier_inertia_factor * design.carrier_inertia)
+            carrier_inertia=carrier_inertia_factor * design.carrier_inertia,
+        )
 
 
 def two_inertia_frequencies(d):
@@ -70,28 +73,35 @@ def two_inertia_frequencies(d):
     i = d.ratio
     a = d.crank_circle_radius
     r_b = d.m * d.z_s / 2.0 * math.cos(d.pressure_angle)
-    k_t = d.n_c * d.mesh_stiffness * r_b ** 2
+    k_t = d.n_c * d.mesh_stiffness * r_b**2
     k_s = INPUT_SHAFT_FACTOR * k_t
-    crank_torsion = d.n_c * d.crank_inertia * d.z_c ** 2
-    J_o = (d.carrier_inertia + d.n_c * d.crank_mass * a ** 2 + crank_torsion
-           + 2 * (d.disc_inertia + d.disc_mass * (d.z_c * d.e) ** 2))
-    J_r, J_s = J_o / i ** 2, d.sun_inertia
+    crank_torsion = d.n_c * d.crank_inertia * d.z_c**2
+    J_o = (
+        d.carrier_inertia
+        + d.n_c * d.crank_mass * a**2
+        + crank_torsion
+        + 2 * (d.disc_inertia + d.disc_mass * (d.z_c * d.e) ** 2)
+    )
+    J_r, J_s = J_o / i**2, d.sun_inertia
     b = (k_s + k_t) * J_r + k_t * J_s
     root = math.sqrt(b * b - 4.0 * J_s * J_r * k_s * k_t)
     w2 = np.array([(b - root), (b + root)]) / (2.0 * J_s * J_r)
     # lowest mode's shape: phi_r / phi_s from the sun's row, (k_s + k_t - w^2 J_s) / k_t
     ratio = (k_s + k_t - w2[0] * J_s) / k_t
-    kinetic_s, kinetic_r = J_s, J_r * ratio ** 2
-    shares = {"sun torsion": kinetic_s / (kinetic_s + kinetic_r),
-              "crank torsion": kinetic_r / (kinetic_s + kinetic_r) * crank_torsion / J_o,
-              "carrier torsion": kinetic_r / (kinetic_s + kinetic_r) * d.carrier_inertia / J_o}
+    kinetic_s, kinetic_r = J_s, J_r * ratio**2
+    shares = {
+        "sun torsion": kinetic_s / (kinetic_s + kinetic_r),
+        "crank torsion": kinetic_r / (kinetic_s + kinetic_r) * crank_torsion / J_o,
+        "carrier torsion": kinetic_r / (kinetic_s + kinetic_r) * d.carrier_inertia / J_o,
+    }
     return np.sqrt(w2) / (2.0 * math.pi), shares, J_o, k_s, k_t
 
 
 @pytest.mark.parametrize("carrier_inertia_factor", [1e-3, 1.0, 1e3])
 @pytest.mark.parametrize("load", [412.0, 0.0])
 def test_frequencies_match_a_hand_built_two_inertia_torsional_model_with_stiff_bearings(
-        rv40, carrier_inertia_factor, load):
+    rv40, carrier_inertia_factor, load
+):
     """rvte modes frequencies match a hand-built two-inertia torsional model in the limit of
     stiff bearings (derivation in `two_inertia_frequencies`).
 
@@ -110,7 +120,7 @@ def test_frequencies_match_a_hand_built_two_inertia_torsional_model_with_stiff_b
     result = modes(design, load=load)
     assert result.dropped == 0
     assert result.frequencies_hz[:2] == pytest.approx(hand, rel=0.02)
-    assert result.frequencies_hz[2] > 10.0 * hand[1]             # no third mode near them
+    assert result.frequencies_hz[2] > 10.0 * hand[1]  # no third mode near them
     got = result.energy_shares(0)
     crank = sum(v for k, v in got.items() if re.fullmatch(r"crank \d torsion", k))
     assert crank == pytest.approx(shares["crank torsion"], abs=0.02)
@@ -118,9 +128,8 @@ def test_frequencies_match_a_hand_built_two_inertia_torsional_model_with_stiff_b
     assert got["sun torsion"] == pytest.approx(shares["sun torsion"], abs=0.02)
     if carrier_inertia_factor > 1.0:
         # heavy output: one inertia J_o on the shaft and meshes in series, referred to the output
-        series = k_s * k_t / (k_s + k_t) * design.ratio ** 2
-        assert result.frequencies_hz[0] == pytest.approx(
-            math.sqrt(series / J_o) / (2.0 * math.pi), rel=0.02)
+        series = k_s * k_t / (k_s + k_t) * design.ratio**2
+        assert result.frequencies_hz[0] == pytest.approx(math.sqrt(series / J_o) / (2.0 * math.pi), rel=0.02)
 
 
 def test_the_gap_to_the_hand_model_closes_as_the_stiff_elements_stiffen(rv40):
@@ -137,8 +146,7 @@ def test_the_gap_to_the_hand_model_closes_as_the_stiff_elements_stiffen(rv40):
 
 
 @pytest.mark.parametrize("load, theta_in", [(412.0, 0.0), (0.0, 0.0), (-206.0, 1.234)])
-def test_frequencies_are_positive_and_sorted_and_the_shapes_mass_orthonormal(rv40, seed002, load,
-                                                                            theta_in):
+def test_frequencies_are_positive_and_sorted_and_the_shapes_mass_orthonormal(rv40, seed002, load, theta_in):
     result = modes(rv40, seed002, load=load, theta_in=theta_in)
     f = result.frequencies_hz
     n = len(result.names)
@@ -160,7 +168,7 @@ def test_every_mode_is_a_vibration_of_the_grounded_reducer(rv40):
 def test_dominant_shares_sum_to_one_with_the_part_labels(rv40, seed002):
     result = modes(rv40, seed002, load=rv40.rated_torque)
     groups = result.groups
-    assert len(groups) == 2 * (1 + rv40.n_c + 2 + 1)               # sun, cranks, discs, carrier
+    assert len(groups) == 2 * (1 + rv40.n_c + 2 + 1)  # sun, cranks, discs, carrier
     for k in range(result.frequencies_hz.size):
         everything = result.dominant(k, count=len(groups))
         assert sum(share for _, share in everything) == pytest.approx(1.0, abs=1e-12)
@@ -199,7 +207,7 @@ def test_campbell_lines_of_the_rv110e_at_1600_rpm():
     assert lines["pin passing"][2] == pytest.approx(258.4, abs=0.1)
     assert lines["stage-1 mesh"][2] == pytest.approx(397.5, abs=0.1)
     assert lines["input rotation"][2] == pytest.approx(1600.0 / 60.0)
-    for values in lines.values():                                 # straight lines through 0
+    for values in lines.values():  # straight lines through 0
         assert values[0] == 0.0 and values[2] == pytest.approx(2.0 * values[1])
 
 

@@ -5,14 +5,14 @@ import dataclasses
 
 import numpy as np
 import pytest
+from tolerance_toy import write_study
 
 from rvfmu import api, cli
-from rvfmu.core import metrics
-from rvfmu.core.errors import load_errors
+from rvfmu.core.reducer.errors import load_errors
+from rvfmu.core.statics import metrics
 from tolerance import montecarlo, run_mc
 from tolerance.evaluate import evaluate
 from tolerance.study import load_study
-from tolerance_toy import write_study
 
 
 @pytest.fixture(scope="module")
@@ -27,8 +27,10 @@ def toy_run(tmp_path_factory):
 def test_mc_counts_say_what_was_analysed_and_what_was_computed(toy_run):
     _, result, lines = toy_run
     table = result.table()
-    assert "30 reducers analysed (32 computed in 4 batches of 8; the rest are kept for a " \
-           "larger -n)" in table.splitlines()[0]
+    assert (
+        "30 reducers analysed (32 computed in 4 batches of 8; the rest are kept for a "
+        "larger -n)" in table.splitlines()[0]
+    )
     assert lines[-1].startswith("mc: 32 reducers in 4 batches of 8 (0 reused, 4 computed)")
     summary = result.to_json()
     assert (summary["n"], summary["computed_rows"], summary["batch_size"]) == (30, 32, 8)
@@ -50,8 +52,10 @@ def test_the_aliasing_check_recomputes_reducers_at_full_resolution(toy_run):
     near = np.mean(np.abs(result.Y[:, 0] - 30.0) <= change[0])
     assert check.yield_at_risk == {"te_pp_arcsec <= 30": pytest.approx(near)}
     table = result.table()
-    assert "aliasing check: 64 points per revolution do not resolve the pin-passing order; 16 " \
-           "reducers of this study recomputed at 12480 points change te_pp_arcsec by at most" in table
+    assert (
+        "aliasing check: 64 points per revolution do not resolve the pin-passing order; 16 "
+        "reducers of this study recomputed at 12480 points change te_pp_arcsec by at most" in table
+    )
     assert "aliasing moves the yield by at most that much" in table
 
 
@@ -84,7 +88,7 @@ def test_the_no_load_mean_is_explained_and_a_loaded_one_is_not():
 
 
 def test_the_error_template_command_writes_a_file_that_loads_back_to_zero(tmp_path, capsys):
-    from rvfmu.core.design import preset
+    from rvfmu.core.reducer.design import preset
 
     out = tmp_path / "my_errors.toml"
     assert cli.main(["errors", "--template", "RV-110E", "-o", str(out)]) == 0
@@ -101,8 +105,7 @@ def test_the_error_template_command_writes_a_file_that_loads_back_to_zero(tmp_pa
 IMPORT_FIRST = """
 import importlib, pkgutil, sys
 import rvfmu, rvfmu.core
-names = ["rvfmu.core." + m.name for m in pkgutil.iter_modules(rvfmu.core.__path__)]
-names += ["rvfmu." + m.name for m in pkgutil.iter_modules(rvfmu.__path__) if m.name != "core"]
+names = [m.name for m in pkgutil.walk_packages(rvfmu.__path__, "rvfmu.")]   # every room's modules too
 failed = []
 for name in names:
     for loaded in [k for k in sys.modules if k == "rvfmu" or k.startswith("rvfmu.")]:
@@ -113,14 +116,14 @@ for name in names:
         failed.append(f"{name}: {exc!r}")
 for loaded in [k for k in sys.modules if k == "rvfmu" or k.startswith("rvfmu.")]:
     del sys.modules[loaded]
-from rvfmu.core.design import preset
+from rvfmu.core.reducer.design import preset
 preset("RV-40E-121")
 print(len(names), "modules;", "; ".join(failed) or "none failed")
 """
 
 
 def test_every_module_imports_first_in_a_fresh_interpreter():
-    """Whatever a script imports first works: a newcomer's `from rvfmu.core.design import
+    """Whatever a script imports first works: a newcomer's `from rvfmu.core.reducer.design import
     preset` must not depend on another module having been imported before (an import cycle
     once broke exactly that)."""
     import os
@@ -130,8 +133,9 @@ def test_every_module_imports_first_in_a_fresh_interpreter():
     from conftest import ROOT
 
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.run([sys.executable, "-c", IMPORT_FIRST], capture_output=True, text=True,
-                          env=env, cwd=ROOT, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, "-c", IMPORT_FIRST], capture_output=True, text=True, env=env, cwd=ROOT, timeout=600
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip().endswith("none failed"), proc.stdout
     assert int(proc.stdout.split()[0]) > 30

@@ -1,20 +1,20 @@
 """The lubricant's temperature in a study: `[operating] temperature_C` for the friction metrics.
 
 The friction metrics of a study (`efficiency`, `no_load_running_torque`) are those of
-`rvfmu.core.friction.operating_losses` at the study's output speed and, now, at its
+`rvfmu.core.losses.friction.operating_losses` at the study's output speed and, now, at its
 lubricant temperature; the key is part of the study's identity only where a friction metric
 is asked for, and a value outside the range Walther's equation is held over is refused by name.
 """
 
 import numpy as np
 import pytest
+from tolerance_toy import write_study
 
-from rvfmu.core.checks import InputError
-from rvfmu.core.friction import operating_losses
-from rvfmu.core.lubricant import REFERENCE_TEMPERATURE_C
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.laws.lubricant import REFERENCE_TEMPERATURE_C
+from rvfmu.core.losses.friction import operating_losses
 from tolerance.evaluate import errors_from_unit, evaluate
 from tolerance.study import load_study
-from tolerance_toy import write_study
 
 FRICTION = {"metrics": ["no_load_running_torque"]}
 
@@ -30,8 +30,7 @@ def test_the_study_default_is_the_grades_temperature_and_the_results_of_before(t
     X = np.random.default_rng(3).random((2, len(default.columns)))
     Y, ok = evaluate(default, X)
     errors = errors_from_unit(default, X)
-    _, running, _ = operating_losses(default.design, errors, default.load_Nm,
-                                     default.output_speed_rpm)
+    _, running, _ = operating_losses(default.design, errors, default.load_Nm, default.output_speed_rpm)
     assert ok.all()
     np.testing.assert_array_equal(Y[:, 0], running)
 
@@ -41,8 +40,9 @@ def test_a_cold_study_runs_its_friction_metric_at_its_temperature(tmp_path):
     X = np.random.default_rng(4).random((2, len(cold.columns)))
     Y_warm, _ = evaluate(warm, X)
     Y_cold, ok = evaluate(cold, X)
-    _, running, _ = operating_losses(cold.design, errors_from_unit(cold, X), cold.load_Nm,
-                                     cold.output_speed_rpm, temperature_C=-10.0)
+    _, running, _ = operating_losses(
+        cold.design, errors_from_unit(cold, X), cold.load_Nm, cold.output_speed_rpm, temperature_C=-10.0
+    )
     assert ok.all()
     np.testing.assert_array_equal(Y_cold[:, 0], running)
     # the oil is thicker in the cold: the load-free drag, and so the running torque, rises

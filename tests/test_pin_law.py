@@ -1,4 +1,4 @@
-"""The pins' Hertz law (rvfmu/core/pin_law.py): its closed form, its inverse, and the model on it.
+"""The pins' Hertz law (rvfmu/core/laws/pin_law.py): its closed form, its inverse, and the model on it.
 
 A pin pressed between its disc and its housing groove is two Hertz line contacts in
 series; Radzimovsky's approach of each (`stiffness.hertz_line_contact_approach`) is
@@ -13,32 +13,36 @@ from unittest import mock
 
 import numpy as np
 import pytest
+from conftest import ROOT
 from scipy.special import lambertw
 
-from conftest import ROOT
-from rvfmu.core import kernels
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import preset, preset_file
-from rvfmu.core.errors import load_errors, stack
-from rvfmu.core.pin_law import U_LIMIT, approach, contact, contact_forces, contacts, law_constants
-from rvfmu.core.quasistatic import equilibrium_te, input_angles, te_curve, windup
-from rvfmu.core.stiffness import (disc_curvature_radius_at_largest_lever,
-                                  hertz_line_contact_approach, pin_contact_loads,
-                                  pin_stiffness_estimate)
-from rvfmu.core.units import ARCSEC
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import ARCSEC
+from rvfmu.core.laws.pin_law import U_LIMIT, approach, contact, contact_forces, contacts, law_constants
+from rvfmu.core.laws.stiffness import (
+    disc_curvature_radius_at_largest_lever,
+    hertz_line_contact_approach,
+    pin_contact_loads,
+    pin_stiffness_estimate,
+)
+from rvfmu.core.reducer.design import preset, preset_file
+from rvfmu.core.reducer.errors import load_errors, stack
+from rvfmu.core.statics import newton_kernel
+from rvfmu.core.statics.quasistatic import equilibrium_te, input_angles, te_curve, windup
 
 E, NU = 206e9, 0.3
-PIN, DISC, GROOVE, WIDTH = 5e-3, 0.034, -5.005e-3, 0.015   # m: a pin, a convex disc, its groove
+PIN, DISC, GROOVE, WIDTH = 5e-3, 0.034, -5.005e-3, 0.015  # m: a pin, a convex disc, its groove
 
 
 def test_the_law_is_radzimovskys_two_line_contacts_in_series():
     b, f_star = law_constants(PIN, DISC, GROOVE, WIDTH, E, NU)
     for force in (1e-3, 1.0, 40.0, 400.0, 1e4):
-        written_out = (hertz_line_contact_approach(force, WIDTH, PIN, DISC, E, NU)
-                       + hertz_line_contact_approach(force, WIDTH, PIN, GROOVE, E, NU))
+        written_out = hertz_line_contact_approach(
+            force, WIDTH, PIN, DISC, E, NU
+        ) + hertz_line_contact_approach(force, WIDTH, PIN, GROOVE, E, NU)
         assert float(approach(force, b, f_star)) == pytest.approx(written_out, rel=1e-12)
     # b is twice one contact's 2 (1 - nu^2) / (pi E l)
-    assert b == pytest.approx(4.0 * (1.0 - NU ** 2) / (math.pi * E * WIDTH), rel=1e-14)
+    assert b == pytest.approx(4.0 * (1.0 - NU**2) / (math.pi * E * WIDTH), rel=1e-14)
 
 
 def test_the_inverse_is_lambert_w_to_round_off_over_the_whole_range():
@@ -60,17 +64,16 @@ def test_newton_starts_from_the_table_within_one_step_of_the_root():
     """v(c) tabulated and interpolated is within 1e-9 of Lambert W's root over the table, so
     the first Newton step is below the stop (STEP_TOLERANCE v) and ends the iteration there;
     beyond the table de Bruijn's start takes over, still to round-off."""
-    from rvfmu.core import pin_law
+    from rvfmu.core.laws import pin_law
 
     c = np.linspace(pin_law.C_LIMIT, pin_law.ROOT_TABLE_END, 100_003)[:-1]
-    exact = -lambertw(-np.exp(-c), -1).real                  # v - ln v = c, v >= 1
+    exact = -lambertw(-np.exp(-c), -1).real  # v - ln v = c, v >= 1
     start = pin_law._table_start(c)
     np.testing.assert_allclose(start, exact, rtol=2e-9, atol=0)
     first_step = (start - np.log(start) - c) * start / (start - 1.0)
     assert np.all(np.abs(first_step) < pin_law.STEP_TOLERANCE * start)
     for value in c[::997]:
-        assert pin_law._start(value) == pytest.approx(pin_law._table_start(np.array([value]))[0],
-                                                      rel=1e-15)
+        assert pin_law._start(value) == pytest.approx(pin_law._table_start(np.array([value]))[0], rel=1e-15)
     beyond = np.array([pin_law.ROOT_TABLE_END, 60.0, 300.0])
     root = np.array([pin_law._root(x) for x in beyond])
     np.testing.assert_allclose(root, -lambertw(-np.exp(-beyond), -1).real, rtol=1e-14)
@@ -104,26 +107,40 @@ def test_the_law_winds_up_as_the_stated_stiffness_over_the_rated_range_and_softe
     estimate's own stiffness the law is Radzimovsky's unscaled; at the lost motion's 3 % it
     is softer, by the logarithm."""
     design = preset(name + "-estimate")
-    assert design.pin_groove_clearance > 0.0                 # the presets give the groove
+    assert design.pin_groove_clearance > 0.0  # the presets give the groove
     k, b, f_star = design.pin_law
     low, high = pin_contact_loads(design.rated_torque, design.R_p, design.e, design.z_p)
     secant = (high - low) / (approach(high, b, f_star) - approach(low, b, f_star))
     assert secant == pytest.approx(k, rel=1e-12)
-    own = pin_stiffness_estimate(design.rated_torque, design.R_p, design.r_rp, design.e, design.z_p,
-                                 design.disc_width, preset_file(name)["pin_groove_clearance_mm"] * 1e-3,
-                                 design.youngs_modulus, design.poisson_ratio)
-    assert k == pytest.approx(own, rel=1e-3)           # the file holds it to four digits
+    own = pin_stiffness_estimate(
+        design.rated_torque,
+        design.R_p,
+        design.r_rp,
+        design.e,
+        design.z_p,
+        design.disc_width,
+        preset_file(name)["pin_groove_clearance_mm"] * 1e-3,
+        design.youngs_modulus,
+        design.poisson_ratio,
+    )
+    assert k == pytest.approx(own, rel=1e-3)  # the file holds it to four digits
     radius = disc_curvature_radius_at_largest_lever(design.R_p, design.r_rp, design.e, design.z_p)
-    b0, _ = law_constants(design.r_rp, radius, -(design.r_rp + design.pin_groove_clearance),
-                          design.disc_width, design.youngs_modulus, design.poisson_ratio)
+    b0, _ = law_constants(
+        design.r_rp,
+        radius,
+        -(design.r_rp + design.pin_groove_clearance),
+        design.disc_width,
+        design.youngs_modulus,
+        design.poisson_ratio,
+    )
     assert b == pytest.approx(b0 * own / k, rel=1e-9)
     small = 0.03 * high
     assert small / approach(small, b, f_star) < 0.8 * k
 
 
 def test_a_groove_wider_than_its_pin_and_hertz_without_a_groove_are_refused(rv40, rv40_hertz):
-    from rvfmu.core.dynamic import DynamicModel
-    from rvfmu.core.errors import zero_errors
+    from rvfmu.core.dynamics.dynamic import DynamicModel
+    from rvfmu.core.reducer.errors import zero_errors
 
     with pytest.raises(InputError, match="pin_groove_clearance_mm"):
         rv40.with_fields(pin_groove_clearance=1.01 * rv40.r_rp)
@@ -140,8 +157,7 @@ def seed002_hertz(rv40_hertz):
     return load_errors(ROOT / "studies" / "seed002_errors.toml", rv40_hertz)
 
 
-def test_no_load_te_is_the_rigid_limit_and_loaded_te_carries_the_law(rv40_rollers, rv40_hertz,
-                                                                     seed002_hertz):
+def test_no_load_te_is_the_rigid_limit_and_loaded_te_carries_the_law(rv40_rollers, rv40_hertz, seed002_hertz):
     """No preload (seed 002's errors on the estimate): the no-load TE is kinematic and does not
     see the law; under load the law winds up more at small loads, alike at rated."""
     theta = input_angles(rv40_hertz, 48) + 0.1
@@ -157,7 +173,8 @@ def test_no_load_te_is_the_rigid_limit_and_loaded_te_carries_the_law(rv40_roller
     hertz, linear = windup(rv40_hertz, seed002_hertz), windup(rv40_rollers, seed002_hertz)
     assert hertz.lost_motion_arcmin()[0] > linear.lost_motion_arcmin()[0]
     assert hertz.torsional_rigidity_Nm_per_arcmin()[0] == pytest.approx(
-        linear.torsional_rigidity_Nm_per_arcmin()[0], rel=0.01)
+        linear.torsional_rigidity_Nm_per_arcmin()[0], rel=0.01
+    )
 
 
 @pytest.mark.parametrize("tau", [0.0, -412.0, -12.0], ids=["no load", "rated", "3 %"])
@@ -166,9 +183,10 @@ def test_the_compiled_and_numpy_iterations_agree_on_the_law(rv40_hertz, seed002_
 
     def run():
         return te_curve(rv40_hertz, errors, tau_load=tau, points=240)
-    assert kernels.COMPILED
+
+    assert newton_kernel.COMPILED
     compiled = run()
-    with mock.patch.object(kernels, "COMPILED", False):
+    with mock.patch.object(newton_kernel, "COMPILED", False):
         plain = run()
     assert compiled.converged.all() and plain.converged.all()
     np.testing.assert_allclose(compiled.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-8)
@@ -177,8 +195,8 @@ def test_the_compiled_and_numpy_iterations_agree_on_the_law(rv40_hertz, seed002_
 
 
 def test_the_dynamic_tangent_is_the_derivative_of_the_law(rv40_hertz, seed002_hertz):
-    from rvfmu.core.dynamic import DynamicModel, ramp_motion
-    from rvfmu.core.simulation import _quasi_static_start
+    from rvfmu.core.dynamics.dynamic import DynamicModel, ramp_motion
+    from rvfmu.core.dynamics.simulation import _quasi_static_start
 
     model = DynamicModel(rv40_hertz, seed002_hertz, mesh="varying")
     model.prepare(ramp_motion(np.array([0.0, 1e-4]), 100.0, 0.0))
@@ -193,12 +211,13 @@ def test_the_dynamic_tangent_is_the_derivative_of_the_law(rv40_hertz, seed002_he
 
 
 def test_the_budget_adds_up_with_the_law(rv40_hertz, seed002_hertz):
-    from rvfmu.core.budget import compliance_budget
+    from rvfmu.core.statics.budget import compliance_budget
 
     budget = compliance_budget(rv40_hertz, seed002_hertz)
     assert budget.converged
     assert abs(budget.share_sum - 1.0) < 1e-6
     assert budget.torsional_rigidity_Nm_per_arcmin == pytest.approx(
-        windup(rv40_hertz, seed002_hertz).torsional_rigidity_Nm_per_arcmin()[0], rel=1e-9)
+        windup(rv40_hertz, seed002_hertz).torsional_rigidity_Nm_per_arcmin()[0], rel=1e-9
+    )
     pins = {e.name: e for e in budget.elements}["pin-disc contacts"]
     assert pins.stiffness == rv40_hertz.pin_disc_stiffness and pins.share > 0.01

@@ -2,7 +2,7 @@
 
 Every preset loads, has the ratio and geometry of docs/model.md section 6, and each
 of its stiffnesses is recomputed here from its `[sources]` table and its
-geometry with rvfmu/core/stiffness.py.  The stiffness formulas themselves are
+geometry with rvfmu/core/laws/stiffness.py.  The stiffness formulas themselves are
 checked on hand-checkable cases and against independent computations.
 """
 
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from rvfmu import api
-from rvfmu.core import stiffness
-from rvfmu.core.design import DESIGN_FIELDS, PRESET_NAMES, design_from_file_values, preset
-from rvfmu.core.units import DEG, MM
+from rvfmu.core.base.units import DEG, MM
+from rvfmu.core.laws import stiffness
+from rvfmu.core.reducer.design import DESIGN_FIELDS, PRESET_NAMES, design_from_file_values, preset
 
 RATIOS = {"RV-40E-121": 121, "RV-40E-81": 81, "RV-20E": 53, "RV-110E": 161}
 
@@ -29,25 +29,33 @@ TABLE = {
     "RV-20E": (20, 26, 1.5, 40, 39, 52.0, 0.9, 2),
 }
 
-STIFFNESS_KEYS = ("pin_disc_stiffness_N_per_m", "mesh_stiffness_N_per_m",
-                  "crank_disc_bearing_stiffness_N_per_m",
-                  "crank_carrier_bearing_stiffness_N_per_m",
-                  "main_bearing_stiffness_N_per_m", "sun_support_stiffness_N_per_m",
-                  "carrier_compliance_arcsec_per_Nm")
+STIFFNESS_KEYS = (
+    "pin_disc_stiffness_N_per_m",
+    "mesh_stiffness_N_per_m",
+    "crank_disc_bearing_stiffness_N_per_m",
+    "crank_carrier_bearing_stiffness_N_per_m",
+    "main_bearing_stiffness_N_per_m",
+    "sun_support_stiffness_N_per_m",
+    "carrier_compliance_arcsec_per_Nm",
+)
 AGREEMENT = 0.005  # preset files carry 4 significant digits; 0.5 % catches a wrong input
 
 
 def preset_file(name: str) -> dict:
-    """The preset TOML as written, parsed here independently of rvfmu.core.design."""
-    text = resources.files("rvfmu.core.presets").joinpath(f"{name}.toml").read_text()
+    """The preset TOML as written, parsed here independently of rvfmu.core.reducer.design."""
+    text = resources.files("rvfmu.core.reducer.presets").joinpath(f"{name}.toml").read_text()
     return tomllib.loads(text)
 
 
 # -- the presets load, with the right ratio and geometry ------------------------------------
 
+
 def test_shipped_preset_files_are_exactly_the_named_presets():
-    shipped = {entry.name[:-5] for entry in resources.files("rvfmu.core.presets").iterdir()
-               if entry.name.endswith(".toml") and entry.name != "catalogue.toml"}
+    shipped = {
+        entry.name[:-5]
+        for entry in resources.files("rvfmu.core.reducer.presets").iterdir()
+        if entry.name.endswith(".toml") and entry.name != "catalogue.toml"
+    }
     assert shipped == set(PRESET_NAMES) == set(RATIOS)
 
 
@@ -59,8 +67,7 @@ def test_preset_loads_with_every_field_from_its_file(name):
     assert design.name == name + "-estimate"
     for spec in DESIGN_FIELDS:
         assert spec.file_key in values, spec.file_key  # complete: nothing from defaults
-        assert getattr(design, spec.field) == pytest.approx(values[spec.file_key] * spec.scale,
-                                                            rel=1e-12)
+        assert getattr(design, spec.field) == pytest.approx(values[spec.file_key] * spec.scale, rel=1e-12)
 
 
 @pytest.mark.parametrize("name, ratio", RATIOS.items())
@@ -111,16 +118,16 @@ def test_file_values_round_trip(name):
     design = preset(name)
     again = design_from_file_values(design.file_values())
     for spec in DESIGN_FIELDS:
-        assert getattr(again, spec.field) == pytest.approx(getattr(design, spec.field),
-                                                           rel=1e-12)
+        assert getattr(again, spec.field) == pytest.approx(getattr(design, spec.field), rel=1e-12)
 
 
 def test_api_and_cli_list_the_presets_with_their_ratios():
     infos = {info.name: info for info in api.presets()}
     assert {name: info.ratio for name, info in infos.items()} == RATIOS
     assert all(info.source for info in infos.values())
-    result = subprocess.run([sys.executable, "-m", "rvfmu.cli", "presets"],
-                            capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-m", "rvfmu.cli", "presets"], capture_output=True, text=True, timeout=120
+    )
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     for name, ratio in RATIOS.items():
@@ -128,6 +135,7 @@ def test_api_and_cli_list_the_presets_with_their_ratios():
 
 
 # -- each preset stiffness recomputed from [sources] ----------------------------------------
+
 
 def recomputed_stiffness(name: str, key: str) -> float:
     """The stiffness `key` of preset `name` from its geometry and [sources] [N/m]."""
@@ -150,6 +158,7 @@ def test_rv20e_main_bearing_is_the_identified_value_of_seed_003():
 
 
 # -- the stiffness formulas by hand ---------------------------------------------------------
+
 
 def test_series_by_hand():
     assert stiffness.series(2.0, 2.0) == 1.0
@@ -175,8 +184,7 @@ def test_contact_ratio_of_a_20_20_pair():
     assert eps == pytest.approx(involute_contact_ratio(20, 20, 20.0 * DEG), rel=1e-9)
 
 
-@pytest.mark.parametrize("z_1, z_2, module_mm", [(12, 36, 1.5), (16, 32, 1.5), (15, 60, 1.25),
-                                                  (20, 26, 3.0)])
+@pytest.mark.parametrize("z_1, z_2, module_mm", [(12, 36, 1.5), (16, 32, 1.5), (15, 60, 1.25), (20, 26, 3.0)])
 def test_contact_ratio_agrees_with_roll_angle_form(z_1, z_2, module_mm):
     eps = stiffness.transverse_contact_ratio(z_1, z_2, module_mm * MM, 20.0 * DEG)
     assert eps == pytest.approx(involute_contact_ratio(z_1, z_2, 20.0 * DEG), rel=1e-9)
@@ -191,13 +199,14 @@ def test_iso6336_mesh_stiffness_by_hand():
     k = stiffness.iso6336_mesh_stiffness(20, 20, 2.0 * MM, 20.0 * DEG, 10.0 * MM)
     assert k == pytest.approx(162.85e6, rel=1e-3)
     # proportional to the face width
-    assert stiffness.iso6336_mesh_stiffness(20, 20, 2.0 * MM, 20.0 * DEG, 20.0 * MM) == \
-        pytest.approx(2.0 * k, rel=1e-12)
+    assert stiffness.iso6336_mesh_stiffness(20, 20, 2.0 * MM, 20.0 * DEG, 20.0 * MM) == pytest.approx(
+        2.0 * k, rel=1e-12
+    )
 
 
 def test_roller_bearing_stiffness_is_seed_003_formula():
     length, n, E, nu = 8.0 * MM, 12, 211e9, 0.29
-    expected = math.pi * length * E * n / (8.0 * (1.0 - nu ** 2))
+    expected = math.pi * length * E * n / (8.0 * (1.0 - nu**2))
     assert stiffness.roller_bearing_stiffness(length, n, E, nu) == pytest.approx(expected, rel=1e-12)
     assert expected == pytest.approx(8.685e9, rel=1e-3)  # the RV-40E needle value in its preset
     tapered = stiffness.roller_bearing_stiffness(length, n, E, nu, contact_angle=80.0 * DEG)
@@ -206,15 +215,14 @@ def test_roller_bearing_stiffness_is_seed_003_formula():
 
 def test_shaft_stiffnesses_by_hand():
     # 14 mm shaft, 60 mm long, 211 GPa: I = pi d^4/64 = 1885.7 mm^4, 3EI/L^3 = 5.526e6 N/m
-    assert stiffness.cantilever_stiffness(211e9, 14 * MM, 60 * MM) == pytest.approx(5.526e6,
-                                                                                   rel=1e-3)
+    assert stiffness.cantilever_stiffness(211e9, 14 * MM, 60 * MM) == pytest.approx(5.526e6, rel=1e-3)
     # the same shaft supported at both ends, loaded in the middle, is 16 times stiffer
     assert stiffness.simply_supported_beam_stiffness(211e9, 14 * MM, 60 * MM) == pytest.approx(
-        16.0 * stiffness.cantilever_stiffness(211e9, 14 * MM, 60 * MM), rel=1e-12)
+        16.0 * stiffness.cantilever_stiffness(211e9, 14 * MM, 60 * MM), rel=1e-12
+    )
 
 
-PIN = dict(length=10 * MM, radius_1=3.0 * MM, radius_2=34.4 * MM, youngs_modulus=211e9,
-           poisson_ratio=0.29)
+PIN = dict(length=10 * MM, radius_1=3.0 * MM, radius_2=34.4 * MM, youngs_modulus=211e9, poisson_ratio=0.29)
 
 
 def test_hertz_approach_grows_with_force_and_stiffness_rises_slowly():
@@ -225,8 +233,9 @@ def test_hertz_approach_grows_with_force_and_stiffness_rises_slowly():
     assert np.all(np.diff(secant) > 0)  # the log term makes it slightly stiffening
     # nearly linear: 200 times the force, less than 1.5 times the secant stiffness
     assert 1.0 < secant[-1] / secant[0] < 1.5
-    doubled = (stiffness.hertz_line_contact_stiffness(800.0, **PIN)
-               / stiffness.hertz_line_contact_stiffness(400.0, **PIN))
+    doubled = stiffness.hertz_line_contact_stiffness(800.0, **PIN) / stiffness.hertz_line_contact_stiffness(
+        400.0, **PIN
+    )
     assert 1.0 < doubled < 1.1
     assert secant == pytest.approx(forces / approach, rel=1e-12)
 
@@ -234,8 +243,7 @@ def test_hertz_approach_grows_with_force_and_stiffness_rises_slowly():
 def test_hertz_approach_depends_on_force_per_length():
     one = stiffness.hertz_line_contact_approach(400.0, **PIN)
     pin_twice_as_long = {**PIN, "length": 2 * PIN["length"]}
-    assert stiffness.hertz_line_contact_approach(800.0, **pin_twice_as_long) == \
-        pytest.approx(one, rel=1e-12)
+    assert stiffness.hertz_line_contact_approach(800.0, **pin_twice_as_long) == pytest.approx(one, rel=1e-12)
 
 
 def test_hertz_approach_by_hand():
@@ -244,10 +252,9 @@ def test_hertz_approach_by_hand():
     # delta = 2 w (1 - nu^2) / (pi E) * (2/3 + ln(6 mm / b) + ln(68.8 mm / b))
     #       = 1.1054e-7 m * (0.667 + 5.146 + 7.586) = 1.4810 um,
     # a secant stiffness of 400 N / 1.481 um = 2.70e8 N/m, the RV-40E-121 preset value.
-    b = math.sqrt(4 * 40e3 * (3.0 * 34.4 / 37.4 * MM) / (math.pi * 211e9 / (2 * (1 - 0.29 ** 2))))
+    b = math.sqrt(4 * 40e3 * (3.0 * 34.4 / 37.4 * MM) / (math.pi * 211e9 / (2 * (1 - 0.29**2))))
     assert b == pytest.approx(34.93e-6, rel=1e-3)
-    assert stiffness.hertz_line_contact_approach(400.0, **PIN) == pytest.approx(1.4810e-6,
-                                                                                rel=1e-3)
+    assert stiffness.hertz_line_contact_approach(400.0, **PIN) == pytest.approx(1.4810e-6, rel=1e-3)
     assert stiffness.hertz_line_contact_stiffness(400.0, **PIN) == pytest.approx(2.70e8, rel=2e-3)
 
 
@@ -277,7 +284,7 @@ def test_disc_radius_at_largest_lever_against_finite_differences(name):
     dx, dy = np.gradient(x, t), np.gradient(y, t)
     ddx, ddy = np.gradient(dx, t), np.gradient(dy, t)
     speed = np.hypot(dx, dy)
-    lever = np.abs(x * dx + y * dy) / speed      # distance from disc centre to the normal
+    lever = np.abs(x * dx + y * dy) / speed  # distance from disc centre to the normal
     i = int(np.argmax(lever[5:-5])) + 5
     # Every contact normal passes through the pitch point, e*z_c from the disc centre,
     # so the largest lever is e*z_c exactly.
@@ -292,30 +299,37 @@ def test_disc_radius_at_largest_lever_against_finite_differences(name):
 
 # -- the geometric estimate's compositions by hand ------------------------------------------
 
+
 def test_crank_carrier_pair_is_two_bearings_at_half_the_load():
     """Contact angle 90 deg from the axis (0 to the radial plane): the pair's secant is that of
     one bearing at half the load, doubled."""
-    from rvfmu.core import compliance
+    from rvfmu.core.laws import compliance
 
     pair = stiffness.crank_carrier_stiffness_estimate(412.0, 2, 0.036, 14, 6 * MM, 90.0 * DEG)
-    one = compliance.secant_stiffness(lambda f: compliance.bearing_deflection(f, 14, 6 * MM),
-                                      0.25 * 412 / (2 * 0.036), 0.5 * 412 / (2 * 0.036))
+    one = compliance.secant_stiffness(
+        lambda f: compliance.bearing_deflection(f, 14, 6 * MM),
+        0.25 * 412 / (2 * 0.036),
+        0.5 * 412 / (2 * 0.036),
+    )
     assert pair == pytest.approx(2.0 * one, rel=1e-9)
     # inclined rollers carry a radial load less directly
     assert stiffness.crank_carrier_stiffness_estimate(412.0, 2, 0.036, 14, 6 * MM, 80.0 * DEG) < pair
 
 
 def test_pin_with_its_groove_is_softer_than_against_the_disc_alone():
-    with_groove = stiffness.pin_stiffness_estimate(412.0, 64.05 * MM, 3 * MM, 1.3 * MM, 40, 10 * MM,
-                                                   5e-3 * MM, 211e9, 0.29)
+    with_groove = stiffness.pin_stiffness_estimate(
+        412.0, 64.05 * MM, 3 * MM, 1.3 * MM, 40, 10 * MM, 5e-3 * MM, 211e9, 0.29
+    )
     force = stiffness.largest_pin_force(206.0, 64.05 * MM, 1.3 * MM, 40)
     rho = stiffness.disc_curvature_radius_at_largest_lever(64.05 * MM, 3 * MM, 1.3 * MM, 40)
-    disc_only = (0.5 * force) / (stiffness.hertz_line_contact_approach(force, 10 * MM, 3 * MM, rho, 211e9, 0.29)
-                                 - stiffness.hertz_line_contact_approach(0.5 * force, 10 * MM, 3 * MM, rho,
-                                                                         211e9, 0.29))
+    disc_only = (0.5 * force) / (
+        stiffness.hertz_line_contact_approach(force, 10 * MM, 3 * MM, rho, 211e9, 0.29)
+        - stiffness.hertz_line_contact_approach(0.5 * force, 10 * MM, 3 * MM, rho, 211e9, 0.29)
+    )
     groove = (0.5 * force) / (
         stiffness.hertz_line_contact_approach(force, 10 * MM, 3 * MM, -3.005 * MM, 211e9, 0.29)
-        - stiffness.hertz_line_contact_approach(0.5 * force, 10 * MM, 3 * MM, -3.005 * MM, 211e9, 0.29))
+        - stiffness.hertz_line_contact_approach(0.5 * force, 10 * MM, 3 * MM, -3.005 * MM, 211e9, 0.29)
+    )
     assert with_groove == pytest.approx(stiffness.series(disc_only, groove), rel=1e-9)
     assert 0.6 < with_groove / disc_only < 0.9
 

@@ -1,4 +1,4 @@
-"""Tests of rvfmu.core.profile: the closed-form disc profile against an
+"""Tests of rvfmu.core.reducer.profile: the closed-form disc profile against an
 independent numerical envelope, its hand-checkable radii, symmetries and files."""
 
 import math
@@ -8,11 +8,18 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from rvfmu.core.design import RVDesign, preset
-from rvfmu.core.profile import (Profile, _closed_form, disc_profile, disc_profile_for,
-                                numerical_envelope, profile_radius_at, write_profile_csv,
-                                write_profile_dxf)
-from rvfmu.core.units import MM, UM
+from rvfmu.core.base.units import MM, UM
+from rvfmu.core.reducer.design import RVDesign, preset
+from rvfmu.core.reducer.profile import (
+    Profile,
+    _closed_form,
+    disc_profile,
+    disc_profile_for,
+    numerical_envelope,
+    profile_radius_at,
+    write_profile_csv,
+    write_profile_dxf,
+)
 
 # Geometry of docs/model.md section 6; the other fields only need to be plausible here.
 GEOMETRY = {
@@ -20,21 +27,42 @@ GEOMETRY = {
     "RV-40E-81": dict(z_s=16, z_pl=32, R_p=66.0 * MM, e=1.5 * MM),
 }
 OTHER_FIELDS = dict(
-    m=1.5 * MM, pressure_angle=math.radians(20.0), gear_width=20 * MM, z_p=40, z_c=39,
-    r_rp=3.0 * MM, d_rp=0.0, d_rrp=0.0, disc_width=15 * MM, n_c=2,
-    pin_disc_stiffness=3e8, mesh_stiffness=4e8, crank_disc_bearing_stiffness=5e8,
-    crank_carrier_bearing_stiffness=8e8, main_bearing_stiffness=2e9,
-    sun_support_stiffness=1e8, damping_ratio=0.05, sun_mass=0.3, sun_inertia=1e-4,
-    crank_mass=0.5, crank_inertia=3e-4, disc_mass=1.0, disc_inertia=2e-3,
-    carrier_mass=3.0, carrier_inertia=1e-2, rated_torque=412.0, youngs_modulus=206e9,
-    poisson_ratio=0.3)
+    m=1.5 * MM,
+    pressure_angle=math.radians(20.0),
+    gear_width=20 * MM,
+    z_p=40,
+    z_c=39,
+    r_rp=3.0 * MM,
+    d_rp=0.0,
+    d_rrp=0.0,
+    disc_width=15 * MM,
+    n_c=2,
+    pin_disc_stiffness=3e8,
+    mesh_stiffness=4e8,
+    crank_disc_bearing_stiffness=5e8,
+    crank_carrier_bearing_stiffness=8e8,
+    main_bearing_stiffness=2e9,
+    sun_support_stiffness=1e8,
+    damping_ratio=0.05,
+    sun_mass=0.3,
+    sun_inertia=1e-4,
+    crank_mass=0.5,
+    crank_inertia=3e-4,
+    disc_mass=1.0,
+    disc_inertia=2e-3,
+    carrier_mass=3.0,
+    carrier_inertia=1e-2,
+    rated_torque=412.0,
+    youngs_modulus=206e9,
+    poisson_ratio=0.3,
+)
 MODIFIED = dict(d_rp=-0.01 * MM, d_rrp=+0.01 * MM)
 UNMODIFIED = dict(d_rp=0.0, d_rrp=0.0)
 
 
 def make_design(name, **mods):
     """The preset if its TOML is shipped, else the same geometry built directly."""
-    if resources.files("rvfmu.core.presets").joinpath(f"{name}.toml").is_file():
+    if resources.files("rvfmu.core.reducer.presets").joinpath(f"{name}.toml").is_file():
         return preset(name).with_fields(**mods)
     return RVDesign(name=name, **{**OTHER_FIELDS, **GEOMETRY[name], **mods})
 
@@ -52,16 +80,15 @@ def valley_tip_radii(d):
 def test_closed_form_matches_independent_envelope(name, mods):
     d = make_design(name, **mods)
     valleys = 2 * np.pi * np.arange(d.z_c) / d.z_c
-    rays = np.concatenate([np.linspace(0, 2 * np.pi, 500, endpoint=False),
-                           valleys, valleys + np.pi / d.z_c])
+    rays = np.concatenate([np.linspace(0, 2 * np.pi, 500, endpoint=False), valleys, valleys + np.pi / d.z_c])
     angles, radius = numerical_envelope(d, rays, poses=1000)
     assert np.all(np.isfinite(radius))
     assert np.max(np.abs(radius - profile_radius_at(d, angles))) < 0.1 * UM
     # The envelope alone gives the valley and tip radii of docs/model.md section 3.
     valley, tip = valley_tip_radii(d)
     n = 500
-    assert np.allclose(radius[n:n + d.z_c], valley, rtol=0, atol=0.1 * UM)
-    assert np.allclose(radius[n + d.z_c:], tip, rtol=0, atol=0.1 * UM)
+    assert np.allclose(radius[n : n + d.z_c], valley, rtol=0, atol=0.1 * UM)
+    assert np.allclose(radius[n + d.z_c :], tip, rtol=0, atol=0.1 * UM)
 
 
 def test_disc_1_is_disc_0_turned_by_pi_and_conjugate():
@@ -148,6 +175,7 @@ def test_csv_round_trip(tmp_path):
 
 def test_dxf_readable_closed_polyline_in_mm(tmp_path):
     import ezdxf
+
     d = make_design("RV-40E-81", **MODIFIED)
     path = write_profile_dxf(d, tmp_path / "disc.dxf", points=2345)
     doc = ezdxf.readfile(path)

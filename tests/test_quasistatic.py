@@ -2,17 +2,24 @@
 
 import numpy as np
 import pytest
-
 from conftest import ROOT, hand_pin_geometry, unit
-from rvfmu.core.design import PRESET_NAMES, preset
-from rvfmu.core.equivalent import EquivalentModel
-from rvfmu.core.errors import load_errors, stack, zero_errors
-from rvfmu.core.profile import disc_profile
-from rvfmu.core.quasistatic import (NO_LOAD_PROBE, default_points, equilibria, equilibrium_te,
-                                    input_angles, te_curve, windup)
-from rvfmu.core.reference import no_load_limit_bracket, te_reference
-from rvfmu.core.solver import solve_pairs
-from rvfmu.core.units import ARCSEC, UM
+
+from rvfmu.core.base.units import ARCSEC, UM
+from rvfmu.core.reducer.design import PRESET_NAMES, preset
+from rvfmu.core.reducer.errors import load_errors, stack, zero_errors
+from rvfmu.core.reducer.profile import disc_profile
+from rvfmu.core.statics.equivalent import EquivalentModel
+from rvfmu.core.statics.quasistatic import (
+    NO_LOAD_PROBE,
+    default_points,
+    equilibria,
+    equilibrium_te,
+    input_angles,
+    te_curve,
+    windup,
+)
+from rvfmu.core.statics.reference import no_load_limit_bracket, te_reference
+from rvfmu.core.statics.solver import solve_pairs
 
 POINTS = 720
 
@@ -57,11 +64,15 @@ def test_positive_modifications_give_the_lost_motion_of_their_clearance(rv40):
         for j in range(2):
             psi = -design.z_c * theta_out + j * np.pi
             centre = design.e * unit(psi)
-            rot = np.array([[np.cos(theta_out + j * np.pi), -np.sin(theta_out + j * np.pi)],
-                            [np.sin(theta_out + j * np.pi), np.cos(theta_out + j * np.pi)]])
+            rot = np.array(
+                [
+                    [np.cos(theta_out + j * np.pi), -np.sin(theta_out + j * np.pi)],
+                    [np.sin(theta_out + j * np.pi), np.cos(theta_out + j * np.pi)],
+                ]
+            )
             closing = np.flatnonzero(rate[a, j] > 1e-6)
             for k in closing:
-                local = rot.T @ (pins[k] - centre)            # pin centre in the disc frame
+                local = rot.T @ (pins[k] - centre)  # pin centre in the disc frame
                 gap = np.min(np.linalg.norm(profile_pts - local, axis=1)) - design.r_rp
                 best = min(best, gap / rate[a, j, k])
         expected[a] = -best
@@ -79,15 +90,16 @@ def test_single_pin_error_acts_only_where_that_pin_can_touch(rv40):
     design = rv40
     k = 7
     errors = zero_errors(design, 2)
-    errors.pin_radial[1, k] = -5.0 * UM   # inward: into the discs
+    errors.pin_radial[1, k] = -5.0 * UM  # inward: into the discs
     theta_in = input_angles(design, POINTS)
     model = EquivalentModel(design, theta_in)
     sample = np.repeat([0, 1], POINTS)
     angle = np.tile(np.arange(POINTS), 2)
-    eq = solve_pairs(model, errors, sample, angle, -design.rated_torque,
-                     no_load_probe=1e-4 * design.rated_torque)
+    eq = solve_pairs(
+        model, errors, sample, angle, -design.rated_torque, no_load_probe=1e-4 * design.rated_torque
+    )
     te = (eq.q[:, model.carrier_rot] / model.scale).reshape(2, POINTS)
-    force = eq.pin_force[:, :, k].reshape(2, POINTS, 2)                  # (sample, angle, disc)
+    force = eq.pin_force[:, :, k].reshape(2, POINTS, 2)  # (sample, angle, disc)
     change = (te[1] - te[0]) / ARCSEC
     _, _, rate = hand_pin_geometry(design, theta_in)
     loaded = force > 0
@@ -127,10 +139,12 @@ def test_mirror_symmetry_of_load_reversal(rv40):
 
 def test_superposition_of_small_errors_under_load(rv40, seed002):
     design = rv40
-    small_a = seed002.scaled(0.01).replace(disc_profile=seed002.disc_profile * 0,
-                                            disc_pitch=seed002.disc_pitch * 0)
-    small_b = zero_errors(design).replace(disc_pitch=seed002.disc_pitch * 0.01,
-                                          disc_profile=seed002.disc_profile * 0.01)
+    small_a = seed002.scaled(0.01).replace(
+        disc_profile=seed002.disc_profile * 0, disc_pitch=seed002.disc_pitch * 0
+    )
+    small_b = zero_errors(design).replace(
+        disc_pitch=seed002.disc_pitch * 0.01, disc_profile=seed002.disc_profile * 0.01
+    )
     both = small_a.replace(disc_pitch=small_b.disc_pitch, disc_profile=small_b.disc_profile)
     batch = stack([zero_errors(design), small_a, small_b, both])
     te = te_curve(design, batch, tau_load=-design.rated_torque, points=POINTS).te_arcsec
@@ -140,19 +154,32 @@ def test_superposition_of_small_errors_under_load(rv40, seed002):
     np.testing.assert_allclose(dab, da + db, atol=0.03 * max(np.abs(dab).max(), 1e-3))
 
 
-@pytest.mark.parametrize("rollers, tau_fraction, clearances", [
-    (False, 0.0, False), (False, -1.0, False), (False, -0.25, True),
-    (True, 0.0, False), (True, -1.0, False), (True, -0.03, False), (True, 0.5, False),
-    (True, -0.25, True),
-    ("hertz", 0.0, False), ("hertz", -1.0, False), ("hertz", -0.03, False), ("hertz", 0.5, False),
-    ("hertz", -0.25, True)])
-def test_agrees_with_a_straightforward_scipy_solve(rv40, rv40_rollers, rv40_hertz, seed002, rollers,
-                                                  tau_fraction, clearances):
+@pytest.mark.parametrize(
+    "rollers, tau_fraction, clearances",
+    [
+        (False, 0.0, False),
+        (False, -1.0, False),
+        (False, -0.25, True),
+        (True, 0.0, False),
+        (True, -1.0, False),
+        (True, -0.03, False),
+        (True, 0.5, False),
+        (True, -0.25, True),
+        ("hertz", 0.0, False),
+        ("hertz", -1.0, False),
+        ("hertz", -0.03, False),
+        ("hertz", 0.5, False),
+        ("hertz", -0.25, True),
+    ],
+)
+def test_agrees_with_a_straightforward_scipy_solve(
+    rv40, rv40_rollers, rv40_hertz, seed002, rollers, tau_fraction, clearances
+):
     """With the roller law (rollers) the reference integrates the rollers' energy over the
     loaded arc and carries the crank's bending as a spring with unknowns of its own
-    (rvfmu/core/reference.py); the solver tabulates the energy and eliminates the spring
-    (rvfmu/core/roller_law.py).  With the pins' Hertz law too ("hertz") the reference inverts
-    it by scipy's Lambert W, the solver by its own Newton iteration (rvfmu/core/pin_law.py).
+    (rvfmu/core/statics/reference.py); the solver tabulates the energy and eliminates the spring
+    (rvfmu/core/laws/roller_law.py).  With the pins' Hertz law too ("hertz") the reference inverts
+    it by scipy's Lambert W, the solver by its own Newton iteration (rvfmu/core/laws/pin_law.py).
     At no load without clearance both take the limit with the law (seed 002's errors preload
     the estimate's discs nowhere, so there it is the kinematic pose: the law must not move
     it)."""
@@ -172,8 +199,11 @@ def test_reference_models_the_output_compliance_of_every_calibrated_preset(name)
     it as a torsional spring to an output flange of its own, the solver adds its windup."""
     design = preset(name)
     assert design.output_compliance > 0.0
-    errors = load_errors(ROOT / "studies" / "seed002_errors.toml", design) \
-        if name == "RV-40E-121" else zero_errors(design)
+    errors = (
+        load_errors(ROOT / "studies" / "seed002_errors.toml", design)
+        if name == "RV-40E-121"
+        else zero_errors(design)
+    )
     theta_in = input_angles(design, 4) + 0.2
     tau = -design.rated_torque
     fast, _, ok = equilibrium_te(design, errors, theta_in, [tau])
@@ -182,8 +212,7 @@ def test_reference_models_the_output_compliance_of_every_calibrated_preset(name)
     np.testing.assert_allclose(fast[0, 0] / ARCSEC, slow / ARCSEC, atol=0.01)
     # without the compliance the two differ by its windup: the reference does not ignore it
     bare = te_reference(design.with_fields(output_compliance=0.0), errors, theta_in, tau)
-    np.testing.assert_allclose((slow - bare) / ARCSEC, design.output_compliance * tau / ARCSEC,
-                               atol=0.01)
+    np.testing.assert_allclose((slow - bare) / ARCSEC, design.output_compliance * tau / ARCSEC, atol=0.01)
 
 
 def test_default_points_resolve_the_pin_passing_order(rv40):
@@ -211,8 +240,9 @@ def test_small_loads_wind_up_monotonically_at_every_angle(rv40, seed002):
     assert eq.converged.all()
     assert np.all(np.diff(eq.te[0], axis=0) < 0)
     assert np.all(eq.pin_force_max[0, 1:] > 0)
-    np.testing.assert_allclose(eq.tau_in[0] * design.ratio, loads[:, None] * np.ones(3120),
-                               rtol=1e-3, atol=1e-9)
+    np.testing.assert_allclose(
+        eq.tau_in[0] * design.ratio, loads[:, None] * np.ones(3120), rtol=1e-3, atol=1e-9
+    )
 
 
 @pytest.mark.parametrize("zero_side", [-1, 1])
@@ -225,9 +255,11 @@ def test_no_load_limit_from_either_side_is_the_limit_of_small_loads(rv40, seed00
 
 
 def _with_clearances(errors, crank_disc, crank_carrier, main):
-    return errors.replace(crank_disc_clearance=np.array([crank_disc * UM]),
-                          crank_carrier_clearance=np.array([crank_carrier * UM]),
-                          main_bearing_clearance=np.array([main * UM]))
+    return errors.replace(
+        crank_disc_clearance=np.array([crank_disc * UM]),
+        crank_carrier_clearance=np.array([crank_carrier * UM]),
+        main_bearing_clearance=np.array([main * UM]),
+    )
 
 
 @pytest.mark.parametrize("zero_side", [-1, 1])
@@ -236,8 +268,9 @@ def test_no_load_limit_with_bearing_clearances_is_the_rigid_limit(rv40, seed002,
     clearance circles let them.  Two linear programs over all unknowns (the circles as the
     polygons around and inside them) bracket that independently of the solver; the
     weak springs must not hold the floating parts away from it."""
-    errors = stack([_with_clearances(zero_errors(rv40), 12.0, 8.0, 10.0),
-                    _with_clearances(seed002, 20.0, 15.0, 12.0)])
+    errors = stack(
+        [_with_clearances(zero_errors(rv40), 12.0, 8.0, 10.0), _with_clearances(seed002, 20.0, 15.0, 12.0)]
+    )
     theta_in = input_angles(rv40, 16) + 0.1
     te = equilibria(rv40, errors, theta_in, [0.0], zero_side=zero_side).te[:, 0]
     model = EquivalentModel(rv40, theta_in, flank=1 if zero_side < 0 else -1)
@@ -246,7 +279,7 @@ def test_no_load_limit_with_bearing_clearances_is_the_rigid_limit(rv40, seed002,
         for a in range(theta_in.size):
             bracket = no_load_limit_bracket(model, errors, s, a, zero_side)
             if bracket is None:
-                continue   # these errors preload some part at no load: the limit is elastic there
+                continue  # these errors preload some part at no load: the limit is elastic there
             low, high = bracket
             assert high - low < 0.01 * ARCSEC
             assert low - 0.05 * ARCSEC <= te[s, a] <= high + 0.05 * ARCSEC, (s, a)
@@ -264,8 +297,9 @@ def _te_under_driving_probe_on_the_resisting_flank(design, errors, theta_in):
     probe = NO_LOAD_PROBE * design.rated_torque
     model = EquivalentModel(design, theta_in, flank=1)
     A = theta_in.size
-    ahead = solve_pairs(model, errors, np.zeros(A, dtype=int), np.arange(A), np.full(A, probe),
-                        no_load_probe=probe)
+    ahead = solve_pairs(
+        model, errors, np.zeros(A, dtype=int), np.arange(A), np.full(A, probe), no_load_probe=probe
+    )
     assert ahead.converged.all()
     return ahead.q[:, model.carrier_rot] / model.scale / ARCSEC
 
@@ -346,16 +380,21 @@ def test_no_load_te_of_a_preloaded_reducer_without_bearing_clearance_is_the_limi
     2.63867 um, 1.503e8 and 7.674e8 N/m, 0.0210337 arcsec/(N*m)): others preload other
     angles, or change the contacts at none of these."""
     from conftest import linear_bearings
+
     from tolerance.montecarlo import sample
     from tolerance.sampling import errors_from_unit
     from tolerance.study import load_study
 
     study = load_study(ROOT / "studies" / "quick_mc.toml")
     design = linear_bearings(study.design).with_fields(
-        d_rp=-2.63867 * UM, d_rrp=2.63867 * UM, crank_disc_bearing_stiffness=1.503e8,
-        crank_carrier_bearing_stiffness=7.674e8, output_compliance=0.0210337 * ARCSEC)
+        d_rp=-2.63867 * UM,
+        d_rrp=2.63867 * UM,
+        crank_disc_bearing_stiffness=1.503e8,
+        crank_carrier_bearing_stiffness=7.674e8,
+        output_compliance=0.0210337 * ARCSEC,
+    )
     errors = errors_from_unit(study, sample(study, row + 1)[row:])
-    theta_in = input_angles(design, 12480)[index - 6:index + 7]
+    theta_in = input_angles(design, 12480)[index - 6 : index + 7]
     probe = NO_LOAD_PROBE * design.rated_torque
     eq = equilibria(design, errors, theta_in, [-probe, -1e-3 * probe, -1e-4 * probe, 0.0])
     assert eq.converged.all()
@@ -370,15 +409,18 @@ def test_no_load_te_of_a_preloaded_reducer_without_bearing_clearance_is_the_limi
 
 # -- the crank bearings' roller law -----------------------------------------------------------
 
+
 def test_the_roller_law_winds_up_as_its_stated_stiffness_under_load_and_softer_near_zero(
-        rv40, rv40_rollers, seed002):
+    rv40, rv40_rollers, seed002
+):
     """The stated stiffnesses are the laws' secants over 50-100 % of the bearing loads that
     rigid-part statics gives at rated torque: the rigidity stays within 2 % (the model's
     bearing loads carry the pins' radial forces too), while near zero load the rollers are
     softer than that secant (Q ~ delta^(10/9)): the lost motion grows."""
     linear, rollers = windup(rv40, seed002), windup(rv40_rollers, seed002)
     assert rollers.torsional_rigidity_Nm_per_arcmin()[0] == pytest.approx(
-        linear.torsional_rigidity_Nm_per_arcmin()[0], rel=0.02)
+        linear.torsional_rigidity_Nm_per_arcmin()[0], rel=0.02
+    )
     assert rollers.lost_motion_arcmin()[0] > linear.lost_motion_arcmin()[0] + 0.02
 
 
@@ -394,11 +436,13 @@ def test_with_the_roller_law_the_no_load_te_is_the_limit_of_vanishing_loads():
     theta_in = input_angles(design, 180)
     probe = NO_LOAD_PROBE * design.rated_torque
     law = equilibria(design, errors, theta_in, [-1e-2 * probe, 0.0]).te[0] / ARCSEC
-    stated = equilibria(design.with_fields(needle_rollers=0, tapered_rollers=0), errors, theta_in,
-                        [0.0]).te[0, 0] / ARCSEC
+    stated = (
+        equilibria(design.with_fields(needle_rollers=0, tapered_rollers=0), errors, theta_in, [0.0]).te[0, 0]
+        / ARCSEC
+    )
     assert np.max(np.abs(law[1] - law[0])) < 0.002
     moved = np.argsort(-np.abs(law[1] - stated))[:3]
-    assert np.all(np.abs(law[1] - stated)[moved] > 0.2)     # where the law makes a difference
+    assert np.all(np.abs(law[1] - stated)[moved] > 0.2)  # where the law makes a difference
     slow = te_reference(design, errors, theta_in[moved], 0.0) / ARCSEC
     np.testing.assert_allclose(law[1][moved], slow, atol=0.005)
 
@@ -408,8 +452,7 @@ def test_with_the_roller_law_and_clearances_the_no_load_te_is_the_rigid_limit(rv
     the limit is that of rigid parts (the linear programs of `no_load_limit_bracket`),
     whatever the law."""
     design = rv40_rollers
-    errors = _with_clearances(load_errors(ROOT / "studies" / "seed002_errors.toml", design),
-                              20.0, 15.0, 12.0)
+    errors = _with_clearances(load_errors(ROOT / "studies" / "seed002_errors.toml", design), 20.0, 15.0, 12.0)
     theta_in = input_angles(design, 16) + 0.1
     te = equilibria(design, errors, theta_in, [0.0]).te[0, 0]
     model = EquivalentModel(design, theta_in, flank=1)
@@ -417,7 +460,7 @@ def test_with_the_roller_law_and_clearances_the_no_load_te_is_the_rigid_limit(rv
     for a in range(theta_in.size):
         bracket = no_load_limit_bracket(model, errors, 0, a)
         if bracket is None:
-            continue   # these errors preload some part at no load: the limit is elastic there
+            continue  # these errors preload some part at no load: the limit is elastic there
         low, high = bracket
         assert low - 0.05 * ARCSEC <= te[a] <= high + 0.05 * ARCSEC, a
         checked += 1
@@ -425,7 +468,7 @@ def test_with_the_roller_law_and_clearances_the_no_load_te_is_the_rigid_limit(rv
 
 
 def test_a_stated_stiffness_its_rollers_cannot_reach_is_refused(rv40, rv40_rollers):
-    from rvfmu.core.checks import InputError
+    from rvfmu.core.base.checks import InputError
 
     with pytest.raises(InputError) as info:
         rv40_rollers.with_fields(crank_disc_bearing_stiffness=2e9)

@@ -10,7 +10,7 @@ import time
 from conftest import ROOT
 
 README = ROOT / "README.md"
-MAX_LINES = 250          # a few screens: everything else lives in docs/
+MAX_LINES = 250  # a few screens: everything else lives in docs/
 
 
 def readme():
@@ -51,8 +51,7 @@ def test_readme_timings_keep_the_anchor_and_a_time_for_each_command():
     assert "[Timings](#timings)" in text and "\n## Timings\n" in text
     timings = section(text, "Timings")
     duration = r"\| (\d+ min \d+ s|\d+(\.\d+)? s) \|"
-    for what in ("rvte te RV-40E-121", "rvte mc studies/quick_mc.toml", "the test suite",
-                 ".ci/run"):
+    for what in ("rvte te RV-40E-121", "rvte mc studies/quick_mc.toml", "the test suite", ".ci/run"):
         rows = [line for line in timings.splitlines() if what in line]
         assert rows and re.search(duration, rows[0]), f"README Timings has no time for {what!r}"
 
@@ -60,9 +59,19 @@ def test_readme_timings_keep_the_anchor_and_a_time_for_each_command():
 def test_readme_links_to_every_doc_and_the_docs_exist():
     text = readme()
     linked = set(re.findall(r"\]\(([^)#]+)\)", text))
-    for name in ("docs/model.md", "docs/studies.md", "docs/fmu.md", "docs/presets.md",
-                 "docs/benchmarks.md", "docs/bench-data.md", "docs/getting-started.md",
-                 "docs/running-studies.md", "docs/dynamic.md", "docs/efficiency.md", "CHANGELOG.md"):
+    for name in (
+        "docs/model.md",
+        "docs/studies.md",
+        "docs/fmu.md",
+        "docs/presets.md",
+        "docs/benchmarks.md",
+        "docs/bench-data.md",
+        "docs/getting-started.md",
+        "docs/running-studies.md",
+        "docs/dynamic.md",
+        "docs/efficiency.md",
+        "CHANGELOG.md",
+    ):
         assert name in linked, f"README.md does not link {name}"
     missing = sorted(p for p in linked if "://" not in p and not (ROOT / p).exists())
     assert not missing, f"README.md links files that do not exist: {missing}"
@@ -70,36 +79,46 @@ def test_readme_links_to_every_doc_and_the_docs_exist():
 
 def test_readme_fmu_builds_write_different_files():
     fmu = section(readme(), "The reducer as an FMU")
-    builds = [line for block in blocks(fmu, "bash") for line in block.splitlines()
-              if line.startswith("rvte fmu build")]
+    builds = [
+        line
+        for block in blocks(fmu, "bash")
+        for line in block.splitlines()
+        if line.startswith("rvte fmu build")
+    ]
     outputs = [shlex.split(line.split("#")[0])[-1] for line in builds]
     assert len(builds) == 2 and len(set(outputs)) == 2, builds
 
 
 def test_readme_fmpy_example_runs_as_written(tmp_path):
     fmu = section(readme(), "The reducer as an FMU")
-    build = next(line for block in blocks(fmu, "bash") for line in block.splitlines()
-                 if line.startswith("rvte fmu build") and "--native" in line)
+    build = next(
+        line
+        for block in blocks(fmu, "bash")
+        for line in block.splitlines()
+        if line.startswith("rvte fmu build") and "--native" in line
+    )
     (example,) = blocks(fmu, "python")
     # The README's paths are relative to the repository; run in a fresh folder so nothing
     # is written into the working tree, with the repository's input files given in full.
     args = [str(ROOT / a) if a.startswith("studies/") else a for a in shlex.split(build)[1:]]
     start = time.monotonic()
-    proc = subprocess.run([sys.executable, "-m", "rvfmu.cli", *args], cwd=tmp_path,
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "rvfmu.cli", *args], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 0, proc.stderr
     name = args[args.index("-o") + 1]
     assert (tmp_path / name).stat().st_size > 10_000
-    assert f'simulate_fmu("{name}"' in example        # the example simulates what was built
+    assert f'simulate_fmu("{name}"' in example  # the example simulates what was built
 
     script = tmp_path / "example.py"
     script.write_text(example)
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    run = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True,
-                         text=True, timeout=120, env=env)
+    run = subprocess.run(
+        [sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=120, env=env
+    )
     assert run.returncode == 0, run.stderr
     match = re.fullmatch(r"te_pp (\d+\.\d) arcsec over (\d+) output rows\n", run.stdout)
     assert match, run.stdout
-    assert int(match.group(2)) == 1001                  # 1 s at 1 ms, both ends
-    assert float(match.group(1)) > 0.0                  # the errors and the load make a TE
+    assert int(match.group(2)) == 1001  # 1 s at 1 ms, both ends
+    assert float(match.group(1)) > 0.0  # the errors and the load make a TE
     assert time.monotonic() - start < 90, "the README's FMU build and example took too long"

@@ -4,15 +4,16 @@ import argparse
 import re
 
 import pytest
-
 from conftest import ROOT
+
 from rvfmu import cli
 
 TOP = ("rvfmu", "tolerance", "studies", "tests", "docs", ".ci")
 # A path into the repository: a top-level folder, then names; or a Markdown file by name.
-PATH = re.compile(r"(?<![\w./-])((?:%s)/[\w./-]*[\w-]|[\w-]+\.md)(?![\w/-])"
-                  % "|".join(re.escape(t) for t in TOP))
-GENERATED = ("/output", "rvte_")   # folders a run writes; temporary names
+PATH = re.compile(
+    r"(?<![\w./-])((?:%s)/[\w./-]*[\w-]|[\w-]+\.md)(?![\w/-])" % "|".join(re.escape(t) for t in TOP)
+)
+GENERATED = ("/output", "rvte_")  # folders a run writes; temporary names
 
 
 def help_texts():
@@ -31,8 +32,11 @@ def help_texts():
 
 
 def documents():
-    files = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")),
-             *sorted((ROOT / "studies").rglob("README.md"))]
+    files = [
+        ROOT / "README.md",
+        *sorted((ROOT / "docs").glob("*.md")),
+        *sorted((ROOT / "studies").rglob("README.md")),
+    ]
     return {str(f.relative_to(ROOT)): f.read_text() for f in files}
 
 
@@ -48,7 +52,7 @@ def mentioned(text):
 def exists(path, source):
     here = (ROOT / source).parent if source else ROOT
     candidates = [ROOT / path, here / path]
-    if path.endswith(".md") and "/" not in path:     # a Markdown file named alone: docs or beside
+    if path.endswith(".md") and "/" not in path:  # a Markdown file named alone: docs or beside
         candidates.append(ROOT / "docs" / path)
     return any(c.exists() for c in candidates)
 
@@ -58,8 +62,10 @@ def test_the_docs_exist_and_are_found_by_the_scan():
     assert "docs/model.md" in docs and "docs/studies.md" in docs
     assert "docs/model.md" in mentioned(docs["README.md"])
     assert "docs/studies.md" in mentioned(docs["README.md"])
-    assert mentioned("see tolerance/README_SECTION.md and docs/x.md.") == \
-        {"tolerance/README_SECTION.md", "docs/x.md"}
+    assert mentioned("see tolerance/README_SECTION.md and docs/x.md.") == {
+        "tolerance/README_SECTION.md",
+        "docs/x.md",
+    }
 
 
 @pytest.mark.parametrize("source", sorted(documents()))
@@ -70,7 +76,7 @@ def test_every_path_a_document_mentions_exists(source):
 
 def test_every_path_a_help_text_mentions_exists():
     texts = help_texts()
-    assert len(texts) > 8                          # rvte, te, presets, ..., fmu build, mc, sobol
+    assert len(texts) > 8  # rvte, te, presets, ..., fmu build, mc, sobol
     found = set().union(*(mentioned(t) for t in texts))
     assert "docs/studies.md" in found and "docs/model.md" in found
     missing = sorted(p for p in found if not exists(p, ""))

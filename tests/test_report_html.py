@@ -24,30 +24,52 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tolerance_toy import write_study
 
 import tolerance
 from rvfmu.cli import main
-from rvfmu.core.checks import InputError
+from rvfmu.core.base.checks import InputError
 from tolerance import report, run_mc, run_sobol
 from tolerance.summaries import order_text
-from tolerance_toy import write_study
 
 ROOT = Path(__file__).resolve().parent.parent
-LAPTOP = (1366, 768)          # CSS pixels of the browser window the report must read well in
+LAPTOP = (1366, 768)  # CSS pixels of the browser window the report must read well in
 
 ALLOCATION = {
-    "study": "toy", "study_file": "toy.toml", "allocated_study_file": "toy_allocated.toml",
-    "target_yield": 0.9, "feasible": True,
+    "study": "toy",
+    "study_file": "toy.toml",
+    "allocated_study_file": "toy_allocated.toml",
+    "target_yield": 0.9,
+    "feasible": True,
     "factors": [
-        {"name": "crank_cam_eccentricity.position_um", "unit": "um", "current": 9.0,
-         "allocated": 11.2, "lower": 2.0, "upper": 30.0, "cost_current": 1.0,
-         "cost_allocated": 0.8, "binding": "none"},
-        {"name": "pin_radial.band_um", "unit": "um", "current": 5.0, "allocated": 2.0,
-         "lower": 2.0, "upper": 20.0, "cost_current": 1.5, "cost_allocated": 2.25,
-         "binding": "lower"}],
+        {
+            "name": "crank_cam_eccentricity.position_um",
+            "unit": "um",
+            "current": 9.0,
+            "allocated": 11.2,
+            "lower": 2.0,
+            "upper": 30.0,
+            "cost_current": 1.0,
+            "cost_allocated": 0.8,
+            "binding": "none",
+        },
+        {
+            "name": "pin_radial.band_um",
+            "unit": "um",
+            "current": 5.0,
+            "allocated": 2.0,
+            "lower": 2.0,
+            "upper": 20.0,
+            "cost_current": 1.5,
+            "cost_allocated": 2.25,
+            "binding": "lower",
+        },
+    ],
     "total_cost": {"current": 2.5, "allocated": 3.05},
-    "yield": {"current": {"estimate": 0.71875, "low": 0.546, "high": 0.844, "n": 32},
-              "allocated": {"estimate": 0.9123, "low": 0.883, "high": 0.935, "n": 4096}},
+    "yield": {
+        "current": {"estimate": 0.71875, "low": 0.546, "high": 0.844, "n": 32},
+        "allocated": {"estimate": 0.9123, "low": 0.883, "high": 0.935, "n": 4096},
+    },
     "surrogate": {"kind": "gaussian process", "samples": 256, "validation": "R2 0.97 on 64 held out"},
     "model_evaluations": 320,
 }
@@ -57,8 +79,11 @@ ALLOCATION = {
 def study(tmp_path_factory):
     """The toy study file and its output folder (the default one: toy/output beside the file)."""
     folder = tmp_path_factory.mktemp("report")
-    path = write_study(folder, study={"errors": str(ROOT / "studies" / "seed002_errors.toml")},
-                       spec={"te_pp_arcsec": 40.0, "rms_arcsec": 9.0})
+    path = write_study(
+        folder,
+        study={"errors": str(ROOT / "studies" / "seed002_errors.toml")},
+        spec={"te_pp_arcsec": 40.0, "rms_arcsec": 9.0},
+    )
     run_mc(path, plots=False)
     run_sobol(path, plots=False)
     return path, folder / "toy" / "output"
@@ -85,8 +110,12 @@ class Cells(HTMLParser):
         attrs = dict(attrs)
         if tag == "td":
             key = attrs.get("data-key")
-            self._cell = [attrs.get("data-src"), None if key is None else json.loads(key),
-                          float(attrs.get("data-scale", 1)), ""]
+            self._cell = [
+                attrs.get("data-src"),
+                None if key is None else json.loads(key),
+                float(attrs.get("data-scale", 1)),
+                "",
+            ]
         elif tag == "div" and "banner" in attrs.get("class", "") and not self._nav:
             self._banner = [attrs["class"].split()[1], ""]
         elif tag == "nav":
@@ -153,8 +182,10 @@ def test_the_html_tables_show_the_numbers_of_the_json_outputs(study, written):
             for name in ("S1_reported", "S1_conf", "ST_reported", "ST_conf"):
                 assert ("sobol_indices.json", ("metrics", column, "groups", i, name)) in seen
             for k, _ in enumerate(entry["convergence"]["n"]):
-                assert ("sobol_indices.json", ("metrics", column, "convergence", "ST",
-                                               group["name"], k)) in seen
+                assert (
+                    "sobol_indices.json",
+                    ("metrics", column, "convergence", "ST", group["name"], k),
+                ) in seen
     # ... and the order of the ranks that sobol_indices.json holds, in the page and the summary
     markdown = written.markdown.read_text()
     for entry in sobol["metrics"].values():
@@ -172,29 +203,37 @@ def test_the_report_stands_alone_says_it_is_up_to_date_and_is_reproducible(study
     text = written.html.read_text()
     page = Cells(text)
     assert "<script" not in text.lower()
-    assert all(link.startswith(("data:", "#")) for link in page.links), \
-        [link[:40] for link in page.links if not link.startswith(("data:", "#"))]
-    assert len(page.images) >= 4       # nominal TE, distributions, Sobol bars, convergence
+    assert all(link.startswith(("data:", "#")) for link in page.links), [
+        link[:40] for link in page.links if not link.startswith(("data:", "#"))
+    ]
+    assert len(page.images) >= 4  # nominal TE, distributions, Sobol bars, convergence
     # the toy study's 64 points alias the pin-passing order: the nominal figure does not
-    assert "at 12480 points per revolution (resolving the pin-passing order; the study's " \
-           "metrics use its 64)" in html.unescape(text)
+    assert (
+        "at 12480 points per revolution (resolving the pin-passing order; the study's "
+        "metrics use its 64)" in html.unescape(text)
+    )
     for src in page.images:
         assert base64.b64decode(src.partition(",")[2])[:8] == b"\x89PNG\r\n\x1a\n"
     assert page.banners[0][0] == "ok" and str(path) in page.banners[0][1]
     summary = written.to_json()
     assert summary["status"] == "up to date" and summary["study_file"] == str(path)
     assert summary["nominal"]["errors"].startswith("with the study's fixed errors")
-    for needle in ("seed002_errors.toml", "Fixed errors", "inputs hash",
-                   json.loads((out / "manifest.json").read_text())["model_hash"], "SALib"):
+    for needle in (
+        "seed002_errors.toml",
+        "Fixed errors",
+        "inputs hash",
+        json.loads((out / "manifest.json").read_text())["model_hash"],
+        "SALib",
+    ):
         assert needle in text
     errors_file = (ROOT / "studies" / "seed002_errors.toml").read_text()
-    assert errors_file in html.unescape(text)      # the error file as written (escaped)
+    assert errors_file in html.unescape(text)  # the error file as written (escaped)
     # the software that computed the results, as recorded when the store was made, and now
     recorded = json.loads((out / "manifest.json").read_text())["versions"]
     assert recorded["numpy"] == np.__version__ and "python" in recorded
     row = [cell[-1] for cell in page.cells]
     at = row.index("numpy")
-    assert row[at + 1:at + 3] == [np.__version__, np.__version__]
+    assert row[at + 1 : at + 3] == [np.__version__, np.__version__]
     html_bytes, md_bytes = written.html.read_bytes(), written.markdown.read_bytes()
     again = report(out)
     assert again.html.read_bytes() == html_bytes and again.markdown.read_bytes() == md_bytes
@@ -252,8 +291,11 @@ def test_an_allocation_is_rendered_when_there_is_one(study, tmp_path):
     broken = json.loads(json.dumps(ALLOCATION))
     broken["factors"][1]["binding"] = "both"
     (copy / "allocation.json").write_text(json.dumps(broken))
-    with pytest.raises(InputError, match=r"factors\[1\]\.binding = 'both': must be one of none, "
-                                         "lower, upper"):
+    with pytest.raises(
+        InputError,
+        match=r"factors\[1\]\.binding = 'both': must be one of none, "
+        "lower, upper",
+    ):
         report(copy)
 
 
@@ -265,23 +307,32 @@ def test_the_command_prints_a_summary_and_refuses_bad_paths_at_once(study, tmp_p
     assert printed["html"] == str(target) and printed["markdown"] == str(tmp_path / "supplier.md")
     assert target.is_file() and printed["mc"]["yields"][-1]["limit"] == "all limits"
     for argv, message in (
-            ([str(tmp_path / "nowhere")], "output_dir = '.*nowhere': must be an existing study "
-                                          "output folder"),
-            ([str(tmp_path)], "output_dir = '.*': is not a study output folder: it has no "
-                              "manifest.json"),
-            ([str(out), "-o", str(tmp_path / "r.pdf")], r"html = '.*r.pdf': must end in one of "
-                                                         r"\.html, \.htm"),
-            ([str(out), "-o", str(tmp_path / "no" / "r.html")], "html = .*: cannot be written: the "
-                                                                 "folder .* does not exist"),
-            ([str(out), "--markdown", str(tmp_path / "r.txt")], r"markdown = .*: must end in one "
-                                                                 r"of \.md"),
-            ([str(out), "--study", str(tmp_path / "none.toml")], "study = .*: must be a readable "
-                                                                  "study TOML file")):
+        ([str(tmp_path / "nowhere")], "output_dir = '.*nowhere': must be an existing study output folder"),
+        ([str(tmp_path)], "output_dir = '.*': is not a study output folder: it has no manifest.json"),
+        (
+            [str(out), "-o", str(tmp_path / "r.pdf")],
+            r"html = '.*r.pdf': must end in one of "
+            r"\.html, \.htm",
+        ),
+        (
+            [str(out), "-o", str(tmp_path / "no" / "r.html")],
+            "html = .*: cannot be written: the folder .* does not exist",
+        ),
+        (
+            [str(out), "--markdown", str(tmp_path / "r.txt")],
+            r"markdown = .*: must end in one "
+            r"of \.md",
+        ),
+        (
+            [str(out), "--study", str(tmp_path / "none.toml")],
+            "study = .*: must be a readable study TOML file",
+        ),
+    ):
         clock = time.perf_counter()
         assert main(["report", *argv]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and re.match(f"rvte report: error: {message}", err), err
-        assert time.perf_counter() - clock < 2.0       # refused before any work
+        assert time.perf_counter() - clock < 2.0  # refused before any work
 
 
 def test_tolerance_report_is_the_report_job():
@@ -291,6 +342,7 @@ def test_tolerance_report_is_the_report_job():
 
 
 # -- in a real browser -------------------------------------------------------------------------
+
 
 class Chromium:
     """Headless Chromium over the DevTools protocol on a pipe; `send` waits for its answer."""
@@ -306,13 +358,24 @@ class Chromium:
             os.close(fd)
             theirs_in, theirs_out = (high, theirs_out) if fd == theirs_in else (theirs_in, high)
         self._profile = tempfile.TemporaryDirectory()
-        flags = ["--headless", "--no-sandbox", "--disable-gpu", "--remote-debugging-pipe",
-                 "--no-first-run", "--no-default-browser-check", "--disable-extensions",
-                 "--hide-scrollbars", f"--user-data-dir={self._profile.name}"]
+        flags = [
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--remote-debugging-pipe",
+            "--no-first-run",
+            "--no-default-browser-check",
+            "--disable-extensions",
+            "--hide-scrollbars",
+            f"--user-data-dir={self._profile.name}",
+        ]
         self.process = subprocess.Popen(
             ["bash", "-c", f'exec "$0" "$@" 3<&{theirs_in} 4>&{theirs_out}', executable, *flags],
-            pass_fds=(theirs_in, theirs_out), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL)
+            pass_fds=(theirs_in, theirs_out),
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         os.close(theirs_in)
         os.close(theirs_out)
 
@@ -360,8 +423,10 @@ class Chromium:
         self._profile.cleanup()
 
 
-@pytest.mark.skipif(shutil.which("chromium") is None,
-                    reason="Debian's chromium is not installed (apt-get install -y chromium)")
+@pytest.mark.skipif(
+    shutil.which("chromium") is None,
+    reason="Debian's chromium is not installed (apt-get install -y chromium)",
+)
 def test_the_report_reads_well_in_chromium_at_laptop_width(written, tmp_path):
     browser = Chromium(shutil.which("chromium"))
     try:
@@ -370,37 +435,58 @@ def test_the_report_reads_well_in_chromium_at_laptop_width(written, tmp_path):
         for domain in ("Page", "Runtime", "Log", "Network"):
             browser.send(f"{domain}.enable", tab)
         width, height = LAPTOP
-        browser.send("Emulation.setDeviceMetricsOverride", tab, width=width, height=height,
-                     deviceScaleFactor=1, mobile=False)
+        browser.send(
+            "Emulation.setDeviceMetricsOverride",
+            tab,
+            width=width,
+            height=height,
+            deviceScaleFactor=1,
+            mobile=False,
+        )
         browser.send("Page.navigate", tab, url=written.html.resolve().as_uri())
         browser.wait_for("Page.loadEventFired")
-        page = browser.send("Runtime.evaluate", tab, returnByValue=True, expression="""({
+        page = browser.send(
+            "Runtime.evaluate",
+            tab,
+            returnByValue=True,
+            expression="""({
             images: [...document.images].map(i => [i.complete, i.naturalWidth, i.width]),
             scrollWidth: document.documentElement.scrollWidth,
             height: document.documentElement.scrollHeight,
-            banner: document.querySelector('.banner').getBoundingClientRect().top})""")
+            banner: document.querySelector('.banner').getBoundingClientRect().top})""",
+        )
         page = page["result"]["value"]
         shot = browser.send("Page.captureScreenshot", tab, format="png")
-        full = browser.send("Page.captureScreenshot", tab, format="png", captureBeyondViewport=True,
-                            clip={"x": 0, "y": 0, "width": width, "height": page["height"],
-                                  "scale": 1})
+        full = browser.send(
+            "Page.captureScreenshot",
+            tab,
+            format="png",
+            captureBeyondViewport=True,
+            clip={"x": 0, "y": 0, "width": width, "height": page["height"], "scale": 1},
+        )
     finally:
         browser.close()
-    errors = [e["params"] for e in browser.events
-              if (e.get("method") == "Runtime.consoleAPICalled" and e["params"]["type"] == "error")
-              or e.get("method") == "Runtime.exceptionThrown"
-              or (e.get("method") == "Log.entryAdded" and e["params"]["entry"]["level"] == "error")]
+    errors = [
+        e["params"]
+        for e in browser.events
+        if (e.get("method") == "Runtime.consoleAPICalled" and e["params"]["type"] == "error")
+        or e.get("method") == "Runtime.exceptionThrown"
+        or (e.get("method") == "Log.entryAdded" and e["params"]["entry"]["level"] == "error")
+    ]
     assert errors == []
-    requests = [e["params"]["request"]["url"] for e in browser.events
-                if e.get("method") == "Network.requestWillBeSent"]
+    requests = [
+        e["params"]["request"]["url"]
+        for e in browser.events
+        if e.get("method") == "Network.requestWillBeSent"
+    ]
     assert all(url.startswith(("file:", "data:")) for url in requests), requests
     assert len(page["images"]) >= 4
     assert all(done and natural > 0 and 0 < shown <= width for done, natural, shown in page["images"])
-    assert page["scrollWidth"] <= width          # nothing wider than the window
-    assert page["banner"] < height / 2           # the status is on the first screen
+    assert page["scrollWidth"] <= width  # nothing wider than the window
+    assert page["banner"] < height / 2  # the status is on the first screen
     for name, data in (("report-top.png", shot), ("report-full.png", full)):
         png = base64.b64decode(data["data"])
         assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
         (tmp_path / name).write_bytes(png)
-        if os.environ.get("RVTE_SCREENSHOTS"):     # a folder to keep them in, to look at
+        if os.environ.get("RVTE_SCREENSHOTS"):  # a folder to keep them in, to look at
             shutil.copy(tmp_path / name, Path(os.environ["RVTE_SCREENSHOTS"]) / name)

@@ -14,9 +14,9 @@ import zipfile
 
 import numpy as np
 import pytest
-
 from conftest import ROOT
-from rvfmu.core.units import ARCSEC
+
+from rvfmu.core.base.units import ARCSEC
 
 sys.path.insert(0, str(ROOT / "studies" / "robot_joint"))
 import run_joint  # noqa: E402
@@ -56,7 +56,7 @@ def test_the_arm_follows_the_reference_and_the_drive_tracks_its_encoder(joint, q
     with_errors, without = quasi_static
     summary = joint[1]
     assert with_errors.time[-1] == pytest.approx(STOP)
-    assert np.ptp(with_errors.theta_ref) > math.radians(3)   # the arm really moves
+    assert np.ptp(with_errors.theta_ref) > math.radians(3)  # the arm really moves
     for run in (with_errors, without):
         assert np.all(np.isfinite(run.arm_error_arcsec))
         # lost motion, windup and link sag under gravity: a few arcminutes at most
@@ -69,15 +69,14 @@ def test_the_arm_follows_the_reference_and_the_drive_tracks_its_encoder(joint, q
 def test_signs_and_the_static_start_follow_the_model_contract(joint):
     gravity = run_joint.ARM["mass"] * run_joint.ARM["g"] * run_joint.ARM["com_distance"]
     ratio = run_joint.SERVO["ratio"]
-    for run in joint[0].values():   # both quasi-static runs and the dynamic one
+    for run in joint[0].values():  # both quasi-static runs and the dynamic one
         # the arm held up resists positive rotation: tau_load < 0 (docs/model.md section 2)
         assert np.all(run.tau_load < 0)
         assert run.tau_load[0] == pytest.approx(-gravity, rel=1e-3)
         # the drive starts holding it through the ratio
         assert run.tau_motor[0] == pytest.approx(gravity / ratio, rel=1e-3)
         # the reducer output leads or lags the motor by its TE only
-        np.testing.assert_allclose(run.theta_out - run.theta_motor / ratio, run.te_arcsec * ARCSEC,
-                                   atol=1e-9)
+        np.testing.assert_allclose(run.theta_out - run.theta_motor / ratio, run.te_arcsec * ARCSEC, atol=1e-9)
 
 
 def test_the_errors_move_the_arm_by_about_the_reducer_te(joint, quasi_static):
@@ -86,7 +85,7 @@ def test_the_errors_move_the_arm_by_about_the_reducer_te(joint, quasi_static):
     caused = with_errors.arm_error_arcsec - without.arm_error_arcsec
     te_diff = with_errors.te_arcsec - without.te_arcsec
     te_pp = reducer_te_pp_arcsec(out / f"RVReducer_{POINTS}.fmu", with_errors.tau_load[0])
-    assert 5 < te_pp < 100                                   # seed 002: some tens of arcsec
+    assert 5 < te_pp < 100  # seed 002: some tens of arcsec
     assert te_pp / 3 < np.max(np.abs(caused)) < 3 * te_pp
     assert summary["te_caused"]["peak_arcsec"] == pytest.approx(np.max(np.abs(caused)))
     # at rest at the start the arm is off by exactly the static TE difference ...
@@ -116,8 +115,12 @@ def test_the_motor_lifts_the_arm_and_pays_for_the_reducers_friction(joint):
     for name, run in runs.items():
         work[name] = summary["runs"][name]["motor_work_J"]
         assert work[name] == pytest.approx(run_joint.motor_work(run))
-        rise = arm["mass"] * arm["g"] * arm["com_distance"] * (
-            math.sin(run.theta_arm[-1]) - math.sin(run.theta_arm[0]))
+        rise = (
+            arm["mass"]
+            * arm["g"]
+            * arm["com_distance"]
+            * (math.sin(run.theta_arm[-1]) - math.sin(run.theta_arm[0]))
+        )
         assert work[name] > rise > 0.0, name
         excess[name] = work[name] - rise
     assert excess["dynamic"] == pytest.approx(excess["errors"], rel=0.05)
@@ -140,8 +143,7 @@ def test_the_dynamic_reducer_stays_stable_in_the_joint(joint):
     assert dynamic.evaluations.min() >= 1
     assert dynamic.evaluations.max() < run_joint.COUPLING_EVALUATIONS
     assert np.mean(dynamic.evaluations) < 4
-    assert summary["runs"]["dynamic"]["reducer_steps_per_step"] == pytest.approx(
-        np.mean(dynamic.evaluations))
+    assert summary["runs"]["dynamic"]["reducer_steps_per_step"] == pytest.approx(np.mean(dynamic.evaluations))
 
 
 def test_the_dynamic_run_follows_the_quasi_static_one(joint):
@@ -169,17 +171,15 @@ def test_the_explicit_coupling_diverges_with_the_dynamic_reducer(joint):
     fmus = run_joint.build_fmus(joint[3], POINTS, log=lambda *_: None)
     stop = 0.2
     try:
-        run = run_joint.simulate(fmus, points=POINTS, stop_time=stop, model="dynamic",
-                                 coupling="explicit")
-    except RuntimeError as exc:   # the load went past the 5x rated stop and the FMU refused
+        run = run_joint.simulate(fmus, points=POINTS, stop_time=stop, model="dynamic", coupling="explicit")
+    except RuntimeError as exc:  # the load went past the 5x rated stop and the FMU refused
         assert "explicit coupling" in str(exc) and "tau_load" in str(exc)
         return
     # or it ran on, swinging: the stable runs stay under 150 arcsec of arm error and 10 of TE p-p
     assert np.max(np.abs(run.arm_error_arcsec)) > 300 or np.ptp(run.te_arcsec) > 100
 
 
-def test_the_iterated_coupling_matches_the_explicit_one_for_the_quasi_static_reducer(joint,
-                                                                                  quasi_static):
+def test_the_iterated_coupling_matches_the_explicit_one_for_the_quasi_static_reducer(joint, quasi_static):
     fmus = run_joint.build_fmus(joint[3], POINTS, log=lambda *_: None)
     explicit = run_joint.simulate(fmus, points=POINTS, stop_time=STOP, coupling="explicit")
     assert np.all(explicit.evaluations == 1)
@@ -200,11 +200,11 @@ def test_the_arm_fmu_steps_again_from_a_saved_state(joint):
         arm.set(theta=2e-3)
         arm.step(1e-3, 1e-3)
         first = (arm.get("tau_load"), arm.get("theta_arm"), arm.get("omega_arm"))
-        arm.set(theta=-5e-3)          # another step from the same point ...
+        arm.set(theta=-5e-3)  # another step from the same point ...
         arm.step(1e-3, 1e-3)
         assert arm.get("tau_load") != first[0]
         arm.restore(saved)
-        arm.set(theta=2e-3)           # ... then the first one again
+        arm.set(theta=2e-3)  # ... then the first one again
         arm.step(1e-3, 1e-3)
         assert (arm.get("tau_load"), arm.get("theta_arm"), arm.get("omega_arm")) == first
         arm.free(saved)
@@ -219,13 +219,21 @@ def test_the_figure_is_written(joint):
 
 
 def test_the_servo_model_saturates_and_holds_its_integral():
-    servo = ServoDriveModel(ratio=121.0, motor_inertia=1.5e-4, viscous_friction=0.0, torque_limit=2.0,
-                            position_gain=150.0, velocity_gain=0.15, velocity_integral_time=0.008,
-                            velocity_feedforward=1.0, substeps=20)
+    servo = ServoDriveModel(
+        ratio=121.0,
+        motor_inertia=1.5e-4,
+        viscous_friction=0.0,
+        torque_limit=2.0,
+        position_gain=150.0,
+        velocity_gain=0.15,
+        velocity_integral_time=0.008,
+        velocity_feedforward=1.0,
+        substeps=20,
+    )
     servo.initialize(0.0, 0.0, 0.0)
-    _, _, tau = servo.step(0.0, 1e-3, 0.1, 0.0)          # a 0.1 rad arm step: 12 rad at the motor
+    _, _, tau = servo.step(0.0, 1e-3, 0.1, 0.0)  # a 0.1 rad arm step: 12 rad at the motor
     assert tau == 2.0
-    assert servo.state["integral"] == 0.0                  # anti-windup: no integration while clamped
+    assert servo.state["integral"] == 0.0  # anti-windup: no integration while clamped
     # free motor under the limit torque: omega = tau / J * t (semi-implicit Euler is exact for it)
     assert servo.state["omega"] == pytest.approx(2.0 / 1.5e-4 * 1e-3, rel=1e-12)
     with pytest.raises(ValueError, match="motor_inertia"):
@@ -234,7 +242,7 @@ def test_the_servo_model_saturates_and_holds_its_integral():
 
 def test_the_servo_holds_a_static_load_without_error():
     servo = ServoDriveModel(121.0, 1.5e-4, 1e-4, 9.5, 150.0, 0.15, 0.008, 1.0, 20)
-    servo.initialize(0.0, 0.5, -0.3)                        # holding 0.3 N m from the start
+    servo.initialize(0.0, 0.5, -0.3)  # holding 0.3 N m from the start
     for k in range(200):
         theta, omega, tau = servo.step(k * 1e-3, 1e-3, 0.5, -0.3)
     assert tau == pytest.approx(0.3, rel=1e-9) and theta == pytest.approx(121.0 * 0.5, abs=1e-12)
@@ -258,9 +266,9 @@ def test_the_arm_model_at_rest_carries_its_weight():
     theta = math.radians(30)
     tau, theta_arm, _ = arm.initialize(0.0, theta)
     assert tau == pytest.approx(-18.0 * 9.81 * 0.25 * math.cos(theta_arm), rel=1e-12)
-    assert theta - theta_arm == pytest.approx(-tau / 1e5, rel=1e-12)   # the link sags under it
+    assert theta - theta_arm == pytest.approx(-tau / 1e5, rel=1e-12)  # the link sags under it
     for i in range(100):
         tau_i, theta_i, omega_i = arm.step(i * 1e-3, 1e-3, theta)
     assert tau_i == pytest.approx(tau, rel=1e-9) and abs(omega_i) < 1e-9
     with pytest.raises(ValueError, match="inertia"):
-        ArmModel(0.5, 18.0, 0.25, 9.81, 1e5, 0.05, 20)     # less than m l^2
+        ArmModel(0.5, 18.0, 0.25, 9.81, 1e5, 0.05, 20)  # less than m l^2

@@ -1,5 +1,5 @@
-"""A roller bearing's radial law as the solvers use it (rvfmu/core/roller_law.py): against
-closed forms, the load-distribution integral of rvfmu/core/compliance.py and its own
+"""A roller bearing's radial law as the solvers use it (rvfmu/core/laws/roller_law.py): against
+closed forms, the load-distribution integral of rvfmu/core/laws/compliance.py and its own
 derivatives."""
 
 import math
@@ -8,12 +8,16 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from rvfmu.core import roller_law as rl
-from rvfmu.core.compliance import (LINE_EXPONENT, bearing_deflection, bearing_radial_force,
-                                   roller_load_constant)
+from rvfmu.core.laws import roller_law as rl
+from rvfmu.core.laws.compliance import (
+    LINE_EXPONENT,
+    bearing_deflection,
+    bearing_radial_force,
+    roller_load_constant,
+)
 
 N = LINE_EXPONENT
-ROLLERS, LENGTH = 12, 8e-3          # the RV-40E-121's needle bearing ([sources])
+ROLLERS, LENGTH = 12, 8e-3  # the RV-40E-121's needle bearing ([sources])
 A = rl.load_constant(ROLLERS, roller_load_constant(LENGTH))
 
 
@@ -27,13 +31,14 @@ def test_zero_clearance_is_the_power_law_with_wallis_integral():
     wallis = math.sqrt(math.pi) * math.gamma((N + 2) / 2) / math.gamma((N + 3) / 2)
     for s in (1e-7, 2e-6, 3e-5):
         energy, force, stiffness = law(s)
-        assert force == pytest.approx(A * s ** N * wallis, rel=1e-9)
+        assert force == pytest.approx(A * s**N * wallis, rel=1e-9)
         assert stiffness == pytest.approx(N * force / s, rel=1e-9)
         assert energy == pytest.approx(force * s / (N + 1), rel=1e-9)
 
 
-@pytest.mark.parametrize("c, s", [(0.0, 1.2e-6), (0.0, 2e-5), (1e-6, 1.2e-6), (1e-6, 5e-6),
-                                  (4e-6, 5e-6), (4e-6, 2e-5)])
+@pytest.mark.parametrize(
+    "c, s", [(0.0, 1.2e-6), (0.0, 2e-5), (1e-6, 1.2e-6), (1e-6, 5e-6), (4e-6, 5e-6), (4e-6, 2e-5)]
+)
 def test_force_and_stiffness_agree_with_the_load_distribution_integral(c, s):
     """compliance.bearing_radial_force integrates the force over the loaded arc directly;
     the law builds it from the tabulated energy: within 1e-6 (force), 1e-4 (stiffness)."""
@@ -66,7 +71,7 @@ def test_series_spring_deflections_add_and_energy_is_the_work_done(c):
     """The bearing and a spring of compliance C in series: s = u(F) + C F with u the
     bearing's own deflection under F (compliance.bearing_deflection, a separate Newton
     iteration on the integral), and the energy the integral of the force over s."""
-    C = 1.0 / 4.56e8     # the RV-40E-121's crank bent at its cams
+    C = 1.0 / 4.56e8  # the RV-40E-121's crank bent at its cams
     for s in (c + 2e-6, c + 1.5e-5):
         energy, force, stiffness = law(s, c, C)
         u = bearing_deflection(force, ROLLERS, LENGTH, c)

@@ -9,8 +9,12 @@ SCRIPT = ROOT / "studies" / "seed003_calibration" / "run_seed003.py"
 
 
 def test_seed003_identification_runs_and_compares_both_starts(tmp_path):
-    proc = subprocess.run([sys.executable, str(SCRIPT), "--quick", "-o", str(tmp_path)],
-                          capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, str(SCRIPT), "--quick", "-o", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr
     text = (tmp_path / "calibration.txt").read_text()
     assert text.strip() == proc.stdout.strip()

@@ -5,24 +5,31 @@ it stopped at."""
 
 import numpy as np
 import pytest
+from test_hardening import run_cli
+from tolerance_toy import write_study
 
 from tolerance import run as run_module
 from tolerance.run import run_sobol
 from tolerance.study import load_study
-from tolerance_toy import write_study
-from test_hardening import run_cli
 
-TOLERANCES = {"crank_cam_eccentricity": {"position_um": 9.0},
-              "disc_crank_hole": {"position_um": 7.0},
-              "pin_pitch": {"cumulative_um": 8.0, "single_um": 2.5}}
+TOLERANCES = {
+    "crank_cam_eccentricity": {"position_um": 9.0},
+    "disc_crank_hole": {"position_um": 7.0},
+    "pin_pitch": {"cumulative_um": 8.0, "single_um": 2.5},
+}
 
 
 def study_file(folder, n=512, load=412.0, rounds=None, solved_n=64):
     sobol = {"n": n, "resamples": 100, "solved_n": solved_n}
     if rounds is not None:
         sobol["rounds"] = rounds
-    return write_study(folder, tolerances=TOLERANCES, sobol=sobol,
-                       operating={"points": 48, "load_Nm": load}, study={"batch_size": 64})
+    return write_study(
+        folder,
+        tolerances=TOLERANCES,
+        sobol=sobol,
+        operating={"points": 48, "load_Nm": load},
+        study={"batch_size": 64},
+    )
 
 
 def test_rounds_double_until_the_order_groups_hold_and_equal_a_plain_run(tmp_path):
@@ -30,15 +37,15 @@ def test_rounds_double_until_the_order_groups_hold_and_equal_a_plain_run(tmp_pat
     result = run_sobol(path, rounds=True, plots=False, output=tmp_path / "rounds")
     sizes = [r.size for r in result.rounds]
     assert sizes[0] == run_module.ROUND_START
-    assert sizes == [run_module.ROUND_START * 2 ** k for k in range(len(sizes))]
+    assert sizes == [run_module.ROUND_START * 2**k for k in range(len(sizes))]
     assert sizes[-1] <= 512
     last = result.rounds[-1]
     if last.settled:
-        same = [r.order_groups for r in result.rounds[-run_module.SETTLED_ROUNDS:]]
+        same = [r.order_groups for r in result.rounds[-run_module.SETTLED_ROUNDS :]]
         assert all(groups == same[0] for groups in same)
         assert not any(r.settled for r in result.rounds[:-1])
     else:
-        assert last.size == 512       # the budget ends a run that never settled
+        assert last.size == 512  # the budget ends a run that never settled
     assert result.n == last.size
     # the rounds share their reducers: what was solved is the last round's design
     rows = result.study.problem()["num_vars"]
@@ -71,7 +78,7 @@ def test_rounds_of_the_linearized_method_double_its_solved_base_samples(tmp_path
 
 def test_a_bad_rounds_value_is_refused(tmp_path, capsys):
     path = study_file(tmp_path)
-    path.write_text(path.read_text().replace("[sobol]\n", "[sobol]\nrounds = \"yes\"\n"))
+    path.write_text(path.read_text().replace("[sobol]\n", '[sobol]\nrounds = "yes"\n'))
     code, out, err = run_cli(["sobol", path], capsys)
     assert code == 2 and "sobol.rounds" in err and "yes" in err
     with pytest.raises(Exception, match="rounds"):

@@ -15,27 +15,26 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from tolerance_toy import DESIGN_FILE, write_study
 
 from rvfmu import api
-from rvfmu.core import metrics
-from rvfmu.core.checks import InputError
-from rvfmu.core.errors import errors_from_file_values
-from rvfmu.core.quasistatic import te_curve
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.reducer.errors import errors_from_file_values
+from rvfmu.core.statics import metrics
+from rvfmu.core.statics.quasistatic import te_curve
 from tolerance import evaluate, load_results, montecarlo, run_mc, run_sobol
 from tolerance.allocation import AllocationResult, FactorAllocation, YieldEstimate
 from tolerance.frames import results_frame
 from tolerance.study import load_study
-from tolerance_toy import DESIGN_FILE, write_study
 
 ROOT = Path(__file__).resolve().parent.parent
 
-TOLERANCES = {   # one factor of each kind but clearance: zone, pitch, band
+TOLERANCES = {  # one factor of each kind but clearance: zone, pitch, band
     "crank_cam_eccentricity": {"position_um": 9.0, "distribution": "normal"},
     "pin_pitch": {"cumulative_um": 8.0, "single_um": 2.5},
     "pin_radial": {"band_um": 5.0},
 }
-FACTOR_COLUMNS = ["crank_cam_eccentricity_position_um", "pin_pitch_cumulative_um",
-                  "pin_radial_band_um"]
+FACTOR_COLUMNS = ["crank_cam_eccentricity_position_um", "pin_pitch_cumulative_um", "pin_radial_band_um"]
 # A clearance costs the aliasing check of a run (12 480 points) ten times as much: its
 # column is checked on reducers evaluated at the study's points, without a run.
 CLEARANCE = {"crank_disc_clearance": {"min_um": 2.0, "max_um": 8.0}}
@@ -46,19 +45,24 @@ SPEC = {"te_pp_arcsec": 25.0, "rms_arcsec": 6.0}
 def mc(tmp_path_factory):
     """The toy study with every kind of factor and two spec lines: 16 reducers, 2 batches."""
     folder = tmp_path_factory.mktemp("frames")
-    path = write_study(folder, name="kinds", tolerances=TOLERANCES, spec=SPEC,
-                       montecarlo={"n": 16})
+    path = write_study(folder, name="kinds", tolerances=TOLERANCES, spec=SPEC, montecarlo={"n": 16})
     return path, run_mc(path, output=folder / "out", plots=False)
 
 
 # -- Monte Carlo ------------------------------------------------------------------------------
 
+
 def test_mc_frame_has_a_row_per_reducer_and_typed_columns(mc):
     _, result = mc
     df = result.to_df()
-    assert list(df.columns) == FACTOR_COLUMNS + ["te_pp_arcsec", "rms_arcsec", "converged",
-                                                 "passed_te_pp_arcsec", "passed_rms_arcsec",
-                                                 "passed"]
+    assert list(df.columns) == FACTOR_COLUMNS + [
+        "te_pp_arcsec",
+        "rms_arcsec",
+        "converged",
+        "passed_te_pp_arcsec",
+        "passed_rms_arcsec",
+        "passed",
+    ]
     assert df.index.name == "row" and df.index.dtype == np.int64
     np.testing.assert_array_equal(df.index, np.arange(16))
     for column in FACTOR_COLUMNS + ["te_pp_arcsec", "rms_arcsec"]:
@@ -102,41 +106,47 @@ def test_drawn_factor_values_lie_within_their_tolerances(mc):
     assert df["crank_cam_eccentricity_position_um"].between(0.0, 9.0).all()
     assert df["pin_pitch_cumulative_um"].between(0.0, 8.0).all()
     assert df["pin_radial_band_um"].between(0.0, 5.0).all()
-    assert df[FACTOR_COLUMNS].std().gt(0).all()       # drawn, not constant
+    assert df[FACTOR_COLUMNS].std().gt(0).all()  # drawn, not constant
 
 
 def test_factor_values_summarise_the_drawn_errors(mc):
     _, result = mc
     df = result.to_df(errors=True)
     design = result.study.design
-    cams = df[[f"crank_cam_eccentricity[{i},{j}].E_um" for i in range(design.n_c)
-               for j in range(2)]]
-    np.testing.assert_allclose(df["crank_cam_eccentricity_position_um"], 2 * cams.max(axis=1),
-                               rtol=1e-12)
+    cams = df[[f"crank_cam_eccentricity[{i},{j}].E_um" for i in range(design.n_c) for j in range(2)]]
+    np.testing.assert_allclose(df["crank_cam_eccentricity_position_um"], 2 * cams.max(axis=1), rtol=1e-12)
     pitch = df[[f"pin_pitch[{k}]_um" for k in range(design.z_p)]].to_numpy()
     np.testing.assert_allclose(df["pin_pitch_cumulative_um"], np.ptp(pitch, axis=1), rtol=1e-12)
-    assert np.all(pitch[:, 0] == 0.0)        # tooth 0 is the reference of a cumulative pitch
+    assert np.all(pitch[:, 0] == 0.0)  # tooth 0 is the reference of a cumulative pitch
     single = np.abs(pitch - np.roll(pitch, 1, axis=1)).max(axis=1)
-    assert np.all(single <= 2.5 + 1e-9)      # f_pt holds
+    assert np.all(single <= 2.5 + 1e-9)  # f_pt holds
     radial = df[[f"pin_radial[{k}]_um" for k in range(design.z_p)]].to_numpy()
-    np.testing.assert_allclose(df["pin_radial_band_um"], 2 * np.abs(radial).max(axis=1),
-                               rtol=1e-12)
+    np.testing.assert_allclose(df["pin_radial_band_um"], 2 * np.abs(radial).max(axis=1), rtol=1e-12)
     betas = df.filter(like=".beta_deg")
     assert betas.shape[1] == 2 * design.n_c and ((betas >= 0) & (betas < 360)).all().all()
-    assert list(df.columns[:3]) == FACTOR_COLUMNS and list(df.columns[-6:-3]) == \
-        ["te_pp_arcsec", "rms_arcsec", "converged"]
+    assert list(df.columns[:3]) == FACTOR_COLUMNS and list(df.columns[-6:-3]) == [
+        "te_pp_arcsec",
+        "rms_arcsec",
+        "converged",
+    ]
     assert len(df.columns) == 3 + 4 * design.n_c + 2 * design.z_p + 6
 
 
 def _file_values(row, design) -> dict:
     """One reducer's drawn errors as an error file writes them (um, deg), from its frame row:
     the error columns of the fixture's factors, and the clearance's factor column if any."""
-    cams = [[[row[f"crank_cam_eccentricity[{i},{j}].E_um"],
-              row[f"crank_cam_eccentricity[{i},{j}].beta_deg"]] for j in range(2)]
-            for i in range(design.n_c)]
-    values = {"crank_cam_eccentricity": cams,
-              "pin_pitch": [row[f"pin_pitch[{k}]_um"] for k in range(design.z_p)],
-              "pin_radial": [row[f"pin_radial[{k}]_um"] for k in range(design.z_p)]}
+    cams = [
+        [
+            [row[f"crank_cam_eccentricity[{i},{j}].E_um"], row[f"crank_cam_eccentricity[{i},{j}].beta_deg"]]
+            for j in range(2)
+        ]
+        for i in range(design.n_c)
+    ]
+    values = {
+        "crank_cam_eccentricity": cams,
+        "pin_pitch": [row[f"pin_pitch[{k}]_um"] for k in range(design.z_p)],
+        "pin_radial": [row[f"pin_radial[{k}]_um"] for k in range(design.z_p)],
+    }
     if "crank_disc_clearance_um" in row:
         values["crank_disc_clearance"] = row["crank_disc_clearance_um"]
     return values
@@ -159,8 +169,9 @@ def test_the_drawn_values_reproduce_the_reducers(mc):
         assert te_pp == pytest.approx(df.loc[r, "te_pp_arcsec"], rel=1e-6, abs=1e-6), r
         assert rms == pytest.approx(df.loc[r, "rms_arcsec"], rel=1e-6, abs=1e-6), r
     # ... and another row's values do not: the columns belong to their row.
-    assert _solved_alone(result.study, df.loc[rows[1]])[0] != \
-        pytest.approx(df.loc[rows[0], "te_pp_arcsec"], rel=1e-3)
+    assert _solved_alone(result.study, df.loc[rows[1]])[0] != pytest.approx(
+        df.loc[rows[0], "te_pp_arcsec"], rel=1e-3
+    )
 
 
 def test_a_clearance_is_its_own_column_and_reproduces_the_reducers(tmp_path):
@@ -182,18 +193,19 @@ def test_mc_samples_csv_is_the_frame_written(mc):
     path, result = mc
     out = path.parent / "out"
     csv = pd.read_csv(out / "mc_samples.csv", index_col="row")
-    assert (out / "mc_samples.csv").read_text().splitlines()[0] == \
-        "row,te_pp_arcsec,rms_arcsec,converged"
+    assert (out / "mc_samples.csv").read_text().splitlines()[0] == "row,te_pp_arcsec,rms_arcsec,converged"
     df = result.to_df()
     np.testing.assert_array_equal(csv.index, df.index)
-    np.testing.assert_allclose(csv[["te_pp_arcsec", "rms_arcsec"]], df[["te_pp_arcsec",
-                                                                        "rms_arcsec"]], rtol=5e-6)
+    np.testing.assert_allclose(
+        csv[["te_pp_arcsec", "rms_arcsec"]], df[["te_pp_arcsec", "rms_arcsec"]], rtol=5e-6
+    )
     np.testing.assert_array_equal(csv["converged"], df["converged"].astype(int))
     first = (out / "mc_samples.csv").read_text().splitlines()[1].split(",")
     assert first[1] == f"{result.Y[0, 0]:.6g}" and first[-1] in ("0", "1")
 
 
 # -- the store -------------------------------------------------------------------------------
+
 
 def test_load_results_equals_the_runs_frame(mc):
     path, result = mc
@@ -206,7 +218,7 @@ def test_load_results_reads_the_batches_there_are(mc, tmp_path):
     path, result = mc
     out = tmp_path / "partial"
     shutil.copytree(path.parent / "out", out)
-    sorted((out / "mc").glob("batch-*.parquet"))[0].unlink()     # rows 0-7 gone
+    sorted((out / "mc").glob("batch-*.parquet"))[0].unlink()  # rows 0-7 gone
     df = load_results(out)
     np.testing.assert_array_equal(df.index, np.arange(8, 16))
     pd.testing.assert_frame_equal(df, result.to_df().iloc[8:])
@@ -242,6 +254,7 @@ def test_load_results_refuses_what_it_cannot_trust(mc, tmp_path):
 
 # -- Sobol ------------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def sobol(tmp_path_factory):
     """The toy study's Sobol run with second order: N = 8, 3 groups, 64 rows."""
@@ -253,20 +266,44 @@ def sobol(tmp_path_factory):
 def test_sobol_frame_is_long_ranked_and_matches_the_json(sobol):
     _, result = sobol
     df = result.to_df()
-    assert list(df.columns) == ["metric", "factor", "rank", "S1", "S1_conf", "ST", "ST_conf",
-                                "S1_reported", "ST_reported", "not_converged", "ci_wide",
-                                "S1_above_ST", "notes", "ranking_converged", "ST_above_next",
-                                "ST_above_next_conf", "order_settled", "method", "check_q2"]
+    assert list(df.columns) == [
+        "metric",
+        "factor",
+        "rank",
+        "S1",
+        "S1_conf",
+        "ST",
+        "ST_conf",
+        "S1_reported",
+        "ST_reported",
+        "not_converged",
+        "ci_wide",
+        "S1_above_ST",
+        "notes",
+        "ranking_converged",
+        "ST_above_next",
+        "ST_above_next_conf",
+        "order_settled",
+        "method",
+        "check_q2",
+    ]
     assert set(df["method"]) == {"saltelli"} and df["check_q2"].isna().all()
     groups = list(result.study.groups)
     assert len(df) == 2 * len(groups)
     assert pd.api.types.is_string_dtype(df["metric"]) and pd.api.types.is_string_dtype(df["factor"])
     assert df["rank"].dtype == np.int64
-    for column in ("S1", "S1_conf", "ST", "ST_conf", "S1_reported", "ST_reported",
-                   "ST_above_next", "ST_above_next_conf"):
+    for column in (
+        "S1",
+        "S1_conf",
+        "ST",
+        "ST_conf",
+        "S1_reported",
+        "ST_reported",
+        "ST_above_next",
+        "ST_above_next_conf",
+    ):
         assert df[column].dtype == np.float64, column
-    for column in ("not_converged", "ci_wide", "S1_above_ST", "ranking_converged",
-                   "order_settled"):
+    for column in ("not_converged", "ci_wide", "S1_above_ST", "ranking_converged", "order_settled"):
         assert df[column].dtype == bool, column
     document = result.to_json()["metrics"]
     for metric, table in df.groupby("metric", sort=False):
@@ -281,7 +318,7 @@ def test_sobol_frame_is_long_ranked_and_matches_the_json(sobol):
             assert row["ci_wide"] == ("CI wide" in row["notes"])
             assert row["S1_above_ST"] == ("beyond their CIs" in row["notes"])
             step = item["next"]
-            if step is None:                       # the last rank: nothing below it
+            if step is None:  # the last rank: nothing below it
                 assert row["rank"] == len(groups) and np.isnan(row["ST_above_next"])
                 assert not row["order_settled"]
             else:
@@ -289,9 +326,8 @@ def test_sobol_frame_is_long_ranked_and_matches_the_json(sobol):
                 assert row["ST_above_next_conf"] == step["half_width"]
                 assert row["order_settled"] == step["settled"]
         assert table["ranking_converged"].nunique() == 1
-        assert table["ranking_converged"].iloc[0] == \
-            document[metric]["convergence"]["converged"]
-    assert df["ci_wide"].any()      # N = 8: wide intervals, flagged
+        assert table["ranking_converged"].iloc[0] == document[metric]["convergence"]["converged"]
+    assert df["ci_wide"].any()  # N = 8: wide intervals, flagged
 
 
 def test_sobol_second_order_frame(sobol):
@@ -313,12 +349,14 @@ def test_load_results_of_a_sobol_job_gives_its_saltelli_rows(sobol):
     df = load_results(path.parent / "out", "sobol-n8-second-order")
     np.testing.assert_array_equal(df.index, np.arange(result.X.shape[0]))
     np.testing.assert_array_equal(df[list(result.study.metric_columns)].to_numpy(), result.Y)
-    expected = results_frame(result.study, np.arange(result.X.shape[0]), result.X, result.Y,
-                             result.computed.converged)
+    expected = results_frame(
+        result.study, np.arange(result.X.shape[0]), result.X, result.Y, result.computed.converged
+    )
     pd.testing.assert_frame_equal(df, expected, check_exact=True)
 
 
 # -- curves and reports ------------------------------------------------------------------------
+
 
 def _csv_frame_equal(path, df, formats):
     """The CSV at `path` has the frame's columns, in order, and its values at their format's
@@ -330,8 +368,9 @@ def _csv_frame_equal(path, df, formats):
         assert df[column].dtype == np.float64, column
         digits = formats[column]
         if digits.endswith("f"):
-            np.testing.assert_allclose(csv[column], df[column], rtol=0,
-                                       atol=0.51 * 10.0 ** -int(digits[1:-1]))
+            np.testing.assert_allclose(
+                csv[column], df[column], rtol=0, atol=0.51 * 10.0 ** -int(digits[1:-1])
+            )
         else:
             np.testing.assert_allclose(csv[column], df[column], rtol=10.0 ** (1 - int(digits[1:-1])))
 
@@ -358,10 +397,13 @@ def _bench_record(path, ratio, rows_per_rev=720):
     """A bench CSV of one output revolution: time_s, theta_in_deg, theta_out_deg."""
     theta_in = np.linspace(0.0, 2 * np.pi * ratio, rows_per_rev + 1)
     theta_out = theta_in / ratio + 4.8e-6 * np.sin(3 * theta_in / ratio) + 1e-6 * np.sin(theta_in)
-    pd.DataFrame({"time_s": np.linspace(0.0, 4.0, theta_in.size),
-                  "theta_in_deg": np.degrees(theta_in),
-                  "theta_out_deg": np.degrees(theta_out)}).to_csv(path, index=False,
-                                                                  float_format="%.17g")
+    pd.DataFrame(
+        {
+            "time_s": np.linspace(0.0, 4.0, theta_in.size),
+            "theta_in_deg": np.degrees(theta_in),
+            "theta_out_deg": np.degrees(theta_out),
+        }
+    ).to_csv(path, index=False, float_format="%.17g")
     return path
 
 
@@ -371,8 +413,14 @@ def test_measure_report_frame_is_its_csv(tmp_path):
     data = _bench_record(tmp_path / "bench.csv", 81.0)
     report = api.measure(data, 81.0, csv_path=tmp_path / "te.csv")
     df = report.to_df()
-    assert list(df.columns) == ["time_s", "theta_in_rad", "theta_out_rad", "te_arcsec",
-                                "runout_arcsec", "te_reducer_arcsec"]
+    assert list(df.columns) == [
+        "time_s",
+        "theta_in_rad",
+        "theta_out_rad",
+        "te_arcsec",
+        "runout_arcsec",
+        "te_reducer_arcsec",
+    ]
     assert len(df) == report.measured.rows
     np.testing.assert_array_equal(df["te_reducer_arcsec"], report.measured.te_reducer_arcsec)
     _csv_frame_equal(tmp_path / "te.csv", df, FORMATS)
@@ -384,42 +432,65 @@ def test_compare_report_frame_is_its_csv(design_file, tmp_path):
     data = _bench_record(tmp_path / "bench.csv", 121.0)
     report = api.compare(design_file, data, points=64, csv_path=tmp_path / "cmp.csv")
     df = report.to_df()
-    assert list(df.columns) == ["theta_in_rad", "te_measured_arcsec", "te_model_arcsec",
-                                "difference_arcsec"]
-    np.testing.assert_allclose(df["difference_arcsec"],
-                               df["te_measured_arcsec"] - df["te_model_arcsec"], atol=1e-12)
+    assert list(df.columns) == ["theta_in_rad", "te_measured_arcsec", "te_model_arcsec", "difference_arcsec"]
+    np.testing.assert_allclose(
+        df["difference_arcsec"], df["te_measured_arcsec"] - df["te_model_arcsec"], atol=1e-12
+    )
     _csv_frame_equal(tmp_path / "cmp.csv", df, FORMATS)
 
 
 def test_simulation_report_frame_is_its_csv(design_file, tmp_path):
     from rvfmu.jobs.simulate import FORMATS
 
-    report = api.simulate(design_file, speed_rpm=1600.0, duration=0.01,
-                          csv_path=tmp_path / "sim.csv")
+    report = api.simulate(design_file, speed_rpm=1600.0, duration=0.01, csv_path=tmp_path / "sim.csv")
     df = report.to_df()
-    assert list(df.columns) == ["time_s", "theta_in_rad", "theta_out_rad", "te_arcsec",
-                                "tau_in_Nm"]
+    assert list(df.columns) == ["time_s", "theta_in_rad", "theta_out_rad", "te_arcsec", "tau_in_Nm"]
     assert len(df) == report.simulation.time.size
     _csv_frame_equal(tmp_path / "sim.csv", df, FORMATS)
 
 
 def test_allocation_frame_lists_factors_costs_and_yields():
-    factors = (FactorAllocation("crank_cam_eccentricity.position_um", "um", 9.0, 9.06, 4.0, 22.5,
-                                0.79, 0.78, "none"),
-               FactorAllocation("pin_radial.band_um", "um", 5.0, 12.5, 2.0, 12.5, 1.6, 0.64,
-                                "upper"))
-    result = AllocationResult("quick", "quick.toml", "quick_allocated.toml", 0.9973, True,
-                              factors, 2.39, 1.42, YieldEstimate(1.0, 0.9996, 1.0, 10000),
-                              YieldEstimate(0.9987, 0.9978, 0.9992, 10000), "kriging", 512,
-                              "Q2 0.66", 52048)
+    factors = (
+        FactorAllocation(
+            "crank_cam_eccentricity.position_um", "um", 9.0, 9.06, 4.0, 22.5, 0.79, 0.78, "none"
+        ),
+        FactorAllocation("pin_radial.band_um", "um", 5.0, 12.5, 2.0, 12.5, 1.6, 0.64, "upper"),
+    )
+    result = AllocationResult(
+        "quick",
+        "quick.toml",
+        "quick_allocated.toml",
+        0.9973,
+        True,
+        factors,
+        2.39,
+        1.42,
+        YieldEstimate(1.0, 0.9996, 1.0, 10000),
+        YieldEstimate(0.9987, 0.9978, 0.9992, 10000),
+        "kriging",
+        512,
+        "Q2 0.66",
+        52048,
+    )
     df = result.to_df()
     assert df.index.name == "factor"
-    assert df.index.tolist() == ["crank_cam_eccentricity.position_um", "pin_radial.band_um",
-                                 "total"]
-    assert list(df.columns) == ["unit", "current", "allocated", "lower", "upper", "binding",
-                                "cost_current", "cost_allocated", "yield_current",
-                                "yield_current_low", "yield_current_high", "yield_allocated",
-                                "yield_allocated_low", "yield_allocated_high"]
+    assert df.index.tolist() == ["crank_cam_eccentricity.position_um", "pin_radial.band_um", "total"]
+    assert list(df.columns) == [
+        "unit",
+        "current",
+        "allocated",
+        "lower",
+        "upper",
+        "binding",
+        "cost_current",
+        "cost_allocated",
+        "yield_current",
+        "yield_current_low",
+        "yield_current_high",
+        "yield_allocated",
+        "yield_allocated_low",
+        "yield_allocated_high",
+    ]
     assert df.loc["pin_radial.band_um", "allocated"] == 12.5
     assert df.loc["pin_radial.band_um", "binding"] == "upper"
     assert df.loc["total", "cost_allocated"] == 1.42
@@ -431,15 +502,24 @@ def test_allocation_frame_lists_factors_costs_and_yields():
 
 # -- the example ---------------------------------------------------------------------------------
 
+
 def test_the_notebook_example_runs_on_a_small_study(tmp_path):
-    study = write_study(tmp_path, name="small", montecarlo={"n": 16},
-                        sobol={"n": 8, "resamples": 20})
+    study = write_study(tmp_path, name="small", montecarlo={"n": 16}, sobol={"n": 8, "resamples": 20})
     out = tmp_path / "out"
     env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
-    env.update(RVTE_STUDY=str(study), RVTE_OUTPUT=str(out),
-               PYTHONPATH=os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]))
-    proc = subprocess.run([sys.executable, str(ROOT / "studies" / "notebook_example.py")],
-                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    env.update(
+        RVTE_STUDY=str(study),
+        RVTE_OUTPUT=str(out),
+        PYTHONPATH=os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]),
+    )
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "studies" / "notebook_example.py")],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     figure = out / "notebook_te_pp_by_decile.png"
     assert figure.is_file() and figure.stat().st_size > 10_000
@@ -454,15 +534,16 @@ def test_the_notebook_example_runs_on_a_small_study(tmp_path):
 
 def test_the_command_line_and_the_physics_do_not_import_pandas():
     """pandas is for results: `rvte --help` and the core model stay without it."""
-    code = ("import sys, contextlib, io\n"
-            "from rvfmu.cli import main\n"
-            "import rvfmu.core.quasistatic, rvfmu.core.simulation, tolerance.evaluate\n"
-            "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
-            "    main(['--help'])\n"
-            "print('pandas' in sys.modules)\n")
+    code = (
+        "import sys, contextlib, io\n"
+        "from rvfmu.cli import main\n"
+        "import rvfmu.core.statics.quasistatic, rvfmu.core.dynamics.simulation, tolerance.evaluate\n"
+        "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
+        "    main(['--help'])\n"
+        "print('pandas' in sys.modules)\n"
+    )
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
-                          timeout=120)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.strip() == "False"
     assert not [p for p in (ROOT / "rvfmu" / "core").rglob("*.py") if "pandas" in p.read_text()]

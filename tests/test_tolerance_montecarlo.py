@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
+from tolerance_toy import write_study
 
 from tolerance import evaluate, run_mc, wilson_interval
 from tolerance.study import load_study
-from tolerance_toy import write_study
 
 
 def test_wilson_interval_by_hand():
@@ -34,20 +34,24 @@ def test_mc_yield_interval_covers_the_true_yield_of_a_toy_reducer(tmp_path):
     toy = {"metrics": ["te_pp"], "design": "RV-40E-121-estimate"}
     path = write_study(tmp_path, tolerances={"carrier_assembly": {"position_um": 8.0}}, study=toy)
     study = load_study(path)
-    radius = np.linspace(0.0, 1.0, 25)                       # r / R
-    phase = np.arange(16) / 16                               # beta / 2 pi
+    radius = np.linspace(0.0, 1.0, 25)  # r / R
+    phase = np.arange(16) / 16  # beta / 2 pi
     rr, pp = np.meshgrid(radius, phase)
-    X = np.column_stack([rr.ravel() ** 2, pp.ravel()])       # the columns: u_radius, u_phase
+    X = np.column_stack([rr.ravel() ** 2, pp.ravel()])  # the columns: u_radius, u_phase
     te_pp = evaluate(study, X)[0][:, 0].reshape(rr.shape)
-    assert np.all(np.diff(te_pp, axis=1) > 0)               # monotone in r at every phase
-    limit = float(np.median(te_pp[:, 17]))                   # about r = 0.7 R
+    assert np.all(np.diff(te_pp, axis=1) > 0)  # monotone in r at every phase
+    limit = float(np.median(te_pp[:, 17]))  # about r = 0.7 R
     r_star = np.array([np.interp(limit, row, radius) for row in te_pp])
-    true_yield = float(np.mean(r_star ** 2))
+    true_yield = float(np.mean(r_star**2))
     assert 0.3 < true_yield < 0.7
 
-    changed = write_study(tmp_path, tolerances={"carrier_assembly": {"position_um": 8.0}},
-                          study=toy, spec={"te_pp_arcsec": limit},
-                          montecarlo={"n": 256})
+    changed = write_study(
+        tmp_path,
+        tolerances={"carrier_assembly": {"position_um": 8.0}},
+        study=toy,
+        spec={"te_pp_arcsec": limit},
+        montecarlo={"n": 256},
+    )
     result = run_mc(changed, plots=False)
     (y,) = result.analysis.yields
     assert y.n == 256 and y.method == "Wilson score"
@@ -60,13 +64,13 @@ def test_a_reducer_whose_solve_fails_costs_itself_not_its_batch(tmp_path, monkey
 
     from tolerance import analyze_mc, sample_mc
 
-    evaluation = import_module("tolerance.evaluate")    # the module (the package's name is the function)
+    evaluation = import_module("tolerance.evaluate")  # the module (the package's name is the function)
 
     study = load_study(write_study(tmp_path))
     X = sample_mc(study, 8)
     good_Y, good_converged = evaluate(study, X)
     real_te_curve = evaluation.te_curve
-    doomed = np.abs(evaluation.errors_from_unit(study, X).carrier_assembly) > 3e-6   # (8,)
+    doomed = np.abs(evaluation.errors_from_unit(study, X).carrier_assembly) > 3e-6  # (8,)
     assert 0 < doomed.sum() < 8
 
     def singular_for_large_offsets(design, errors, **kwargs):

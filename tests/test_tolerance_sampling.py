@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.special import ndtr
+from tolerance_toy import write_study
 
-from rvfmu.core.units import UM
+from rvfmu.core.base.units import UM
 from tolerance import montecarlo, sampling, sequences
 from tolerance.sampling import centred, disc_radius, fraction
 from tolerance.study import Factor, load_study
-from tolerance_toy import write_study
 
 ROOT = Path(__file__).resolve().parent.parent
 N = 40_000
@@ -30,9 +30,9 @@ def test_uniform_zone_is_uniform_over_the_disc_not_in_radius():
 
 
 def test_normal_zone_is_a_truncated_circular_normal():
-    r = disc_radius(U, 3.0, "normal")          # 3 sigma = zone radius 3 -> sigma = 1
+    r = disc_radius(U, 3.0, "normal")  # 3 sigma = zone radius 3 -> sigma = 1
     assert r.max() <= 3.0
-    expected = (1 - np.exp(-0.5)) / (1 - np.exp(-4.5))   # Rayleigh P(r < sigma), truncated at 3 sigma
+    expected = (1 - np.exp(-0.5)) / (1 - np.exp(-4.5))  # Rayleigh P(r < sigma), truncated at 3 sigma
     assert abs(np.mean(r < 1.0) - expected) < 4 * np.sqrt(expected * (1 - expected) / N)
 
 
@@ -40,12 +40,12 @@ def test_centred_values_uniform_and_normal_within_their_tolerance():
     uniform = centred(U, 2.0, "uniform")
     assert uniform.min() >= -2.0 and uniform.max() <= 2.0
     assert abs(uniform.std() - 4.0 / np.sqrt(12)) < 0.02
-    normal = centred(U, 3.0, "normal")        # tolerance +-3 -> sigma 1, truncated at 3 sigma
+    normal = centred(U, 3.0, "normal")  # tolerance +-3 -> sigma 1, truncated at 3 sigma
     assert np.abs(normal).max() <= 3.0
     inside = (ndtr(1) - ndtr(-1)) / (ndtr(3) - ndtr(-3))
     assert abs(np.mean(np.abs(normal) < 1.0) - inside) < 4 * np.sqrt(inside * (1 - inside) / N)
-    assert abs(normal.std() - 0.9866) < 0.015         # std of N(0,1) truncated at +-3
-    assert np.isfinite(centred(np.array([0.0, 1.0]), 3.0, "normal")).all()   # u = 0 and 1 are safe
+    assert abs(normal.std() - 0.9866) < 0.015  # std of N(0,1) truncated at +-3
+    assert np.isfinite(centred(np.array([0.0, 1.0]), 3.0, "normal")).all()  # u = 0 and 1 are safe
 
 
 def test_magnitude_fraction_uniform_and_half_normal():
@@ -64,10 +64,10 @@ def test_pitch_sequences_respect_cumulative_and_single_pitch_tolerances(rv40, di
     assert values.shape == (2000, 2, rv40.z_c)
     span = np.ptp(values, axis=-1)
     single = np.abs(sequences.single_pitch_deviations(values)).max(axis=-1)
-    assert span.max() <= 6.0 + 1e-9                    # F_p
-    assert single.max() <= 1.2 + 1e-9                  # f_pt, to round-off
-    assert np.any(np.isclose(single, 1.2))             # the single-pitch limit binds on some parts
-    assert np.allclose(values[..., 0], 0.0)            # tooth 0 is the reference
+    assert span.max() <= 6.0 + 1e-9  # F_p
+    assert single.max() <= 1.2 + 1e-9  # f_pt, to round-off
+    assert np.any(np.isclose(single, 1.2))  # the single-pitch limit binds on some parts
+    assert np.allclose(values[..., 0], 0.0)  # tooth 0 is the reference
 
 
 def test_pitch_span_is_uniform_in_the_tolerance_without_single_limit(rv40):
@@ -92,7 +92,7 @@ def test_rows_make_reproducible_reducers_with_the_fixed_errors_added(tmp_path, s
     path = write_study(tmp_path, study={"errors": str(ROOT / "studies" / "seed002_errors.toml")})
     study = load_study(path)
     X = montecarlo.rows(study, 0, 10)
-    assert np.array_equal(X[5], montecarlo.rows(study, 5, 6)[0])   # a row does not depend on n
+    assert np.array_equal(X[5], montecarlo.rows(study, 5, 6)[0])  # a row does not depend on n
     errors = sampling.errors_from_unit(study, X)
     again = sampling.errors_from_unit(study, X)
     for name, array in errors.arrays().items():

@@ -5,11 +5,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tolerance_toy import write_study
 
 from rvfmu.cli import main
 from tolerance import run_sobol, sobol
 from tolerance.summaries import order_text
-from tolerance_toy import write_study
 
 ISHIGAMI = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[-np.pi, np.pi]] * 3}
 A, B = 7.0, 0.1
@@ -21,9 +21,9 @@ def ishigami(X):
 
 def ishigami_indices():
     """Analytic S1 and ST of the Ishigami function (Ishigami & Homma 1990; Sobol' 1999)."""
-    v1 = 0.5 * (1 + B * np.pi ** 4 / 5) ** 2
-    v2 = A ** 2 / 8
-    v13 = B ** 2 * np.pi ** 8 * (1 / 18 - 1 / 50)
+    v1 = 0.5 * (1 + B * np.pi**4 / 5) ** 2
+    v2 = A**2 / 8
+    v13 = B**2 * np.pi**8 * (1 / 18 - 1 / 50)
     total = v1 + v2 + v13
     return np.array([v1, v2, 0.0]) / total, np.array([v1 + v13, v2, v13]) / total
 
@@ -76,7 +76,7 @@ def test_second_order_indices_of_ishigami():
     assert X.shape == (n * 8, 3)
     ind = sobol.indices(ISHIGAMI, ishigami(X), second_order=True, resamples=200, seed=5)
     S1, ST = ishigami_indices()
-    s13 = ST[2]                                              # x3 acts only with x1
+    s13 = ST[2]  # x3 acts only with x1
     assert abs(ind.S2[0, 2] - s13) < ind.S2_conf[0, 2]
     assert abs(ind.S2[0, 1]) < ind.S2_conf[0, 1]
 
@@ -97,7 +97,7 @@ def test_the_order_of_neighbouring_ranks_is_settled_where_their_st_differ():
     # 0.16, 0.04.  b and c explain the same share: their order is not settled, whatever n.
     X = sobol.sample(LINEAR, 1024, seed=2)
     ind = sobol.indices(LINEAR, X @ SLOPES, resamples=300, seed=2)
-    np.testing.assert_allclose(ind.ST, SLOPES ** 2 / np.sum(SLOPES ** 2), atol=0.01)
+    np.testing.assert_allclose(ind.ST, SLOPES**2 / np.sum(SLOPES**2), atol=0.01)
     ranked = [ind.names[g] for g in ind.ranking()]
     assert ranked[0] == "a" and set(ranked[1:3]) == {"b", "c"} and ranked[3] == "d"
     steps = ind.order()
@@ -125,8 +125,13 @@ def test_the_interval_of_an_st_difference_is_that_of_the_same_resamples(ishigami
     Y = ((y - y.mean()) / y.std()).reshape(n, 5)
     A, AB, B = Y[:, 0], Y[:, 1:4], Y[:, 4]
     rows = np.random.default_rng(3 + 1).integers(n, size=(n, 300))
-    boots = np.stack([0.5 * np.mean((A[rows] - AB[rows, g]) ** 2, axis=0)
-                      / np.var(np.r_[A[rows], B[rows]], axis=0) for g in range(3)], axis=1)
+    boots = np.stack(
+        [
+            0.5 * np.mean((A[rows] - AB[rows, g]) ** 2, axis=0) / np.var(np.r_[A[rows], B[rows]], axis=0)
+            for g in range(3)
+        ],
+        axis=1,
+    )
     np.testing.assert_allclose(boots, ind.ST_resamples, rtol=1e-10)
     steps = ind.order()
     assert [(s.upper, s.lower) for s in steps] == [(0, 1), (1, 2)]
@@ -139,8 +144,17 @@ def test_the_interval_of_an_st_difference_is_that_of_the_same_resamples(ishigami
 
 
 def test_indices_without_resamples_say_nothing_of_the_order():
-    ind = sobol.Indices(("a", "b"), 64, np.array([0.5, 0.2]), np.full(2, 0.05),
-                        np.array([0.6, 0.3]), np.full(2, 0.05), None, None, 0.95)
+    ind = sobol.Indices(
+        ("a", "b"),
+        64,
+        np.array([0.5, 0.2]),
+        np.full(2, 0.05),
+        np.array([0.6, 0.3]),
+        np.full(2, 0.05),
+        None,
+        None,
+        0.95,
+    )
     assert ind.order() is None and ind.order_groups() is None
 
 
@@ -148,12 +162,16 @@ def test_indices_without_resamples_say_nothing_of_the_order():
 def toy_sobol(tmp_path_factory):
     """A toy reducer with one obviously dominant tolerance: a 20 um cam zone against sub-um ones."""
     folder = tmp_path_factory.mktemp("sobol")
-    path = write_study(folder, tolerances={
-        "pin_radial": {"band_um": 0.2},
-        "crank_cam_eccentricity": {"position_um": 20.0},
-        "disc_profile": {"band_um": 0.2, "group": "disc"},
-        "disc_pitch": {"cumulative_um": 0.2, "group": "disc"},
-    }, sobol={"n": 32})
+    path = write_study(
+        folder,
+        tolerances={
+            "pin_radial": {"band_um": 0.2},
+            "crank_cam_eccentricity": {"position_um": 20.0},
+            "disc_profile": {"band_um": 0.2, "group": "disc"},
+            "disc_pitch": {"cumulative_um": 0.2, "group": "disc"},
+        },
+        sobol={"n": 32},
+    )
     return path, run_sobol(path)
 
 
@@ -173,7 +191,7 @@ def test_toy_reducer_ranks_the_dominant_tolerance_first(toy_sobol):
     assert "crank_cam_eccentricity" in text.split("\n")[5]
     for column in ("te_pp_arcsec", "rms_arcsec"):
         groups = result.analyses[column].indices.order_groups()
-        assert groups[0] == [1]                  # the dominant tolerance is told apart
+        assert groups[0] == [1]  # the dominant tolerance is told apart
         assert f"  order: {order_text(groups)}  (ranks joined by '-'" in text
 
 
@@ -215,7 +233,7 @@ def test_batches_that_fail_the_store_checks_are_not_reused(toy_sobol, tmp_path):
     path, small = toy_sobol
     out = tmp_path / "other"
     run_sobol(path, n=16, output=out, plots=False)
-    (out / "sobol-n16").rename(out / "sobol-n8")     # files that say job sobol-n16, in sobol-n8
+    (out / "sobol-n16").rename(out / "sobol-n8")  # files that say job sobol-n16, in sobol-n8
     result = run_sobol(path, n=32, output=out, plots=False)
     assert result.computed.computed == 20
     np.testing.assert_array_equal(result.Y, small.Y)

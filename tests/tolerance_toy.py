@@ -21,20 +21,29 @@ def toml_value(value):
     return repr(value)
 
 
-LINEAR_DESIGN = ('preset = "RV-40E-121"\nname = "RV-40E-121 linear"\nneedle_rollers = 0\n'
-                 'tapered_rollers = 0\npin_groove_clearance_mm = 0\n')
+LINEAR_DESIGN = (
+    'preset = "RV-40E-121"\nname = "RV-40E-121 linear"\nneedle_rollers = 0\n'
+    "tapered_rollers = 0\npin_groove_clearance_mm = 0\n"
+)
 DESIGN_FILE = "rv40e121_linear.toml"
 
 
-def write_study(folder, name="toy", tolerances=None, study=None, operating=None, spec=None,
-                montecarlo=None, sobol=None) -> Path:
+def write_study(
+    folder, name="toy", tolerances=None, study=None, operating=None, spec=None, montecarlo=None, sobol=None
+) -> Path:
     """Write a study file `name`.toml in `folder`, and the design file it names; every section
     can be overridden (None: leave out)."""
-    design = Path(folder).resolve() / DESIGN_FILE       # absolute: a copied study file finds it
+    design = Path(folder).resolve() / DESIGN_FILE  # absolute: a copied study file finds it
     design.write_text(LINEAR_DESIGN)
     sections = {
-        "study": {"name": name, "design": str(design), "seed": 7, "metrics": ["te_pp", "rms"],
-                  "batch_size": 8, **(study or {})},
+        "study": {
+            "name": name,
+            "design": str(design),
+            "seed": 7,
+            "metrics": ["te_pp", "rms"],
+            "batch_size": 8,
+            **(study or {}),
+        },
         "operating": {"points": 64, **(operating or {})},
         "spec": {"te_pp_arcsec": 30.0} if spec is None else spec,
         "montecarlo": {"n": 32, **(montecarlo or {})},

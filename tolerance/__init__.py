@@ -26,16 +26,22 @@ from importlib import import_module
 from .evaluate import evaluate  # eager: the name would otherwise be taken by the submodule
 
 _WHERE = {
-    "Study": ("study", "Study"), "load_study": ("study", "load_study"),
-    "sample_mc": ("montecarlo", "sample"), "analyze_mc": ("montecarlo", "analyze"),
+    "Study": ("study", "Study"),
+    "load_study": ("study", "load_study"),
+    "sample_mc": ("montecarlo", "sample"),
+    "analyze_mc": ("montecarlo", "analyze"),
     "wilson_interval": ("montecarlo", "wilson_interval"),
-    "sample_sobol": ("sobol", "sample"), "analyze_sobol": ("sobol", "analyze"),
+    "sample_sobol": ("sobol", "sample"),
+    "analyze_sobol": ("sobol", "analyze"),
     "errors_from_unit": ("sampling", "errors_from_unit"),
-    "run_mc": ("run", "run_mc"), "run_sobol": ("run", "run_sobol"),
-    "MCResult": ("run", "MCResult"), "SobolResult": ("run", "SobolResult"),
+    "run_mc": ("run", "run_mc"),
+    "run_sobol": ("run", "run_sobol"),
+    "MCResult": ("run", "MCResult"),
+    "SobolResult": ("run", "SobolResult"),
     "load_results": ("frames", "load_results"),
     "report": ("html_report", "report"),
-    "allocate": ("allocation", "allocate"), "AllocationResult": ("allocation", "AllocationResult"),
+    "allocate": ("allocation", "allocate"),
+    "AllocationResult": ("allocation", "AllocationResult"),
 }
 
 __all__ = ["evaluate", *_WHERE]  # noqa: PLE0604 - _WHERE's keys are the lazily loaded names (str)

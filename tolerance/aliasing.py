@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rvfmu.core.quasistatic import default_points
+from rvfmu.core.statics.quasistatic import default_points
 
 from .evaluate import FRICTION_METRICS, WINDUP_METRICS, evaluate, metric_column, metric_kind
 from .store import rows_hash
 
-CHECK_ROWS = 16          # reducers recomputed: 16 at 12480 points cost about 4 batches of 64 at 720
+CHECK_ROWS = 16  # reducers recomputed: 16 at 12480 points cost about 4 batches of 64 at 720
 FILE = "aliasing_check.json"
 
 
@@ -72,27 +72,37 @@ class AliasingCheck:
         %, then the yield at risk per spec line."""
         changes = ", ".join(
             f"{c} by at most {d:.3g} arcsec ({100 * r:.2g} %)"
-            for c, d, r in zip(self.columns, self.max_change(), self.max_relative_change()))
-        out = [f"aliasing check: {self.points} points per revolution do not resolve the "
-               f"pin-passing order; {self.rows} reducers of this study recomputed at "
-               f"{self.full_points} points change {changes}"]
+            for c, d, r in zip(self.columns, self.max_change(), self.max_relative_change())
+        )
+        out = [
+            f"aliasing check: {self.points} points per revolution do not resolve the "
+            f"pin-passing order; {self.rows} reducers of this study recomputed at "
+            f"{self.full_points} points change {changes}"
+        ]
         for label, share in self.yield_at_risk.items():
-            out.append(f"  yield {label}: {100 * share:.2f} % of the reducers lie within that "
-                       "change of the limit, so aliasing moves the yield by at most that much")
+            out.append(
+                f"  yield {label}: {100 * share:.2f} % of the reducers lie within that "
+                "change of the limit, so aliasing moves the yield by at most that much"
+            )
         return out
 
     def to_json(self) -> dict:
         """The check for the JSON summary: points, rows, and the largest absolute and relative
         change and the yield at risk, by column or spec label."""
-        return {"points": self.points, "full_points": self.full_points, "rows": self.rows,
-                "columns": list(self.columns),
-                "max_change": dict(zip(self.columns, self.max_change().tolist())),
-                "max_relative_change": dict(zip(self.columns, self.max_relative_change().tolist())),
-                "yield_at_risk": self.yield_at_risk}
+        return {
+            "points": self.points,
+            "full_points": self.full_points,
+            "rows": self.rows,
+            "columns": list(self.columns),
+            "max_change": dict(zip(self.columns, self.max_change().tolist())),
+            "max_relative_change": dict(zip(self.columns, self.max_relative_change().tolist())),
+            "yield_at_risk": self.yield_at_risk,
+        }
 
 
-def check(study, X: np.ndarray, Y: np.ndarray, folder: Path | None = None, Y_all=None,
-          spec=()) -> AliasingCheck | None:
+def check(
+    study, X: np.ndarray, Y: np.ndarray, folder: Path | None = None, Y_all=None, spec=()
+) -> AliasingCheck | None:
     """Recompute the reducers of rows X (R, D), whose study metrics are Y (R, M), at full resolution.
 
     None if the study does not alias or has no TE metric.  Y_all (N, M): the
@@ -102,8 +112,9 @@ def check(study, X: np.ndarray, Y: np.ndarray, folder: Path | None = None, Y_all
     if not aliases(study):
         return None
     # the windup test and the friction metrics do not sample the TE curve's points
-    picked = [j for j, m in enumerate(study.metrics)
-              if metric_kind(m) not in WINDUP_METRICS + FRICTION_METRICS]
+    picked = [
+        j for j, m in enumerate(study.metrics) if metric_kind(m) not in WINDUP_METRICS + FRICTION_METRICS
+    ]
     if not picked:
         return None
     metrics = tuple(study.metrics[j] for j in picked)

@@ -22,18 +22,27 @@ from pathlib import Path
 
 import numpy as np
 
-from rvfmu.core.checks import InputError, finite_number, integer
+from rvfmu.core.base.checks import InputError, finite_number, integer
 
 from . import cost as costs
-from .least_cost import (HIGH_YIELD, MIN_HIGH_YIELD_N, Limit, Round, ScaleAllocation,
-                         ScaledModel, Verified, allocate_scales)
+from .least_cost import (
+    HIGH_YIELD,
+    MIN_HIGH_YIELD_N,
+    Limit,
+    Round,
+    ScaleAllocation,
+    ScaledModel,
+    Verified,
+    allocate_scales,
+)
 from .surrogate import SURROGATE_KIND
 
-BINDING = 0.005             # a scale within 0.5 % of a bound (the rounding of t) binds it
-ROUND_UM = 0.01             # allocated tolerances are written rounded down to 0.01 um
+BINDING = 0.005  # a scale within 0.5 % of a bound (the rounding of t) binds it
+ROUND_UM = 0.01  # allocated tolerances are written rounded down to 0.01 um
 
 
 # -- the study: the reducer model wired into the core ---------------------------------------------
+
 
 @dataclass(frozen=True)
 class FactorAllocation:
@@ -47,7 +56,7 @@ class FactorAllocation:
     upper: float
     cost_current: float
     cost_allocated: float
-    binding: str            # "none", "lower" (at its tightest) or "upper" (at its loosest)
+    binding: str  # "none", "lower" (at its tightest) or "upper" (at its loosest)
 
 
 @dataclass(frozen=True)
@@ -87,27 +96,44 @@ class AllocationResult:
     confidence: float = 0.95
     rounds: tuple[Round, ...] = ()
     files: dict = field(default_factory=dict)
-    unconfirmed: bool = False    # verified allocations met the target, fresh draws did not
+    unconfirmed: bool = False  # verified allocations met the target, fresh draws did not
 
     def to_json(self) -> dict:
         """The allocation.json document (its schema is read by the HTML report: keep it)."""
+
         def yield_json(y):
             return {"estimate": y.estimate, "low": y.low, "high": y.high, "n": y.n}
 
         return {
-            "study": self.study, "study_file": self.study_file,
+            "study": self.study,
+            "study_file": self.study_file,
             "allocated_study_file": self.allocated_study_file,
-            "target_yield": self.target_yield, "feasible": self.feasible,
-            "factors": [{"name": f.name, "unit": f.unit, "current": f.current,
-                         "allocated": f.allocated, "lower": f.lower, "upper": f.upper,
-                         "cost_current": f.cost_current, "cost_allocated": f.cost_allocated,
-                         "binding": f.binding} for f in self.factors],
-            "total_cost": {"current": self.total_cost_current,
-                           "allocated": self.total_cost_allocated},
-            "yield": {"current": yield_json(self.yield_current),
-                      "allocated": yield_json(self.yield_allocated)},
-            "surrogate": {"kind": self.surrogate_kind, "samples": self.surrogate_samples,
-                          "validation": self.surrogate_validation},
+            "target_yield": self.target_yield,
+            "feasible": self.feasible,
+            "factors": [
+                {
+                    "name": f.name,
+                    "unit": f.unit,
+                    "current": f.current,
+                    "allocated": f.allocated,
+                    "lower": f.lower,
+                    "upper": f.upper,
+                    "cost_current": f.cost_current,
+                    "cost_allocated": f.cost_allocated,
+                    "binding": f.binding,
+                }
+                for f in self.factors
+            ],
+            "total_cost": {"current": self.total_cost_current, "allocated": self.total_cost_allocated},
+            "yield": {
+                "current": yield_json(self.yield_current),
+                "allocated": yield_json(self.yield_allocated),
+            },
+            "surrogate": {
+                "kind": self.surrogate_kind,
+                "samples": self.surrogate_samples,
+                "validation": self.surrogate_validation,
+            },
             "model_evaluations": self.model_evaluations,
         }
 
@@ -127,60 +153,107 @@ class AllocationResult:
         import pandas as pd
 
         nan = float("nan")
-        rows = [{"factor": f.name, "unit": f.unit, "current": f.current, "allocated": f.allocated,
-                 "lower": f.lower, "upper": f.upper, "binding": f.binding,
-                 "cost_current": f.cost_current, "cost_allocated": f.cost_allocated}
-                for f in self.factors]
-        total = {"factor": "total", "unit": "", "current": nan, "allocated": nan, "lower": nan,
-                 "upper": nan, "binding": "", "cost_current": self.total_cost_current,
-                 "cost_allocated": self.total_cost_allocated}
+        rows = [
+            {
+                "factor": f.name,
+                "unit": f.unit,
+                "current": f.current,
+                "allocated": f.allocated,
+                "lower": f.lower,
+                "upper": f.upper,
+                "binding": f.binding,
+                "cost_current": f.cost_current,
+                "cost_allocated": f.cost_allocated,
+            }
+            for f in self.factors
+        ]
+        total = {
+            "factor": "total",
+            "unit": "",
+            "current": nan,
+            "allocated": nan,
+            "lower": nan,
+            "upper": nan,
+            "binding": "",
+            "cost_current": self.total_cost_current,
+            "cost_allocated": self.total_cost_allocated,
+        }
         for label, y in (("current", self.yield_current), ("allocated", self.yield_allocated)):
-            total.update({f"yield_{label}": y.estimate, f"yield_{label}_low": y.low,
-                          f"yield_{label}_high": y.high})
+            total.update(
+                {f"yield_{label}": y.estimate, f"yield_{label}_low": y.low, f"yield_{label}_high": y.high}
+            )
         frame = pd.DataFrame(rows + [total]).set_index("factor")
-        return frame.astype({column: float for column in frame.columns
-                             if column not in ("unit", "binding")})
+        return frame.astype({column: float for column in frame.columns if column not in ("unit", "binding")})
 
     def table(self) -> str:
         """The printed answer: per factor current vs allocated tolerance and cost; the yields."""
         width = max(len(f.name) for f in self.factors)
-        lines = [f"allocation of {self.study} for a yield >= {self.target_yield:g} against "
-                 f"{' and '.join(self.spec)} (all at once)",
-                 f"{'tolerance [um]':<{width}}  {'current':>8} {'allocated':>9} {'tightest':>8} "
-                 f"{'loosest':>8}  {'cost now':>9} {'allocated':>9}  binding"]
+        lines = [
+            f"allocation of {self.study} for a yield >= {self.target_yield:g} against "
+            f"{' and '.join(self.spec)} (all at once)",
+            f"{'tolerance [um]':<{width}}  {'current':>8} {'allocated':>9} {'tightest':>8} "
+            f"{'loosest':>8}  {'cost now':>9} {'allocated':>9}  binding",
+        ]
         for f in self.factors:
-            lines.append(f"{f.name:<{width}}  {f.current:8.3f} {f.allocated:9.3f} {f.lower:8.3f} "
-                         f"{f.upper:8.3f}  {f.cost_current:9.4g} {f.cost_allocated:9.4g}  "
-                         f"{'-' if f.binding == 'none' else f.binding}")
-        lines.append(f"{'total cost':<{width}}  {'':37}  {self.total_cost_current:9.4g} "
-                     f"{self.total_cost_allocated:9.4g}")
+            lines.append(
+                f"{f.name:<{width}}  {f.current:8.3f} {f.allocated:9.3f} {f.lower:8.3f} "
+                f"{f.upper:8.3f}  {f.cost_current:9.4g} {f.cost_allocated:9.4g}  "
+                f"{'-' if f.binding == 'none' else f.binding}"
+            )
+        lines.append(
+            f"{'total cost':<{width}}  {'':37}  {self.total_cost_current:9.4g} "
+            f"{self.total_cost_allocated:9.4g}"
+        )
         c = f"{100 * self.confidence:g} %"
         for label, y in (("current", self.yield_current), ("allocated", self.yield_allocated)):
-            lines.append(f"yield, {label:<9} {y.estimate:.5f}  ({c} interval {y.low:.5f} - "
-                         f"{y.high:.5f}, Monte Carlo of {y.n} reducers of the true model)")
+            lines.append(
+                f"yield, {label:<9} {y.estimate:.5f}  ({c} interval {y.low:.5f} - "
+                f"{y.high:.5f}, Monte Carlo of {y.n} reducers of the true model)"
+            )
         if self.unconfirmed:
-            lines.append(f"target {self.target_yield:g}: NOT CONFIRMED: the cheapest allocations "
-                         "that met it in the search fell short on fresh draws (the yield above); "
-                         "give a larger -n")
+            lines.append(
+                f"target {self.target_yield:g}: NOT CONFIRMED: the cheapest allocations "
+                "that met it in the search fell short on fresh draws (the yield above); "
+                "give a larger -n"
+            )
         elif self.feasible:
-            lines.append(f"target {self.target_yield:g}: met (the low end of the verification's "
-                         f"{c} interval is at or above it)")
+            lines.append(
+                f"target {self.target_yield:g}: met (the low end of the verification's "
+                f"{c} interval is at or above it)"
+            )
         else:
-            bound = [f"{f.name} ({'tightest' if f.binding == 'lower' else 'loosest'})"
-                     for f in self.factors if f.binding != "none"]
-            lines.append(f"target {self.target_yield:g}: OUT OF REACH within the bounds; the best "
-                         "yield found is the one above, at the tolerances above; bounds that "
-                         f"bind: {', '.join(bound) or 'none'}")
-        lines.append(f"surrogate: {self.surrogate_kind}, {self.surrogate_samples} reducers; "
-                     f"{self.surrogate_validation}")
-        lines.append(f"model evaluations: {self.model_evaluations} in {len(self.rounds)} "
-                     "verification rounds plus training and the current tolerances")
+            bound = [
+                f"{f.name} ({'tightest' if f.binding == 'lower' else 'loosest'})"
+                for f in self.factors
+                if f.binding != "none"
+            ]
+            lines.append(
+                f"target {self.target_yield:g}: OUT OF REACH within the bounds; the best "
+                "yield found is the one above, at the tolerances above; bounds that "
+                f"bind: {', '.join(bound) or 'none'}"
+            )
+        lines.append(
+            f"surrogate: {self.surrogate_kind}, {self.surrogate_samples} reducers; "
+            f"{self.surrogate_validation}"
+        )
+        lines.append(
+            f"model evaluations: {self.model_evaluations} in {len(self.rounds)} "
+            "verification rounds plus training and the current tolerances"
+        )
         return "\n".join(lines)
 
 
-def allocate(study_path, yield_target: float = 0.9973, output=None, progress: bool | None = None,
-             *, n: int | None = None, processes: int | None = None, log=None,
-             yes: bool = False) -> AllocationResult:
+def allocate(
+    study_path,
+    yield_target: float = 0.9973,
+    output=None,
+    progress: bool | None = None,
+    *,
+    n: int | None = None,
+    processes: int | None = None,
+    log=None,
+    yes: bool = False,
+) -> AllocationResult:
     """The least-cost tolerances of a study file with a verified yield >= yield_target.
 
     The yield is that of all spec lines at once; costs and bounds come from the
@@ -205,20 +278,25 @@ def allocate(study_path, yield_target: float = 0.9973, output=None, progress: bo
     if not 0.0 < target < 1.0:
         raise InputError("yield", target, "must be between 0 and 1 (e.g. 0.9973)")
     if not study.spec:
-        raise InputError("spec", None, "an allocation needs at least one spec line: give the "
-                         "study a [spec] table")
+        raise InputError(
+            "spec", None, "an allocation needs at least one spec line: give the study a [spec] table"
+        )
     if n is None:
         n = max(study.mc_n, MIN_HIGH_YIELD_N) if target >= HIGH_YIELD else study.mc_n
     n = integer("n", n, 1)
     folder = open_output(study, study.output)
     allocated_path = folder / f"{_file_name(study.name)}_allocated.toml"
     if study.path is not None and allocated_path.resolve() == Path(study.path).resolve():
-        raise InputError("output", str(folder), f"would overwrite the study file {study.path} with "
-                         "its allocation: choose another output folder")
+        raise InputError(
+            "output",
+            str(folder),
+            f"would overwrite the study file {study.path} with its allocation: choose another output folder",
+        )
     _warn_load(study, log)
     wiring = _StudyWiring(study, _allocated_factors(study), folder, progress, log, yes, processes)
-    result = allocate_scales(wiring.model(), target, n, log=log, progress=progress,
-                             column_names=study.metric_columns)
+    result = allocate_scales(
+        wiring.model(), target, n, log=log, progress=progress, column_names=study.metric_columns
+    )
     return wiring.report(result, target, allocated_path)
 
 
@@ -233,8 +311,7 @@ def study_model(study_path, output=None, processes: int | None = None, log=None)
 
     study = _load(study_path, output)
     factors = _allocated_factors(study)
-    return _StudyWiring(study, factors, open_output(study, study.output), False, log, True,
-                        processes).model()
+    return _StudyWiring(study, factors, open_output(study, study.output), False, log, True, processes).model()
 
 
 def _allocated_factors(study) -> list:
@@ -257,18 +334,28 @@ class _StudyWiring:
 
     def model(self) -> ScaledModel:
         study = self.study
-        limits = tuple(Limit(study.metric_columns.index(limit.column), limit.limit, limit.sense)
-                       for limit in study.spec)
+        limits = tuple(
+            Limit(study.metric_columns.index(limit.column), limit.limit, limit.sense) for limit in study.spec
+        )
         return ScaledModel(
             names=tuple(f"{f.name}.{costs.ALLOCATED[f.kind]}" for f in self.factors),
-            current=self.current, costs=self.models, limits=limits,
-            columns=len(study.columns), magnitudes=self.magnitudes, evaluate=self.evaluate,
-            verify=self.verify, log_inputs=True, snap=self.snap, seed=study.seed,
-            confidence=study.mc_confidence, evaluate_groups=self.evaluate_groups)
+            current=self.current,
+            costs=self.models,
+            limits=limits,
+            columns=len(study.columns),
+            magnitudes=self.magnitudes,
+            evaluate=self.evaluate,
+            verify=self.verify,
+            log_inputs=True,
+            snap=self.snap,
+            seed=study.seed,
+            confidence=study.mc_confidence,
+            evaluate_groups=self.evaluate_groups,
+        )
 
     def magnitudes(self, U: np.ndarray) -> np.ndarray:
         """RMS of each allocated factor's error values [um] at the current tolerances: (n, F)."""
-        from rvfmu.core.units import UM
+        from rvfmu.core.base.units import UM
 
         from .sampling import factor_values
 
@@ -297,8 +384,7 @@ class _StudyWiring:
             if f.name in scaled:
                 s, model, t0 = scaled[f.name]
                 t = min(max(round(float(s) * t0, 9), model.tightest_um), model.loosest_um)
-                values = {key: round(value, 4) for key, value in
-                          costs.scaled_values(f, t / t0).items()}
+                values = {key: round(value, 4) for key, value in costs.scaled_values(f, t / t0).items()}
                 values[costs.ALLOCATED[f.kind]] = t
                 f = replace(f, **values, cost=model if with_cost else None)
             out.append(f)
@@ -306,8 +392,7 @@ class _StudyWiring:
 
     def scaled_study(self, scales, rows: int):
         """The study at these scales, one batch of `rows`, stored under allocation/<hash>."""
-        study = replace(self.study, factors=self.scaled_factors(scales, False), batch_size=rows,
-                        text="")
+        study = replace(self.study, factors=self.scaled_factors(scales, False), batch_size=rows, text="")
         return replace(study, output=self.folder / "allocation" / study.inputs_hash[:12])
 
     def evaluate(self, scales, U, job) -> np.ndarray:
@@ -324,17 +409,17 @@ class _StudyWiring:
 
         from .backends import _DIED, local_pool, spawning, stop_pool
 
-        pool = local_pool(self.processes)     # as the Processes backend's
+        pool = local_pool(self.processes)  # as the Processes backend's
         finished = False
         try:
-            with spawning():                  # workers start at the first tasks, all sent here
+            with spawning():  # workers start at the first tasks, all sent here
                 results = pool.map(_train_group, *zip(*studies), chunksize=4)
             yield from results
             finished = True
         except BrokenProcessPool as exc:
             raise RuntimeError(_DIED.format(exc=exc)) from None
         finally:
-            stop_pool(pool, abort=not finished)   # Ctrl-C or an error: end the workers at once
+            stop_pool(pool, abort=not finished)  # Ctrl-C or an error: end the workers at once
 
     def verify(self, scales, n: int, draw: int = 0):
         """The Monte Carlo of n reducers of the study file with these tolerances, on draws
@@ -349,20 +434,38 @@ class _StudyWiring:
         from .run import compute, run_mc
 
         if draw == 0 and np.all(scales == 1.0):
-            return run_mc(self.study, n, output=self.folder, processes=self.processes,
-                          progress=self.progress, plots=False, log=self.log, yes=self.yes).Y
+            return run_mc(
+                self.study,
+                n,
+                output=self.folder,
+                processes=self.processes,
+                progress=self.progress,
+                plots=False,
+                log=self.log,
+                yes=self.yes,
+            ).Y
         study = self.candidate(scales, draw=draw)[1]
-        computed = compute(study, "mc", n, lambda a, b: montecarlo.rows(study, a, b),
-                           make_backend(self.processes), self.progress, self.log,
-                           output=study.output, yes=self.yes, size_field=("n", n))
+        computed = compute(
+            study,
+            "mc",
+            n,
+            lambda a, b: montecarlo.rows(study, a, b),
+            make_backend(self.processes),
+            self.progress,
+            self.log,
+            output=study.output,
+            yes=self.yes,
+            size_field=("n", n),
+        )
         return computed.Y[:n]
 
     def seed_of(self, draw: int) -> int:
         """The seed of draws number `draw`: the study's for 0, else one derived from it."""
         if draw == 0:
             return self.study.seed
-        return int(np.random.SeedSequence([self.study.seed, 0x616C6C6F, draw]).generate_state(
-            2, np.uint64)[0] >> 1)
+        return int(
+            np.random.SeedSequence([self.study.seed, 0x616C6C6F, draw]).generate_state(2, np.uint64)[0] >> 1
+        )
 
     def candidate(self, scales, header: str = "", draw: int = 0):
         """(text, Study) of the study file with the allocated tolerances at scales, and the
@@ -378,8 +481,9 @@ class _StudyWiring:
         seeded = replace(self.study, seed=self.seed_of(draw))
         probe = replace(seeded, factors=factors)
         same = probe.inputs_hash == self.study.inputs_hash
-        text = allocated_text(seeded, factors, "." if same else
-                              f"allocation/{probe.inputs_hash[:12]}", header)
+        text = allocated_text(
+            seeded, factors, "." if same else f"allocation/{probe.inputs_hash[:12]}", header
+        )
         study = study_from_values(tomllib.loads(text), path, text)
         assert study.inputs_hash == probe.inputs_hash, "the allocated file must be what was verified"
         return text, study
@@ -388,43 +492,81 @@ class _StudyWiring:
         """Write the allocated study file and allocation.json; the result record."""
         study = self.study
         factors = []
-        for f, model, t0, s, lo, hi in zip(self.factors, self.models, self.current, result.scales,
-                                           np.log(self.model().lower), np.log(self.model().upper)):
+        for f, model, t0, s, lo, hi in zip(
+            self.factors,
+            self.models,
+            self.current,
+            result.scales,
+            np.log(self.model().lower),
+            np.log(self.model().upper),
+        ):
             t = float(s * t0)
-            binding = ("lower" if abs(math.log(s) - lo) <= BINDING else
-                       "upper" if abs(math.log(s) - hi) <= BINDING else "none")
-            factors.append(FactorAllocation(f"{f.name}.{costs.ALLOCATED[f.kind]}", "um", float(t0),
-                                            round(t, 6), float(model.tightest_um),
-                                            float(model.loosest_um), float(model.cost(t0)),
-                                            float(model.cost(t)), binding))
+            binding = (
+                "lower"
+                if abs(math.log(s) - lo) <= BINDING
+                else "upper"
+                if abs(math.log(s) - hi) <= BINDING
+                else "none"
+            )
+            factors.append(
+                FactorAllocation(
+                    f"{f.name}.{costs.ALLOCATED[f.kind]}",
+                    "um",
+                    float(t0),
+                    round(t, 6),
+                    float(model.tightest_um),
+                    float(model.loosest_um),
+                    float(model.cost(t0)),
+                    float(model.cost(t)),
+                    binding,
+                )
+            )
         current, allocated = result.current, result.allocated
-        header = (f"Allocated by `rvte allocate` from {study.path or study.name} for a yield >= "
-                  f"{target:g} against {', '.join(str(limit) for limit in study.spec)} (all at once).\n"
-                  + (f"Verified: yield {allocated.estimate:.5f} ({100 * study.mc_confidence:g} % "
-                     f"interval {allocated.low:.5f} - {allocated.high:.5f}) of {allocated.n} "
-                     "reducers" if result.feasible else
-                     f"OUT OF REACH within the bounds: the best yield found, {allocated.estimate:.5f} "
-                     f"({allocated.low:.5f} - {allocated.high:.5f}) of {allocated.n} reducers, with "
-                     "these tolerances") +
-                  f"; total cost {sum(f.cost_allocated for f in factors):.4g} (was "
-                  f"{sum(f.cost_current for f in factors):.4g}).\n"
-                  + ("The yield is that of this file's Monte Carlo (its seed), reducers that no "
-                     "step of the search saw.\n" if result.confirmations else "") +
-                  f"Run: rvte mc {path.name} -n {allocated.n}   (reuses that Monte Carlo)")
+        header = (
+            f"Allocated by `rvte allocate` from {study.path or study.name} for a yield >= "
+            f"{target:g} against {', '.join(str(limit) for limit in study.spec)} (all at once).\n"
+            + (
+                f"Verified: yield {allocated.estimate:.5f} ({100 * study.mc_confidence:g} % "
+                f"interval {allocated.low:.5f} - {allocated.high:.5f}) of {allocated.n} "
+                "reducers"
+                if result.feasible
+                else f"OUT OF REACH within the bounds: the best yield found, {allocated.estimate:.5f} "
+                f"({allocated.low:.5f} - {allocated.high:.5f}) of {allocated.n} reducers, with "
+                "these tolerances"
+            )
+            + f"; total cost {sum(f.cost_allocated for f in factors):.4g} (was "
+            f"{sum(f.cost_current for f in factors):.4g}).\n"
+            + (
+                "The yield is that of this file's Monte Carlo (its seed), reducers that no "
+                "step of the search saw.\n"
+                if result.confirmations
+                else ""
+            )
+            + f"Run: rvte mc {path.name} -n {allocated.n}   (reuses that Monte Carlo)"
+        )
         text, _ = self.candidate(result.scales, header, allocated.draw)
         path.write_text(text)
         record = AllocationResult(
-            study=study.name, study_file=str(study.path or ""), allocated_study_file=str(path),
-            target_yield=target, feasible=result.feasible, factors=tuple(factors),
+            study=study.name,
+            study_file=str(study.path or ""),
+            allocated_study_file=str(path),
+            target_yield=target,
+            feasible=result.feasible,
+            factors=tuple(factors),
             total_cost_current=float(sum(f.cost_current for f in factors)),
             total_cost_allocated=float(sum(f.cost_allocated for f in factors)),
-            yield_current=YieldEstimate.of(current), yield_allocated=YieldEstimate.of(allocated),
-            surrogate_kind=SURROGATE_KIND, surrogate_samples=result.samples,
-            surrogate_validation=result.validation, model_evaluations=result.evaluations,
-            spec=tuple(str(limit) for limit in study.spec), confidence=study.mc_confidence,
+            yield_current=YieldEstimate.of(current),
+            yield_allocated=YieldEstimate.of(allocated),
+            surrogate_kind=SURROGATE_KIND,
+            surrogate_samples=result.samples,
+            surrogate_validation=result.validation,
+            model_evaluations=result.evaluations,
+            spec=tuple(str(limit) for limit in study.spec),
+            confidence=study.mc_confidence,
             rounds=result.rounds,
             unconfirmed=not result.feasible and bool(result.confirmations),
-            files={"allocated_study": path, "allocation": self.folder / "allocation.json"})
+            files={"allocated_study": path, "allocation": self.folder / "allocation.json"},
+        )
         (self.folder / "allocation.json").write_text(json.dumps(record.to_json(), indent=1) + "\n")
         return record
 
@@ -434,8 +576,16 @@ def _train_group(study, U, job) -> np.ndarray:
     from .backends import make_backend
     from .run import compute
 
-    computed = compute(study, job, U.shape[0], lambda a, b: U[a:b], make_backend(),
-                       progress=False, output=study.output, yes=True)
+    computed = compute(
+        study,
+        job,
+        U.shape[0],
+        lambda a, b: U[a:b],
+        make_backend(),
+        progress=False,
+        output=study.output,
+        yes=True,
+    )
     return np.where(np.isfinite(computed.Y), computed.Y, np.nan)
 
 
@@ -452,17 +602,28 @@ def allocated_text(study, factors, output: str, header: str = "") -> str:
         if not errors.is_absolute() and study.path is not None:
             errors = Path(study.path).resolve().parent / errors
     tables = {
-        "study": {"name": f"{study.name}_allocated",
-                  "design": study.design_source or study.design.name,
-                  "errors": str(errors) if errors else None, "seed": study.seed,
-                  "metrics": list(study.metrics), "batch_size": study.batch_size,
-                  "output": output},
-        "operating": {"load_Nm": study.load_Nm, "points": study.points,
-                      "windup_positions": study.windup_positions},
+        "study": {
+            "name": f"{study.name}_allocated",
+            "design": study.design_source or study.design.name,
+            "errors": str(errors) if errors else None,
+            "seed": study.seed,
+            "metrics": list(study.metrics),
+            "batch_size": study.batch_size,
+            "output": output,
+        },
+        "operating": {
+            "load_Nm": study.load_Nm,
+            "points": study.points,
+            "windup_positions": study.windup_positions,
+        },
         "spec": {limit.column: limit.limit for limit in study.spec},
         "montecarlo": {"n": study.mc_n, "confidence": study.mc_confidence},
-        "sobol": {"n": study.sobol_n, "second_order": study.second_order,
-                  "resamples": study.resamples, "confidence": study.sobol_confidence},
+        "sobol": {
+            "n": study.sobol_n,
+            "second_order": study.second_order,
+            "resamples": study.resamples,
+            "confidence": study.sobol_confidence,
+        },
     }
     for f in factors:
         tables[f"tolerances.{f.name}"] = f.file_values()
@@ -471,8 +632,7 @@ def allocated_text(study, factors, output: str, header: str = "") -> str:
     lines = [f"# {line}" if line else "#" for line in header.splitlines()]
     for name, values in tables.items():
         lines += ["" if lines else None, f"[{name}]"]
-        lines += [f"{key} = {_toml_value(value)}" for key, value in values.items()
-                  if value is not None]
+        lines += [f"{key} = {_toml_value(value)}" for key, value in values.items() if value is not None]
     return "\n".join(line for line in lines if line is not None) + "\n"
 
 
@@ -480,11 +640,11 @@ def _toml_value(value) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str):
-        return json.dumps(value)                  # a TOML basic string
+        return json.dumps(value)  # a TOML basic string
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     if isinstance(value, float):
-        return repr(float(value))                 # round-trips exactly (also a numpy float)
+        return repr(float(value))  # round-trips exactly (also a numpy float)
     return str(value)
 
 
@@ -492,5 +652,11 @@ def _file_name(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
 
 
-__all__ = ["allocate", "AllocationResult", "FactorAllocation", "YieldEstimate", "allocated_text",
-           "study_model"]
+__all__ = [
+    "allocate",
+    "AllocationResult",
+    "FactorAllocation",
+    "YieldEstimate",
+    "allocated_text",
+    "study_model",
+]

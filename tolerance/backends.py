@@ -28,15 +28,17 @@ import contextlib
 import logging
 import multiprocessing
 import os
+import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 
-from rvfmu.core.checks import InputError, integer
+from rvfmu.core.base.checks import InputError, integer
 
 from .evaluate import evaluate
 from .study import model_fingerprint
 
-IN_FLIGHT_PER_WORKER = 3     # keeps every worker busy while the next batch's rows travel
+IN_FLIGHT_PER_WORKER = 3  # keeps every worker busy while the next batch's rows travel
 ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 DASK_LOCAL_CONFIG = {
     # Dask's default MALLOC_TRIM_THRESHOLD_=65536 turns glibc's adaptive mmap threshold off,
@@ -59,9 +61,11 @@ DASK_LOCAL_CONFIG = {
 def evaluate_checked(study, X, fingerprint):
     """`evaluate` on a worker, refusing to run if the worker's model code differs from the caller's."""
     if fingerprint != model_fingerprint():
-        raise RuntimeError("a worker runs another version of rvte's model than this process "
-                           f"(model hash {model_fingerprint()[:12]} there, {fingerprint[:12]} here); "
-                           "install the same rvte on every worker")
+        raise RuntimeError(
+            "a worker runs another version of rvte's model than this process "
+            f"(model hash {model_fingerprint()[:12]} there, {fingerprint[:12]} here); "
+            "install the same rvte on every worker"
+        )
     return evaluate(study, X)
 
 
@@ -124,8 +128,12 @@ def local_pool(workers: int) -> ProcessPoolExecutor:
     """
     # Spawned children inherit the environment at their start, before numpy loads.
     with _environment(ONE_THREAD):
-        return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_follow_parent, initargs=(os.getpid(),))
+        return ProcessPoolExecutor(
+            workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_follow_parent,
+            initargs=(os.getpid(),),
+        )
 
 
 @contextlib.contextmanager
@@ -149,8 +157,7 @@ def _sigint_blocked():
     import signal
     import threading
 
-    if threading.current_thread() is not threading.main_thread() or \
-            not hasattr(signal, "pthread_sigmask"):
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
         yield
         return
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
@@ -180,7 +187,7 @@ def _no_interrupts():
 
     previous = signal.getsignal(signal.SIGINT)
     if threading.current_thread() is not threading.main_thread() or previous is None:
-        yield            # None: no handler set from Python (the interpreter is shutting down)
+        yield  # None: no handler set from Python (the interpreter is shutting down)
         return
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
@@ -211,7 +218,7 @@ class Processes:
             except BrokenProcessPool as exc:
                 self.__exit__(type(exc))
                 raise RuntimeError(_DIED.format(exc=exc)) from None
-            except BaseException as exc:     # Ctrl-C while they start: end them too
+            except BaseException as exc:  # Ctrl-C while they start: end them too
                 self.__exit__(type(exc))
                 raise
         return self
@@ -228,15 +235,43 @@ class Processes:
         code, or a dead pool, raises RuntimeError."""
         fingerprint = model_fingerprint()
         try:
-            yield from _windowed(tasks, self.workers,
-                                 lambda X: self._pool.submit(evaluate_checked, study, X, fingerprint),
-                                 _wait_futures)
+            yield from _windowed(
+                tasks,
+                self.workers,
+                lambda X: self._pool.submit(evaluate_checked, study, X, fingerprint),
+                _wait_futures,
+            )
         except BrokenProcessPool as exc:
             raise RuntimeError(_DIED.format(exc=exc)) from None
 
 
-_DIED = ("a worker process died ({exc}); finished batches are kept. A script that uses worker "
-         "processes must run its main code under `if __name__ == '__main__':`")
+_DIED = (
+    "a worker process died ({exc}); finished batches are kept. A script that uses worker "
+    "processes must run its main code under `if __name__ == '__main__':`"
+)
+
+
+class _CancelBeforeStart(logging.Filter):
+    """Drops the one traceback distributed (2026.8) logs when Ctrl-C lands in `sync()` before
+    its coroutine has made the future that the interrupt's `cancel()` callback cancels: a
+    NameError on that unset name in distributed/utils.py's `cancel`, logged by tornado from
+    the event loop's thread (an older release set the name to None first).  Nothing was
+    running to cancel, so the run's own interrupt line stays the whole story."""
+
+    def filter(self, record):
+        exc = record.exc_info[1] if record.exc_info else None
+        if not isinstance(exc, NameError) or exc.__traceback__ is None:
+            return True
+        last = traceback.extract_tb(exc.__traceback__)[-1]
+        return not (last.name == "cancel" and Path(last.filename).match("distributed/utils.py"))
+
+
+def quiet_cancel_before_start() -> None:
+    """`_CancelBeforeStart` on tornado's logger, once per process and for good: the interrupt's
+    callback may run after the backend has closed."""
+    logger = logging.getLogger("tornado.application")
+    if not any(isinstance(f, _CancelBeforeStart) for f in logger.filters):
+        logger.addFilter(_CancelBeforeStart())
 
 
 class DaskBackend:
@@ -244,8 +279,11 @@ class DaskBackend:
 
     def __init__(self, workers: int | None = None, scheduler: str | None = None):
         if (workers is None) == (scheduler is None):
-            raise InputError("dask", {"workers": workers, "scheduler": scheduler},
-                             "give either a number of local workers or a scheduler address")
+            raise InputError(
+                "dask",
+                {"workers": workers, "scheduler": scheduler},
+                "give either a number of local workers or a scheduler address",
+            )
         self.n_local = None if workers is None else integer("workers", workers, 1, 256)
         self.scheduler = None if scheduler is None else scheduler_address(scheduler)
         self.client = self.cluster = None
@@ -262,6 +300,7 @@ class DaskBackend:
         import dask
         from dask.distributed import Client, LocalCluster
 
+        quiet_cancel_before_start()
         try:
             if self.scheduler:
                 self.client = Client(self.scheduler, timeout="20s")
@@ -274,15 +313,20 @@ class DaskBackend:
                 # reaches, so SIGINT is ignored (inherited by every child) while the
                 # cluster starts: a Ctrl-C in those seconds is lost, press it again.
                 with dask.config.set(DASK_LOCAL_CONFIG), _no_interrupts():
-                    self.cluster = LocalCluster(n_workers=self.n_local, threads_per_worker=1,
-                                                processes=True, dashboard_address=None,
-                                                silence_logs=logging.ERROR, env=dict(ONE_THREAD))
+                    self.cluster = LocalCluster(
+                        n_workers=self.n_local,
+                        threads_per_worker=1,
+                        processes=True,
+                        dashboard_address=None,
+                        silence_logs=logging.ERROR,
+                        env=dict(ONE_THREAD),
+                    )
                     self.client = Client(self.cluster)
         except OSError as exc:
             self.__exit__()
             where = self.scheduler or "a LocalCluster"
             raise RuntimeError(f"could not reach the Dask scheduler at {where}: {exc}") from None
-        except BaseException:                # Ctrl-C while the cluster starts: close it too
+        except BaseException:  # Ctrl-C while the cluster starts: close it too
             self.__exit__()
             raise
         return self
@@ -318,9 +362,11 @@ class DaskBackend:
 # (distributed.comm.addressing.parse_address: a scheme of distributed.comm.registry,
 # default tcp, then host:port; "inproc://" reaches a scheduler in this very process).
 NETWORK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
-SCHEDULER_FORMS = ("tcp://HOST:PORT, HOST:PORT (tcp), tls://HOST:PORT, ws://HOST:PORT, "
-                   "wss://HOST:PORT or ucx://HOST:PORT, PORT from 1 to 65535 (IPv6 hosts in "
-                   "brackets: tcp://[::1]:8786), or inproc://... of a scheduler in this process")
+SCHEDULER_FORMS = (
+    "tcp://HOST:PORT, HOST:PORT (tcp), tls://HOST:PORT, ws://HOST:PORT, "
+    "wss://HOST:PORT or ucx://HOST:PORT, PORT from 1 to 65535 (IPv6 hosts in "
+    "brackets: tcp://[::1]:8786), or inproc://... of a scheduler in this process"
+)
 
 
 def scheduler_address(value, field: str = "--scheduler") -> str:
@@ -337,8 +383,13 @@ def scheduler_address(value, field: str = "--scheduler") -> str:
     host, _, port = location.rpartition(":")
     if host.startswith("[") and host.endswith("]"):
         host = host[1:-1]
-    fine = (scheme in NETWORK_SCHEMES and host and not any(c in host for c in "/[] ")
-            and port.isdigit() and 1 <= int(port) <= 65535)
+    fine = (
+        scheme in NETWORK_SCHEMES
+        and host
+        and not any(c in host for c in "/[] ")
+        and port.isdigit()
+        and 1 <= int(port) <= 65535
+    )
     if not fine:
         raise InputError(field, value, f"is not a Dask scheduler address: {SCHEDULER_FORMS}")
     return text
@@ -375,16 +426,22 @@ def _windowed(tasks, workers, submit, wait_any):
             future.cancel()
 
 
-def make_backend(processes: int | None = None, workers: int | None = None,
-                 scheduler: str | None = None):
+def make_backend(processes: int | None = None, workers: int | None = None, scheduler: str | None = None):
     """The backend the options ask for: none -> InProcess; processes -> Processes;
     workers and/or scheduler -> DaskBackend."""
     if processes is not None and (workers is not None or scheduler is not None):
-        raise InputError("processes", processes, "give either --processes or a Dask backend "
-                         "(--workers / --scheduler), not both")
+        raise InputError(
+            "processes",
+            processes,
+            "give either --processes or a Dask backend (--workers / --scheduler), not both",
+        )
     if workers is not None and scheduler is not None:
-        raise InputError("workers", workers, "--workers starts a local Dask cluster; with "
-                         "--scheduler the cluster's own workers are used: give one of them")
+        raise InputError(
+            "workers",
+            workers,
+            "--workers starts a local Dask cluster; with "
+            "--scheduler the cluster's own workers are used: give one of them",
+        )
     if processes is not None:
         return Processes(processes)
     if workers is not None or scheduler is not None:

@@ -64,21 +64,21 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import norm
 
-from rvfmu.core.checks import InputError, finite_array, integer
+from rvfmu.core.base.checks import InputError, finite_array, integer
 
 from .sobol import Indices, RankStep, group_names
 from .surrogate import Chaos
 
-DEGREES = (2, 3, 4)      # total degrees tried when none is given (degree-adaptive)
-MAX_TERMS = 6000         # candidate terms of one fit: degree 2 of up to 108 columns; degree 2
-                         # of 100 (5151) already takes ~170 s per LARS fit at n = 1000, and the
-                         # bootstrap refits R times
-MAX_DEGREE = 20          # no smooth metric needs more; a step needs every degree (the check says so)
-Q2_MIN = 0.95            # = 1 - sobol.CONVERGED_CHANGE: an expansion that misses more than 5 %
-                         # of the variance could hide a change of ST that the Saltelli path
-                         # would already call unconverged
-RESAMPLES = 100          # bootstrap refits: the half-width of a 95 % interval to ~7 % of itself
-MIN_RESAMPLES = 10       # fewer give a standard deviation off by more than a quarter
+DEGREES = (2, 3, 4)  # total degrees tried when none is given (degree-adaptive)
+MAX_TERMS = 6000  # candidate terms of one fit: degree 2 of up to 108 columns; degree 2
+# of 100 (5151) already takes ~170 s per LARS fit at n = 1000, and the
+# bootstrap refits R times
+MAX_DEGREE = 20  # no smooth metric needs more; a step needs every degree (the check says so)
+Q2_MIN = 0.95  # = 1 - sobol.CONVERGED_CHANGE: an expansion that misses more than 5 %
+# of the variance could hide a change of ST that the Saltelli path
+# would already call unconverged
+RESAMPLES = 100  # bootstrap refits: the half-width of a 95 % interval to ~7 % of itself
+MIN_RESAMPLES = 10  # fewer give a standard deviation off by more than a quarter
 WHERE = "chaos Sobol"
 
 
@@ -123,14 +123,19 @@ class ChaosIndices(Indices):
     def check_text(self) -> str:
         """One line: the check, with Q2, degree and terms, and what follows from it."""
         if self.constant or self.whole_input:
-            return "chaos check: nothing fitted (" + \
-                ("constant output)" if self.constant else "the only group is the whole input)")
-        head = (f"chaos check: Q2 {self.q2:.3f} {'>=' if self.checked else '<'} {self.q2_min:.2f} "
-                f"(degree {self.degree}, {self.terms} terms, n {self.n})")
+            return "chaos check: nothing fitted (" + (
+                "constant output)" if self.constant else "the only group is the whole input)"
+            )
+        head = (
+            f"chaos check: Q2 {self.q2:.3f} {'>=' if self.checked else '<'} {self.q2_min:.2f} "
+            f"(degree {self.degree}, {self.terms} terms, n {self.n})"
+        )
         if self.checked:
             return head + ": passed"
-        return head + (": FAILED, the expansion misses too much of the variance; the ranking is "
-                       "not settled, raise n or the degree, or use Saltelli's estimators")
+        return head + (
+            ": FAILED, the expansion misses too much of the variance; the ranking is "
+            "not settled, raise n or the degree, or use Saltelli's estimators"
+        )
 
     def flags(self) -> list[list[str]]:
         """Per group, the notes of `SobolIndices.flags`, plus the chaos check line when the
@@ -146,24 +151,27 @@ class ChaosIndices(Indices):
         steps = super().order()
         if steps is None:
             return None
-        return [ChaosRankStep(s.upper, s.lower, s.difference, s.half_width, s.kept,
-                              checked=self.checked) for s in steps]
+        return [
+            ChaosRankStep(s.upper, s.lower, s.difference, s.half_width, s.kept, checked=self.checked)
+            for s in steps
+        ]
 
 
-def group_shares(alpha: np.ndarray, coefficients: np.ndarray, column_group: np.ndarray,
-                 G: int) -> tuple[np.ndarray, np.ndarray, float]:
+def group_shares(
+    alpha: np.ndarray, coefficients: np.ndarray, column_group: np.ndarray, G: int
+) -> tuple[np.ndarray, np.ndarray, float]:
     """S1 (G,), ST (G,) and the variance of a chaos with exponents alpha (P, D), coefficients
     (P,) [output units] and columns in groups column_group (D,) of 0..G-1 (variance in output
     units squared).  A chaos of zero variance gives zeros."""
     one_hot = np.zeros((alpha.shape[1], G))
     one_hot[np.arange(alpha.shape[1]), column_group] = 1.0
-    member = ((alpha > 0).astype(float) @ one_hot) > 0          # (P, G): term involves group g
+    member = ((alpha > 0).astype(float) @ one_hot) > 0  # (P, G): term involves group g
     square = np.asarray(coefficients, dtype=float) ** 2
-    square = np.where(member.any(axis=1), square, 0.0)          # the mean term is no variance
+    square = np.where(member.any(axis=1), square, 0.0)  # the mean term is no variance
     variance = float(square.sum())
     if variance == 0.0:
         return np.zeros(G), np.zeros(G), 0.0
-    alone = member & (member.sum(axis=1) == 1)[:, None]         # terms of one group only
+    alone = member & (member.sum(axis=1) == 1)[:, None]  # terms of one group only
     return square @ alone / variance, square @ member / variance, variance
 
 
@@ -173,15 +181,23 @@ def column_groups(problem: dict) -> tuple[tuple[str, ...], np.ndarray]:
     names = tuple(str(name) for name in group_names(problem))
     labels = problem.get("groups") or problem["names"]
     if len(labels) != problem["num_vars"]:
-        raise InputError("problem groups", len(labels),
-                         f"must name one group per column ({problem['num_vars']})", WHERE)
+        raise InputError(
+            "problem groups", len(labels), f"must name one group per column ({problem['num_vars']})", WHERE
+        )
     index = {name: g for g, name in enumerate(names)}
     return names, np.array([index[label] for label in labels], dtype=int)
 
 
-def chaos_indices(X: np.ndarray, Y: np.ndarray, problem: dict, degree: int | None = None,
-                  resamples: int = RESAMPLES, confidence: float = 0.95, seed: int = 0,
-                  q2_min: float = Q2_MIN) -> tuple[ChaosIndices, ...]:
+def chaos_indices(
+    X: np.ndarray,
+    Y: np.ndarray,
+    problem: dict,
+    degree: int | None = None,
+    resamples: int = RESAMPLES,
+    confidence: float = 0.95,
+    seed: int = 0,
+    q2_min: float = Q2_MIN,
+) -> tuple[ChaosIndices, ...]:
     """Group Sobol indices of every output from a sparse Legendre chaos of unit rows.
 
     X: (n, D) unit draws in [0, 1) (any design: random, Sobol', a Monte Carlo study's
@@ -201,19 +217,17 @@ def chaos_indices(X: np.ndarray, Y: np.ndarray, problem: dict, degree: int | Non
         bad = X[(X < 0.0) | (X >= 1.0)][0]
         raise InputError("X", float(bad), "unit draws must lie in [0, 1)", WHERE)
     if problem.get("num_vars") != D:
-        raise InputError("problem num_vars", problem.get("num_vars"),
-                         f"must equal the {D} columns of X", WHERE)
+        raise InputError(
+            "problem num_vars", problem.get("num_vars"), f"must equal the {D} columns of X", WHERE
+        )
     Y = np.asarray(Y)
     if Y.ndim not in (1, 2) or Y.shape[0] != n:
-        raise InputError("Y", Y.shape, f"must be shaped {n} or {n} x M (one row per row of X)",
-                         WHERE)
+        raise InputError("Y", Y.shape, f"must be shaped {n} or {n} x M (one row per row of X)", WHERE)
     Y = finite_array("Y", Y, Y.shape, WHERE).reshape(n, -1)
     resamples = integer("resamples", resamples, 0, where=WHERE)
     if 0 < resamples < MIN_RESAMPLES:
-        raise InputError("resamples", resamples, f"must be 0 (no intervals) or >= {MIN_RESAMPLES}",
-                         WHERE)
-    if isinstance(confidence, bool) or not isinstance(confidence, (int, float)) \
-            or not 0.0 < confidence < 1.0:
+        raise InputError("resamples", resamples, f"must be 0 (no intervals) or >= {MIN_RESAMPLES}", WHERE)
+    if isinstance(confidence, bool) or not isinstance(confidence, (int, float)) or not 0.0 < confidence < 1.0:
         raise InputError("confidence", confidence, "must be in (0, 1)", WHERE)
     if isinstance(q2_min, bool) or not isinstance(q2_min, (int, float)) or not 0.0 < q2_min <= 1.0:
         raise InputError("q2_min", q2_min, "must be in (0, 1]", WHERE)
@@ -223,32 +237,56 @@ def chaos_indices(X: np.ndarray, Y: np.ndarray, problem: dict, degree: int | Non
     else:
         degree = integer("degree", degree, 1, MAX_DEGREE, WHERE)
         if math.comb(D + degree, degree) > MAX_TERMS:
-            raise InputError("degree", degree,
-                             f"gives {math.comb(D + degree, degree)} candidate terms over {D} "
-                             f"columns, more than {MAX_TERMS}: choose a lower degree", WHERE)
+            raise InputError(
+                "degree",
+                degree,
+                f"gives {math.comb(D + degree, degree)} candidate terms over {D} "
+                f"columns, more than {MAX_TERMS}: choose a lower degree",
+                WHERE,
+            )
         degrees = (degree,)
     names, column_group = column_groups(problem)
     G = len(names)
     if n < D + 2:
-        raise InputError("rows of X", n, f"must be >= {D + 2} for {D} columns: the chaos's "
-                         "leave-one-out check needs more rows than its linear terms", WHERE)
+        raise InputError(
+            "rows of X",
+            n,
+            f"must be >= {D + 2} for {D} columns: the chaos's "
+            "leave-one-out check needs more rows than its linear terms",
+            WHERE,
+        )
 
-    x = 2.0 * X - 1.0                                           # Legendre's interval [-1, 1]
+    x = 2.0 * X - 1.0  # Legendre's interval [-1, 1]
     rows = np.random.default_rng(seed).integers(0, n, size=(resamples, n))
-    z = norm.ppf(0.5 + confidence / 2)                          # SALib's normal rule
+    z = norm.ppf(0.5 + confidence / 2)  # SALib's normal rule
     out = []
     for column in Y.T:
         if np.ptp(column) == 0.0:
             zero = np.zeros(G)
-            out.append(ChaosIndices(names, n, zero, zero, zero, zero, None, None, confidence,
-                                    constant=True, q2_min=q2_min))
+            out.append(
+                ChaosIndices(
+                    names, n, zero, zero, zero, zero, None, None, confidence, constant=True, q2_min=q2_min
+                )
+            )
             continue
-        if G == 1:   # the group is the whole input: S1 = ST = 1 by definition (sobol.py)
+        if G == 1:  # the group is the whole input: S1 = ST = 1 by definition (sobol.py)
             one, zero = np.ones(1), np.zeros(1)
-            out.append(ChaosIndices(names, n, one, zero, one, zero, None, None, confidence,
-                                    ST_resamples=np.ones((resamples, 1)) if resamples else None,
-                                    whole_input=True,
-                                    q2_min=q2_min))
+            out.append(
+                ChaosIndices(
+                    names,
+                    n,
+                    one,
+                    zero,
+                    one,
+                    zero,
+                    None,
+                    None,
+                    confidence,
+                    ST_resamples=np.ones((resamples, 1)) if resamples else None,
+                    whole_input=True,
+                    q2_min=q2_min,
+                )
+            )
             continue
         fits = [Chaos(x, column, p) for p in degrees]
         best = min(range(len(fits)), key=lambda k: fits[k].loo_error)
@@ -257,16 +295,32 @@ def chaos_indices(X: np.ndarray, Y: np.ndarray, problem: dict, degree: int | Non
         boot_S1, boot_ST = np.full((resamples, G), np.nan), np.full((resamples, G), np.nan)
         for r, picked in enumerate(rows):
             sample_y = column[picked]
-            if np.ptp(sample_y) == 0.0:                         # a resample of one value
+            if np.ptp(sample_y) == 0.0:  # a resample of one value
                 boot_S1[r], boot_ST[r] = 0.0, 0.0
                 continue
             refit = Chaos(x[picked], sample_y, p)
-            boot_S1[r], boot_ST[r], _ = group_shares(refit.alpha, refit.coefficients,
-                                                     column_group, G)
-        S1_conf, ST_conf = (z * boot_S1.std(axis=0, ddof=1), z * boot_ST.std(axis=0, ddof=1)) \
-            if resamples else (np.full(G, np.nan), np.full(G, np.nan))
-        out.append(ChaosIndices(
-            names, n, S1, S1_conf, ST, ST_conf, None, None, confidence,
-            ST_resamples=boot_ST if resamples else None, q2=1.0 - chaos.loo_error,
-            q2_min=q2_min, degree=p, terms=int(chaos.coefficients.size)))
+            boot_S1[r], boot_ST[r], _ = group_shares(refit.alpha, refit.coefficients, column_group, G)
+        S1_conf, ST_conf = (
+            (z * boot_S1.std(axis=0, ddof=1), z * boot_ST.std(axis=0, ddof=1))
+            if resamples
+            else (np.full(G, np.nan), np.full(G, np.nan))
+        )
+        out.append(
+            ChaosIndices(
+                names,
+                n,
+                S1,
+                S1_conf,
+                ST,
+                ST_conf,
+                None,
+                None,
+                confidence,
+                ST_resamples=boot_ST if resamples else None,
+                q2=1.0 - chaos.loo_error,
+                q2_min=q2_min,
+                degree=p,
+                terms=int(chaos.coefficients.size),
+            )
+        )
     return tuple(out)

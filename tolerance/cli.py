@@ -19,7 +19,7 @@ import signal
 import sys
 import threading
 
-INTERRUPTED = 128 + signal.SIGINT     # the exit code of a command ended by Ctrl-C
+INTERRUPTED = 128 + signal.SIGINT  # the exit code of a command ended by Ctrl-C
 
 
 def _log(text):
@@ -33,13 +33,14 @@ def _resumable(job_of):
     output folder).  By the time the interrupt arrives here the backend has ended its
     workers; a second Ctrl-C is ignored while the batches are counted.
     """
+
     def wrap(command):
         @functools.wraps(command)
         def run(args):
             from .run import STOP
 
             if threading.current_thread() is not threading.main_thread():
-                return command(args)        # signals reach the main thread only
+                return command(args)  # signals reach the main thread only
             STOP.clear()
             handler, hook = signal.signal(signal.SIGINT, _interrupt), sys.unraisablehook
             sys.unraisablehook = _unraisable
@@ -47,14 +48,18 @@ def _resumable(job_of):
                 command(args)
             except KeyboardInterrupt:
                 signal.signal(signal.SIGINT, signal.SIG_IGN)
-                print(f"interrupted: {_kept(args, job_of)} batches kept, run the same command "
-                      "to resume", file=sys.stderr)
+                print(
+                    f"interrupted: {_kept(args, job_of)} batches kept, run the same command to resume",
+                    file=sys.stderr,
+                )
                 raise SystemExit(INTERRUPTED) from None
             finally:
                 sys.unraisablehook = hook
-            if handler is not None:        # None: a handler not set from Python, left as it is
+            if handler is not None:  # None: a handler not set from Python, left as it is
                 signal.signal(signal.SIGINT, handler)
+
         return run
+
     return wrap
 
 
@@ -76,13 +81,13 @@ def _unraisable(unraisable):
 
 def _kept(args, job_of) -> int:
     """Batch files kept in the output folder of the interrupted run (0 if none can be)."""
-    from rvfmu.core.checks import InputError
+    from rvfmu.core.base.checks import InputError
 
     from .run import stored_batches
 
     try:
         return stored_batches(args.study, args.output, job_of(args))
-    except (InputError, OSError):   # the study or its folder never got far enough to hold any
+    except (InputError, OSError):  # the study or its folder never got far enough to hold any
         return 0
 
 
@@ -99,9 +104,18 @@ def _sobol_job(args) -> str:
 def _mc(args):
     from .run import run_mc
 
-    result = run_mc(args.study, args.n, output=args.output, processes=args.processes,
-                    workers=args.workers, scheduler=args.scheduler, progress=None,
-                    plots=not args.no_plots, log=_log, yes=args.yes)
+    result = run_mc(
+        args.study,
+        args.n,
+        output=args.output,
+        processes=args.processes,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=None,
+        plots=not args.no_plots,
+        log=_log,
+        yes=args.yes,
+    )
     _show(result, args.json)
 
 
@@ -109,10 +123,21 @@ def _mc(args):
 def _sobol(args):
     from .run import run_sobol
 
-    result = run_sobol(args.study, args.n, second_order=True if args.second_order else None,
-                       output=args.output, processes=args.processes, workers=args.workers,
-                       scheduler=args.scheduler, progress=None, plots=not args.no_plots, log=_log,
-                       yes=args.yes, method=args.method, rounds=True if args.rounds else None)
+    result = run_sobol(
+        args.study,
+        args.n,
+        second_order=True if args.second_order else None,
+        output=args.output,
+        processes=args.processes,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=None,
+        plots=not args.no_plots,
+        log=_log,
+        yes=args.yes,
+        method=args.method,
+        rounds=True if args.rounds else None,
+    )
     _show(result, args.json)
 
 
@@ -129,8 +154,16 @@ def _report(args):
 def _allocate(args):
     from .allocation import allocate
 
-    result = allocate(args.study, args.yield_target, output=args.output, progress=None, n=args.n,
-                      processes=args.processes, log=_log, yes=args.yes)
+    result = allocate(
+        args.study,
+        args.yield_target,
+        output=args.output,
+        progress=None,
+        n=args.n,
+        processes=args.processes,
+        log=_log,
+        yes=args.yes,
+    )
     _show(result, args.json)
 
 
@@ -145,69 +178,131 @@ def _show(result, as_json):
 
 def _common(p):
     p.add_argument("study", help="study TOML file (see docs/studies.md)")
-    p.add_argument("-o", "--output", help="output folder (default: the study's [study] output, "
-                   "or <study file name>/output beside the study file)")
+    p.add_argument(
+        "-o",
+        "--output",
+        help="output folder (default: the study's [study] output, "
+        "or <study file name>/output beside the study file)",
+    )
     where = p.add_mutually_exclusive_group()
     where.add_argument("--processes", type=int, metavar="N", help="evaluate on N local worker processes")
-    where.add_argument("--workers", type=int, metavar="N",
-                       help="evaluate on a Dask LocalCluster of N single-threaded workers")
-    where.add_argument("--scheduler", metavar="ADDRESS",
-                       help="evaluate on the Dask cluster at ADDRESS (tcp://host:port)")
+    where.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="evaluate on a Dask LocalCluster of N single-threaded workers",
+    )
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="evaluate on the Dask cluster at ADDRESS (tcp://host:port)"
+    )
     p.add_argument("--json", action="store_true", help="print one JSON document instead of the table")
     p.add_argument("--no-plots", action="store_true", help="write no figures")
-    p.add_argument("--yes", action="store_true", help="run even if the estimate (printed before "
-                   "the run, from its first batch) is above a day or above the free disk")
+    p.add_argument(
+        "--yes",
+        action="store_true",
+        help="run even if the estimate (printed before "
+        "the run, from its first batch) is above a day or above the free disk",
+    )
 
 
 def add_study_commands(subparsers) -> None:
     """Add the tolerance-study sub-commands to the `rvte` sub-parsers."""
-    p = subparsers.add_parser("mc", help="Monte Carlo of a tolerance study: TE distribution, "
-                              "yield against the spec")
+    p = subparsers.add_parser(
+        "mc", help="Monte Carlo of a tolerance study: TE distribution, yield against the spec"
+    )
     _common(p)
     p.add_argument("-n", type=int, help="reducers to sample (default: the study's [montecarlo] n)")
     p.set_defaults(run=_mc)
 
     p = subparsers.add_parser("sobol", help="Sobol ranking of the tolerances of a study")
     _common(p)
-    p.add_argument("-n", type=int, help="base samples, a power of 2 (default: the study's "
-                   "[sobol] n); the model runs n*(G+2) times for G Sobol groups")
-    p.add_argument("--second-order", action="store_true", help="also second-order indices "
-                   "(n*(2G+2) runs)")
-    p.add_argument("--method", help="saltelli (every reducer of the design solved, the "
-                   "reference) or linearized (the TE curve linearized in the errors: 2A+1 "
-                   "solves for A error components, checked on solved reducers; for loaded "
-                   "studies); default: the study's [sobol] method, else saltelli")
-    p.add_argument("--rounds", action="store_true", help="stop by itself: double the base "
-                   "samples (the linearized method's solved ones) from 64 until every metric's "
-                   "order groups are those of the two rounds before, n at most (default: the study's "
-                   "[sobol] rounds)")
+    p.add_argument(
+        "-n",
+        type=int,
+        help="base samples, a power of 2 (default: the study's "
+        "[sobol] n); the model runs n*(G+2) times for G Sobol groups",
+    )
+    p.add_argument("--second-order", action="store_true", help="also second-order indices (n*(2G+2) runs)")
+    p.add_argument(
+        "--method",
+        help="saltelli (every reducer of the design solved, the "
+        "reference) or linearized (the TE curve linearized in the errors: 2A+1 "
+        "solves for A error components, checked on solved reducers; for loaded "
+        "studies); default: the study's [sobol] method, else saltelli",
+    )
+    p.add_argument(
+        "--rounds",
+        action="store_true",
+        help="stop by itself: double the base "
+        "samples (the linearized method's solved ones) from 64 until every metric's "
+        "order groups are those of the two rounds before, n at most (default: the study's "
+        "[sobol] rounds)",
+    )
     p.set_defaults(run=_sobol)
 
-    p = subparsers.add_parser("report", help="one self-contained HTML report (and a Markdown "
-                              "summary) of a study's output folder, to send or to keep")
+    p = subparsers.add_parser(
+        "report",
+        help="one self-contained HTML report (and a Markdown "
+        "summary) of a study's output folder, to send or to keep",
+    )
     p.add_argument("output_dir", help="the study's output folder (written by rvte mc / rvte sobol)")
-    p.add_argument("-o", "--output", metavar="HTML", help="the HTML file to write (default: "
-                   "report.html in the output folder)")
-    p.add_argument("--markdown", metavar="MD", help="the Markdown summary to write (default: the "
-                   "HTML file's name with .md)")
-    p.add_argument("--study", metavar="STUDY", help="the study file as it is now, to tell whether "
-                   "it changed since the results were computed (default: NAME.toml beside "
-                   "NAME/output, the default output folder of a study)")
+    p.add_argument(
+        "-o",
+        "--output",
+        metavar="HTML",
+        help="the HTML file to write (default: report.html in the output folder)",
+    )
+    p.add_argument(
+        "--markdown",
+        metavar="MD",
+        help="the Markdown summary to write (default: the HTML file's name with .md)",
+    )
+    p.add_argument(
+        "--study",
+        metavar="STUDY",
+        help="the study file as it is now, to tell whether "
+        "it changed since the results were computed (default: NAME.toml beside "
+        "NAME/output, the default output folder of a study)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as one JSON document")
     p.set_defaults(run=_report)
 
-    p = subparsers.add_parser("allocate", help="least-cost tolerances of a study for a yield "
-                              "target, verified by Monte Carlo (see docs/studies.md)")
+    p = subparsers.add_parser(
+        "allocate",
+        help="least-cost tolerances of a study for a yield "
+        "target, verified by Monte Carlo (see docs/studies.md)",
+    )
     p.add_argument("study", help="study TOML file with a [spec] (costs: [tolerances.NAME.cost])")
-    p.add_argument("--yield", dest="yield_target", type=float, default=0.9973, metavar="Y",
-                   help="yield to reach against all spec lines at once (default 0.9973)")
-    p.add_argument("-n", type=int, help="reducers of each verification Monte Carlo (default: the "
-                   "study's [montecarlo] n, at least 10000 for a yield >= 0.99)")
-    p.add_argument("-o", "--output", help="output folder, this study's or new (default: the "
-                   "study's); gets <name>_allocated.toml and allocation.json")
-    p.add_argument("--processes", type=int, metavar="N", help="run the training and the Monte "
-                   "Carlo verifications on N local worker processes")
+    p.add_argument(
+        "--yield",
+        dest="yield_target",
+        type=float,
+        default=0.9973,
+        metavar="Y",
+        help="yield to reach against all spec lines at once (default 0.9973)",
+    )
+    p.add_argument(
+        "-n",
+        type=int,
+        help="reducers of each verification Monte Carlo (default: the "
+        "study's [montecarlo] n, at least 10000 for a yield >= 0.99)",
+    )
+    p.add_argument(
+        "-o",
+        "--output",
+        help="output folder, this study's or new (default: the "
+        "study's); gets <name>_allocated.toml and allocation.json",
+    )
+    p.add_argument(
+        "--processes",
+        type=int,
+        metavar="N",
+        help="run the training and the Monte Carlo verifications on N local worker processes",
+    )
     p.add_argument("--json", action="store_true", help="print allocation.json instead of the table")
-    p.add_argument("--yes", action="store_true", help="run even if a Monte Carlo's estimate is "
-                   "above a day or above the free disk")
+    p.add_argument(
+        "--yes",
+        action="store_true",
+        help="run even if a Monte Carlo's estimate is above a day or above the free disk",
+    )
     p.set_defaults(run=_allocate)

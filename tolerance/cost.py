@@ -51,22 +51,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rvfmu.core.checks import InputError, finite_number
+from rvfmu.core.base.checks import InputError, finite_number
 
-ALLOCATED = {"zone": "position_um", "band": "band_um", "pitch": "cumulative_um",
-             "clearance": "max_um"}
+ALLOCATED = {"zone": "position_um", "band": "band_um", "pitch": "cumulative_um", "clearance": "max_um"}
 SCALED_WITH = {"zone": (), "band": (), "pitch": ("single_um",), "clearance": ("min_um",)}
 KEYS = ("a", "b", "k", "tightest_um", "loosest_um")
 
-DEFAULT_A = 0.0           # a fixed cost never moves an allocation
-DEFAULT_K = 2.0           # Spotts 1973: reciprocal square
-REFERENCE_UM = {          # one cost unit at the tolerance seed 002 gives the kind (RV-40E-121)
-    "zone": 8.0,          # crank, hole and carrier positions: 7-9 um
-    "band": 5.0,          # pin radial band 5 um (disc profile 8 um)
-    "pitch": 8.0,         # pin F_p 8 um (disc F_p 6 um)
-    "clearance": 10.0,    # illustrative bearing clearance (docs/model.md section 4)
+DEFAULT_A = 0.0  # a fixed cost never moves an allocation
+DEFAULT_K = 2.0  # Spotts 1973: reciprocal square
+REFERENCE_UM = {  # one cost unit at the tolerance seed 002 gives the kind (RV-40E-121)
+    "zone": 8.0,  # crank, hole and carrier positions: 7-9 um
+    "band": 5.0,  # pin radial band 5 um (disc profile 8 um)
+    "pitch": 8.0,  # pin F_p 8 um (disc F_p 6 um)
+    "clearance": 10.0,  # illustrative bearing clearance (docs/model.md section 4)
 }
-BOUND_STEP = 10.0 ** 0.4  # default bounds: two ISO 286 IT grades (x 1.585 each) either side
+BOUND_STEP = 10.0**0.4  # default bounds: two ISO 286 IT grades (x 1.585 each) either side
 
 
 @dataclass(frozen=True)
@@ -85,11 +84,11 @@ class CostModel:
 
     def cost(self, t_um):
         """Cost of tolerance(s) t_um [um] (same shape), in cost units."""
-        return self.a + self.b / t_um ** self.k
+        return self.a + self.b / t_um**self.k
 
     def slope(self, t_um):
         """d cost / d ln t = -k b / t**k: what opening the tolerance by 1 % saves, x 100."""
-        return -self.k * self.b / t_um ** self.k
+        return -self.k * self.b / t_um**self.k
 
 
 def cost_model(values, field: str, where: str = "") -> CostModel:
@@ -98,23 +97,39 @@ def cost_model(values, field: str, where: str = "") -> CostModel:
         raise InputError(field, values, f"must be a table with some of {', '.join(KEYS)}", where)
     for key in values:
         if key not in KEYS:
-            raise InputError(f"{field}.{key}", values[key], "is not a key of the cost table; known "
-                             f"keys: {', '.join(KEYS)}", where)
+            raise InputError(
+                f"{field}.{key}",
+                values[key],
+                f"is not a key of the cost table; known keys: {', '.join(KEYS)}",
+                where,
+            )
     number = {key: finite_number(f"{field}.{key}", values[key], where) for key in values}
     if number.get("k", DEFAULT_K) < 0:
-        raise InputError(f"{field}.k", number["k"], "the exponent must be >= 0 (cost = a + b / t^k "
-                         "falls as the tolerance t opens)", where)
+        raise InputError(
+            f"{field}.k",
+            number["k"],
+            "the exponent must be >= 0 (cost = a + b / t^k falls as the tolerance t opens)",
+            where,
+        )
     if number.get("b", 0.0) < 0:
-        raise InputError(f"{field}.b", number["b"], "must be >= 0 (a tighter tolerance never costs "
-                         "less)", where)
+        raise InputError(
+            f"{field}.b", number["b"], "must be >= 0 (a tighter tolerance never costs less)", where
+        )
     for key in ("tightest_um", "loosest_um"):
         if key in number and number[key] <= 0:
-            raise InputError(f"{field}.{key}", number[key], "must be > 0 um (the cost of a zero "
-                             "tolerance is infinite)", where)
-    if "tightest_um" in number and "loosest_um" in number and \
-            number["tightest_um"] > number["loosest_um"]:
-        raise InputError(f"{field}.tightest_um", number["tightest_um"],
-                         f"must be <= loosest_um = {number['loosest_um']:g}", where)
+            raise InputError(
+                f"{field}.{key}",
+                number[key],
+                "must be > 0 um (the cost of a zero tolerance is infinite)",
+                where,
+            )
+    if "tightest_um" in number and "loosest_um" in number and number["tightest_um"] > number["loosest_um"]:
+        raise InputError(
+            f"{field}.tightest_um",
+            number["tightest_um"],
+            f"must be <= loosest_um = {number['loosest_um']:g}",
+            where,
+        )
     return CostModel(**number)
 
 
@@ -128,11 +143,17 @@ def check_bounds(factor, field: str) -> None:
     model, current = factor.cost, current_um(factor)
     key = ALLOCATED[factor.kind]
     if model.tightest_um is not None and current < model.tightest_um:
-        raise InputError(f"{field}.tightest_um", model.tightest_um, f"must be <= the current "
-                         f"tolerance {key} = {current:g} um (the bounds must include it)")
+        raise InputError(
+            f"{field}.tightest_um",
+            model.tightest_um,
+            f"must be <= the current tolerance {key} = {current:g} um (the bounds must include it)",
+        )
     if model.loosest_um is not None and current > model.loosest_um:
-        raise InputError(f"{field}.loosest_um", model.loosest_um, f"must be >= the current "
-                         f"tolerance {key} = {current:g} um (the bounds must include it)")
+        raise InputError(
+            f"{field}.loosest_um",
+            model.loosest_um,
+            f"must be >= the current tolerance {key} = {current:g} um (the bounds must include it)",
+        )
 
 
 def resolved(factor) -> CostModel:
@@ -174,5 +195,17 @@ def file_values(model: CostModel) -> dict:
     return {key: getattr(model, key) for key in KEYS}
 
 
-__all__ = ["ALLOCATED", "SCALED_WITH", "CostModel", "cost_model", "current_um", "check_bounds",
-           "resolved", "scaled_values", "file_values", "REFERENCE_UM", "DEFAULT_K", "BOUND_STEP"]
+__all__ = [
+    "ALLOCATED",
+    "SCALED_WITH",
+    "CostModel",
+    "cost_model",
+    "current_um",
+    "check_bounds",
+    "resolved",
+    "scaled_values",
+    "file_values",
+    "REFERENCE_UM",
+    "DEFAULT_K",
+    "BOUND_STEP",
+]

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rvfmu.core.errors import CLEARANCES, ErrorSet
+from rvfmu.core.reducer.errors import CLEARANCES, ErrorSet
 
 
 def error_vector(errors: ErrorSet) -> np.ndarray:
@@ -34,10 +34,10 @@ def error_set(vectors: np.ndarray, like: ErrorSet) -> ErrorSet:
     for name, array in like.arrays().items():
         shape, size = array.shape[1:], int(np.prod(array.shape[1:], dtype=int))
         if np.iscomplexobj(array):
-            values = vectors[:, start:start + size] + 1j * vectors[:, start + size:start + 2 * size]
+            values = vectors[:, start : start + size] + 1j * vectors[:, start + size : start + 2 * size]
             start += 2 * size
         else:
-            values = vectors[:, start:start + size]
+            values = vectors[:, start : start + size]
             start += size
         arrays[name] = np.ascontiguousarray(values).reshape((S,) + shape)
     return ErrorSet(**arrays)

@@ -24,16 +24,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rvfmu.core import metrics
-from rvfmu.core.errors import ErrorSet
-from rvfmu.core.friction import operating_losses
-from rvfmu.core.quasistatic import te_curve, windup
+from rvfmu.core.losses.friction import operating_losses
+from rvfmu.core.reducer.errors import ErrorSet
+from rvfmu.core.statics import metrics
+from rvfmu.core.statics.quasistatic import te_curve, windup
 
 from .error_rows import ErrorRows
 from .sampling import errors_from_unit
 
-UNITS = {"te_pp": "arcsec", "rms": "arcsec", "order": "arcsec", "lost_motion": "arcmin",
-         "torsional_rigidity": "Nm_per_arcmin", "efficiency": "", "no_load_running_torque": "Nm"}
+UNITS = {
+    "te_pp": "arcsec",
+    "rms": "arcsec",
+    "order": "arcsec",
+    "lost_motion": "arcmin",
+    "torsional_rigidity": "Nm_per_arcmin",
+    "efficiency": "",
+    "no_load_running_torque": "Nm",
+}
 LOWER_LIMITED = ("torsional_rigidity", "efficiency")  # a spec on these is a minimum, else a maximum
 WINDUP_METRICS = ("lost_motion", "torsional_rigidity")
 FRICTION_METRICS = ("efficiency", "no_load_running_torque")
@@ -93,17 +100,20 @@ def output_columns(study) -> tuple[tuple, tuple]:
     from (`Outputs`): the curve at the study's points if a metric needs it, the windup pair
     and the friction pair if one of each is asked for."""
     kinds = {metric_kind(m) for m in study.metrics}
-    te = tuple(f"te_{k:05d}" for k in range(study.points)) \
-        if kinds - set(WINDUP_METRICS + FRICTION_METRICS) else ()
-    return te, tuple(k for group in (WINDUP_METRICS, FRICTION_METRICS) if kinds & set(group)
-                     for k in group)
+    te = (
+        tuple(f"te_{k:05d}" for k in range(study.points))
+        if kinds - set(WINDUP_METRICS + FRICTION_METRICS)
+        else ()
+    )
+    return te, tuple(k for group in (WINDUP_METRICS, FRICTION_METRICS) if kinds & set(group) for k in group)
 
 
 def _output_values(study, errors: ErrorSet):
     """(S, C) the outputs in `output_columns`' order, and converged (S,)."""
     out = outputs(study, errors)
-    parts = ([out.te_arcsec] if out.te_arcsec is not None else []) + \
-        [out.scalars[k][:, None] for k in output_columns(study)[1]]
+    parts = ([out.te_arcsec] if out.te_arcsec is not None else []) + [
+        out.scalars[k][:, None] for k in output_columns(study)[1]
+    ]
     return np.hstack(parts), out.converged
 
 
@@ -140,9 +150,9 @@ def outputs(study, errors: ErrorSet) -> Outputs:
         scalars["lost_motion"] = wind.lost_motion_arcmin()
         scalars["torsional_rigidity"] = wind.torsional_rigidity_Nm_per_arcmin()
     if "efficiency" in kinds:
-        efficiency, running, ok = operating_losses(design, errors, study.load_Nm,
-                                                   study.output_speed_rpm,
-                                                   temperature_C=study.temperature_C)
+        efficiency, running, ok = operating_losses(
+            design, errors, study.load_Nm, study.output_speed_rpm, temperature_C=study.temperature_C
+        )
         converged &= ok
         scalars["efficiency"], scalars["no_load_running_torque"] = efficiency, running
     return Outputs(te, scalars, converged)

@@ -42,9 +42,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from rvfmu.core.checks import InputError
-from rvfmu.core.errors import error_shapes
-from rvfmu.core.units import UM
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import UM
+from rvfmu.core.reducer.errors import error_shapes
 
 from . import montecarlo
 from .sampling import _index, factor_values
@@ -53,14 +53,14 @@ from .study import Study, flag, sobol_base_samples, study_from_store
 
 MC_JOB = "mc"
 SOBOL_JOB = re.compile(r"sobol-n([0-9]+)(-second-order)?$")
-SAMPLES_FORMAT = "%.6g"      # mc_samples.csv: 6 significant digits, as it always had
+SAMPLES_FORMAT = "%.6g"  # mc_samples.csv: 6 significant digits, as it always had
 
 # The unit key of each kind's factor column: the tolerance's own key in the study file.
-_FACTOR_KEY = {"zone": "position_um", "pitch": "cumulative_um", "band": "band_um",
-               "clearance": "um"}
+_FACTOR_KEY = {"zone": "position_um", "pitch": "cumulative_um", "band": "band_um", "clearance": "um"}
 
 
 # -- Monte Carlo and stored rows --------------------------------------------------------------
+
 
 def factor_column(factor) -> str:
     """The column of a factor's drawn value, named after its tolerance key and unit:
@@ -105,8 +105,9 @@ def error_columns(factor, shape: tuple, values: np.ndarray) -> dict:
     return columns
 
 
-def results_frame(study: Study, rows, X: np.ndarray, Y: np.ndarray, converged: np.ndarray,
-                  errors: bool = False) -> pd.DataFrame:
+def results_frame(
+    study: Study, rows, X: np.ndarray, Y: np.ndarray, converged: np.ndarray, errors: bool = False
+) -> pd.DataFrame:
     """One row per reducer: its factors' drawn values, metrics, convergence and spec checks.
 
     rows (S,): the reducers' row numbers in the study's sample (the index, "row");
@@ -127,8 +128,13 @@ def results_frame(study: Study, rows, X: np.ndarray, Y: np.ndarray, converged: n
         if errors:
             details.update(error_columns(factor, shapes[factor.name], values))
     metrics = {column: Y[:, j] for j, column in enumerate(study.metric_columns)}
-    data = {**drawn, **details, **metrics,
-            "converged": np.asarray(converged, dtype=bool), **_passed(study, Y)}
+    data = {
+        **drawn,
+        **details,
+        **metrics,
+        "converged": np.asarray(converged, dtype=bool),
+        **_passed(study, Y),
+    }
     index = pd.Index(np.asarray(rows, dtype=np.int64), name="row")
     return pd.DataFrame(data, index=index)
 
@@ -148,10 +154,9 @@ def _passed(study: Study, Y: np.ndarray) -> dict:
     return out
 
 
-def mc_frame(study: Study, Y: np.ndarray, converged: np.ndarray,
-             errors: bool = False) -> pd.DataFrame:
+def mc_frame(study: Study, Y: np.ndarray, converged: np.ndarray, errors: bool = False) -> pd.DataFrame:
     """`results_frame` of the study's first n Monte Carlo reducers, Y (n, M), converged (n,)."""
-    errors = flag("errors", errors)       # before drawing the rows
+    errors = flag("errors", errors)  # before drawing the rows
     n = np.asarray(Y).shape[0]
     return results_frame(study, np.arange(n), montecarlo.rows(study, 0, n), Y, converged, errors)
 
@@ -159,8 +164,7 @@ def mc_frame(study: Study, Y: np.ndarray, converged: np.ndarray,
 def write_samples(path: Path, frame: pd.DataFrame, study: Study) -> Path:
     """mc_samples.csv from a Monte Carlo frame: row, the metric columns (6 significant digits),
     converged (0/1)."""
-    columns = frame[list(study.metric_columns)].assign(
-        converged=frame["converged"].astype(np.int64))
+    columns = frame[list(study.metric_columns)].assign(converged=frame["converged"].astype(np.int64))
     columns.to_csv(path, float_format=SAMPLES_FORMAT, na_rep="nan", lineterminator="\n")
     return Path(path)
 
@@ -187,36 +191,56 @@ def load_results(output_folder, job: str | None = None, *, errors: bool = False)
     job = MC_JOB if job is None else str(job)
     rows = cache(_job_rows(study, job, folder))
     if not (folder / job).is_dir():
-        raise InputError("job", job, f"has no results in {folder} (jobs there: "
-                         f"{', '.join(_jobs(folder)) or 'none'}); run rvte mc or rvte sobol first")
+        raise InputError(
+            "job",
+            job,
+            f"has no results in {folder} (jobs there: "
+            f"{', '.join(_jobs(folder)) or 'none'}); run rvte mc or rvte sobol first",
+        )
     found = JobStore(folder, study, job).load_all(rows)
     if not found:
-        raise InputError("job", job, f"has no batch files in {folder / job}: run it (rvte mc / "
-                         "rvte sobol) until at least one batch is written")
+        raise InputError(
+            "job",
+            job,
+            f"has no batch files in {folder / job}: run it (rvte mc / "
+            "rvte sobol) until at least one batch is written",
+        )
     batches = sorted(found)
-    return results_frame(study, np.concatenate([np.arange(start, stop) for start, stop in batches]),
-                         np.concatenate([rows(*b) for b in batches]),
-                         np.concatenate([found[b].Y for b in batches]),
-                         np.concatenate([found[b].converged for b in batches]), errors)
+    return results_frame(
+        study,
+        np.concatenate([np.arange(start, stop) for start, stop in batches]),
+        np.concatenate([rows(*b) for b in batches]),
+        np.concatenate([found[b].Y for b in batches]),
+        np.concatenate([found[b].converged for b in batches]),
+        errors,
+    )
 
 
 def _stored_study(folder: Path, manifest: dict) -> Study:
     """The study of the folder (`study_from_store`) from its inputs.json and study.toml."""
     try:
         inputs = json.loads((folder / "inputs.json").read_bytes().decode("utf-8"))
-    except (OSError, ValueError) as exc:   # UnicodeDecodeError is a ValueError
-        raise InputError("inputs.json", str(folder / "inputs.json"), "cannot be read: it is not "
-                         f"a readable UTF-8 JSON file ({_reason(exc)}), so the folder is not a "
-                         "complete study output folder") from None
+    except (OSError, ValueError) as exc:  # UnicodeDecodeError is a ValueError
+        raise InputError(
+            "inputs.json",
+            str(folder / "inputs.json"),
+            "cannot be read: it is not "
+            f"a readable UTF-8 JSON file ({_reason(exc)}), so the folder is not a "
+            "complete study output folder",
+        ) from None
     copy = folder / "study.toml"
     text = ""
     if copy.is_file():
         try:
             text = copy.read_bytes().decode("utf-8")
         except (OSError, UnicodeDecodeError) as exc:
-            raise InputError("study.toml", str(copy), "is not a readable UTF-8 TOML study file "
-                             f"({_reason(exc)}): restore it, or run the study again to rewrite "
-                             "it") from None
+            raise InputError(
+                "study.toml",
+                str(copy),
+                "is not a readable UTF-8 TOML study file "
+                f"({_reason(exc)}): restore it, or run the study again to rewrite "
+                "it",
+            ) from None
     return study_from_store(folder, str(manifest.get("study", folder.name)), inputs, text)
 
 
@@ -232,14 +256,19 @@ def _job_rows(study: Study, job: str, folder: Path):
         return lambda start, stop: montecarlo.rows(study, start, stop)
     match = SOBOL_JOB.match(job)
     if match is None:
-        raise InputError("job", job, f"must be {MC_JOB} or a Sobol job sobol-n<N> or "
-                         f"sobol-n<N>-second-order (jobs in {folder}: "
-                         f"{', '.join(_jobs(folder)) or 'none'})")
+        raise InputError(
+            "job",
+            job,
+            f"must be {MC_JOB} or a Sobol job sobol-n<N> or "
+            f"sobol-n<N>-second-order (jobs in {folder}: "
+            f"{', '.join(_jobs(folder)) or 'none'})",
+        )
     from . import sobol
 
     n = sobol_base_samples("job", int(match.group(1)))
-    sample = cache(lambda: sobol.sample(study.problem(), n, match.group(2) is not None,
-                                        seed=study.seed))   # drawn once, when a batch is read
+    sample = cache(
+        lambda: sobol.sample(study.problem(), n, match.group(2) is not None, seed=study.seed)
+    )  # drawn once, when a batch is read
     return lambda start, stop: sample()[start:stop]
 
 
@@ -249,6 +278,7 @@ def _jobs(folder: Path) -> list[str]:
 
 
 # -- Sobol --------------------------------------------------------------------------------------
+
 
 def sobol_frame(analyses: dict) -> pd.DataFrame:
     """One row per (metric, factor) of {column: SobolAnalysis}, metric by metric, each ranked.
@@ -272,21 +302,32 @@ def sobol_frame(analyses: dict) -> pd.DataFrame:
         above, above_conf = np.full(order.size, np.nan), np.full(order.size, np.nan)
         settled = np.zeros(order.size, dtype=bool)
         for rank, step in enumerate(ind.order() or ()):
-            above[rank], above_conf[rank], settled[rank] = (step.difference, step.half_width,
-                                                            step.settled)
-        parts.append(pd.DataFrame({
-            "metric": column, "factor": [ind.names[g] for g in order],
-            "rank": np.arange(1, len(order) + 1, dtype=np.int64),
-            "S1": ind.S1[order], "S1_conf": ind.S1_conf[order],
-            "ST": ind.ST[order], "ST_conf": ind.ST_conf[order],
-            "S1_reported": ind.S1_reported[order], "ST_reported": ind.ST_reported[order],
-            "not_converged": ind.not_converged[order], "ci_wide": ind.ci_wide[order],
-            "S1_above_ST": ind.S1_above_ST[order],
-            "notes": ["; ".join(notes[g]) for g in order],
-            "ranking_converged": bool(result.convergence.converged),
-            "ST_above_next": above, "ST_above_next_conf": above_conf, "order_settled": settled,
-            "method": result.method,
-            "check_q2": np.nan if result.check_q2 is None else float(result.check_q2)}))
+            above[rank], above_conf[rank], settled[rank] = (step.difference, step.half_width, step.settled)
+        parts.append(
+            pd.DataFrame(
+                {
+                    "metric": column,
+                    "factor": [ind.names[g] for g in order],
+                    "rank": np.arange(1, len(order) + 1, dtype=np.int64),
+                    "S1": ind.S1[order],
+                    "S1_conf": ind.S1_conf[order],
+                    "ST": ind.ST[order],
+                    "ST_conf": ind.ST_conf[order],
+                    "S1_reported": ind.S1_reported[order],
+                    "ST_reported": ind.ST_reported[order],
+                    "not_converged": ind.not_converged[order],
+                    "ci_wide": ind.ci_wide[order],
+                    "S1_above_ST": ind.S1_above_ST[order],
+                    "notes": ["; ".join(notes[g]) for g in order],
+                    "ranking_converged": bool(result.convergence.converged),
+                    "ST_above_next": above,
+                    "ST_above_next_conf": above_conf,
+                    "order_settled": settled,
+                    "method": result.method,
+                    "check_q2": np.nan if result.check_q2 is None else float(result.check_q2),
+                }
+            )
+        )
     return pd.concat(parts, ignore_index=True)
 
 
@@ -297,9 +338,15 @@ def s2_frame(analyses: dict) -> pd.DataFrame:
     for column, result in analyses.items():
         ind = result.indices
         pairs = [(a, b) for a in range(len(ind.names)) for b in range(a + 1, len(ind.names))]
-        parts.append(pd.DataFrame({
-            "metric": column, "factor_a": [ind.names[a] for a, _ in pairs],
-            "factor_b": [ind.names[b] for _, b in pairs],
-            "S2": np.array([ind.S2[a, b] for a, b in pairs], dtype=float),
-            "S2_conf": np.array([ind.S2_conf[a, b] for a, b in pairs], dtype=float)}))
+        parts.append(
+            pd.DataFrame(
+                {
+                    "metric": column,
+                    "factor_a": [ind.names[a] for a, _ in pairs],
+                    "factor_b": [ind.names[b] for _, b in pairs],
+                    "S2": np.array([ind.S2[a, b] for a, b in pairs], dtype=float),
+                    "S2_conf": np.array([ind.S2_conf[a, b] for a, b in pairs], dtype=float),
+                }
+            )
+        )
     return pd.concat(parts, ignore_index=True)

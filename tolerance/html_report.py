@@ -28,22 +28,68 @@ from pathlib import Path
 
 import jinja2
 
-from rvfmu.core.checks import InputError
+from rvfmu.core.base.checks import InputError
 from rvfmu.outputs import output_file
 
 # The content's names stay importable from here, where `rvte report` always had them.
-from .report_content import (FIGURE_DPI, MC_KEYS, ORDERS_SHOWN, S2_SHOWN, SOBOL_KEYS, Code,
-                             Content, Figure, Found, Freshness, Nominal, Num, Para, Section, Table,
-                             check_allocation, freshness, gather, job_fingerprints,
-                             nominal_reducer, package_versions, sobol_analyses, stored_study)
+from .report_content import (
+    FIGURE_DPI,
+    MC_KEYS,
+    ORDERS_SHOWN,
+    S2_SHOWN,
+    SOBOL_KEYS,
+    Code,
+    Content,
+    Figure,
+    Found,
+    Freshness,
+    Nominal,
+    Num,
+    Para,
+    Section,
+    Table,
+    check_allocation,
+    freshness,
+    gather,
+    job_fingerprints,
+    nominal_reducer,
+    package_versions,
+    sobol_analyses,
+    stored_study,
+)
 from .store import study_output_folder
 from .study import load_study
 
-__all__ = ["DEFAULT_HTML", "FIGURE_DPI", "MC_KEYS", "ORDERS_SHOWN", "S2_SHOWN", "SOBOL_KEYS",
-           "Code", "Content", "Figure", "Found", "Freshness", "Nominal", "Num", "Para", "Section",
-           "StudyReport", "Table", "check_allocation", "freshness", "gather", "job_fingerprints",
-           "nominal_reducer", "package_versions", "render_html", "render_markdown", "report",
-           "sobol_analyses", "stored_study"]
+__all__ = [
+    "DEFAULT_HTML",
+    "FIGURE_DPI",
+    "MC_KEYS",
+    "ORDERS_SHOWN",
+    "S2_SHOWN",
+    "SOBOL_KEYS",
+    "Code",
+    "Content",
+    "Figure",
+    "Found",
+    "Freshness",
+    "Nominal",
+    "Num",
+    "Para",
+    "Section",
+    "StudyReport",
+    "Table",
+    "check_allocation",
+    "freshness",
+    "gather",
+    "job_fingerprints",
+    "nominal_reducer",
+    "package_versions",
+    "render_html",
+    "render_markdown",
+    "report",
+    "sobol_analyses",
+    "stored_study",
+]
 
 DEFAULT_HTML = "report.html"
 HTML_TEMPLATE = "report.html.j2"
@@ -51,6 +97,7 @@ MARKDOWN_TEMPLATE = "report.md.j2"
 
 
 # -- the record ------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class StudyReport:
@@ -83,10 +130,12 @@ def report(output_dir, html_path=None, markdown_path=None, *, study_file=None) -
     (InputError).  Returns the paths and the summary (`StudyReport.to_json`).
     """
     folder = study_output_folder(output_dir, "output_dir")
-    html_path = output_file("html", folder / DEFAULT_HTML if html_path is None else html_path,
-                            ("html", "htm"))
-    markdown_path = output_file("markdown", html_path.with_suffix(".md") if markdown_path is None
-                                else markdown_path, ("md",))
+    html_path = output_file(
+        "html", folder / DEFAULT_HTML if html_path is None else html_path, ("html", "htm")
+    )
+    markdown_path = output_file(
+        "markdown", html_path.with_suffix(".md") if markdown_path is None else markdown_path, ("md",)
+    )
     if markdown_path.resolve() == html_path.resolve():
         raise InputError("markdown", str(markdown_path), "must differ from the HTML file")
     current = None if study_file is None else load_study(study_file, output=folder)
@@ -99,17 +148,24 @@ def report(output_dir, html_path=None, markdown_path=None, *, study_file=None) -
 
 # -- rendering -----------------------------------------------------------------------------------
 
+
 def render_html(title: str, subtitle: str, banners, head, sections) -> str:
     """The HTML page (report.html.j2, autoescaped): banners [(level, text)] at the top, then
     the head sections (the key results) and the sections, each listed in the contents bar."""
-    return _environment().get_template(HTML_TEMPLATE).render(
-        title=title, subtitle=subtitle, banners=banners, sections=[*head, *sections])
+    return (
+        _environment()
+        .get_template(HTML_TEMPLATE)
+        .render(title=title, subtitle=subtitle, banners=banners, sections=[*head, *sections])
+    )
 
 
 def render_markdown(title: str, subtitle: str, banners, head, sections) -> str:
     """The same sections as Markdown (report.md.j2, not escaped): tables and texts, no figures."""
-    text = _environment().get_template(MARKDOWN_TEMPLATE).render(
-        title=title, subtitle=subtitle, banners=banners, sections=[*head, *sections])
+    text = (
+        _environment()
+        .get_template(MARKDOWN_TEMPLATE)
+        .render(title=title, subtitle=subtitle, banners=banners, sections=[*head, *sections])
+    )
     return text.rstrip() + "\n"
 
 
@@ -119,15 +175,27 @@ def _environment() -> jinja2.Environment:
     process runs), escaping on for .html.j2 only, an undefined name an error, not blank."""
     env = jinja2.Environment(
         loader=jinja2.PackageLoader("tolerance", "templates"),
-        autoescape=jinja2.select_autoescape(enabled_extensions=("html", "html.j2"),
-                                            default_for_string=True, default=False),
-        undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True,
-        keep_trailing_newline=True)
-    env.tests.update(num=lambda x: isinstance(x, Num), table=lambda x: isinstance(x, Table),
-                     para=lambda x: isinstance(x, Para), code=lambda x: isinstance(x, Code),
-                     figure=lambda x: isinstance(x, Figure), hashlike=_hashlike)
-    env.filters.update(base64=lambda data: base64.b64encode(data).decode(),
-                       json_path=lambda key: json.dumps(list(key)), md_cell=_markdown_cell)
+        autoescape=jinja2.select_autoescape(
+            enabled_extensions=("html", "html.j2"), default_for_string=True, default=False
+        ),
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+    )
+    env.tests.update(
+        num=lambda x: isinstance(x, Num),
+        table=lambda x: isinstance(x, Table),
+        para=lambda x: isinstance(x, Para),
+        code=lambda x: isinstance(x, Code),
+        figure=lambda x: isinstance(x, Figure),
+        hashlike=_hashlike,
+    )
+    env.filters.update(
+        base64=lambda data: base64.b64encode(data).decode(),
+        json_path=lambda key: json.dumps(list(key)),
+        md_cell=_markdown_cell,
+    )
     return env
 
 

@@ -102,27 +102,28 @@ from scipy.special import ndtr, ndtri
 from .montecarlo import wilson_interval
 from .surrogate import Surrogate
 
-TRAIN_GROUP = 16            # reducers per training scale: the model's per-call cost is ~8 reducers'
+TRAIN_GROUP = 16  # reducers per training scale: the model's per-call cost is ~8 reducers'
 TRAIN_GROUPS_PER_FACTOR = 16
-MIN_TRAIN_GROUPS = 32       # a degree-2 chaos in F scales needs (F+1)(F+2)/2 well-spread points
-YIELD_DRAWS = 2 ** 14       # unit draws of the surrogate yield (scrambled Sobol', a power of 2)
-LOG_FLOOR = 0.05            # of the mean error size: log inputs stay finite for a zero draw
-YIELD_CLIP = 1e-15          # a yield is kept this far off 0 and 1 before its probit
-MAX_ROUNDS = 8              # verifications at most (each n reducers)
-MAX_CONFIRMATIONS = 3       # fresh Monte Carlo runs of the cheapest verified allocations, in turn
-REACH_TRIES = 2             # the best reachable yield verified short twice: out of reach
-PATIENCE = 2                # rounds in a row that find nothing cheaper meeting the target: stop
-IMPROVEMENT = 0.01          # stop when the next allocation would save less than this share
-KAPPA = 1.65                # standard deviations of margin the search plans with (95 %)
-CORRECTION_CONSTANT = 0.2   # the surrogate's error (Correction), probit units: a constant,
-CORRECTION_SLOPE = 0.3      # a share of the drop in yield it predicts,
-CORRECTION_LOCAL = 0.2      # and a local part,
-CORRECTION_LENGTH = 0.5     # correlated over this change of ln s per factor (x1.65)
-HIGH_YIELD = 0.99           # from this target on, verify with at least MIN_HIGH_YIELD_N reducers
-MIN_HIGH_YIELD_N = 10000    # 27 expected failures at 0.9973: the estimate means something
+MIN_TRAIN_GROUPS = 32  # a degree-2 chaos in F scales needs (F+1)(F+2)/2 well-spread points
+YIELD_DRAWS = 2**14  # unit draws of the surrogate yield (scrambled Sobol', a power of 2)
+LOG_FLOOR = 0.05  # of the mean error size: log inputs stay finite for a zero draw
+YIELD_CLIP = 1e-15  # a yield is kept this far off 0 and 1 before its probit
+MAX_ROUNDS = 8  # verifications at most (each n reducers)
+MAX_CONFIRMATIONS = 3  # fresh Monte Carlo runs of the cheapest verified allocations, in turn
+REACH_TRIES = 2  # the best reachable yield verified short twice: out of reach
+PATIENCE = 2  # rounds in a row that find nothing cheaper meeting the target: stop
+IMPROVEMENT = 0.01  # stop when the next allocation would save less than this share
+KAPPA = 1.65  # standard deviations of margin the search plans with (95 %)
+CORRECTION_CONSTANT = 0.2  # the surrogate's error (Correction), probit units: a constant,
+CORRECTION_SLOPE = 0.3  # a share of the drop in yield it predicts,
+CORRECTION_LOCAL = 0.2  # and a local part,
+CORRECTION_LENGTH = 0.5  # correlated over this change of ln s per factor (x1.65)
+HIGH_YIELD = 0.99  # from this target on, verify with at least MIN_HIGH_YIELD_N reducers
+MIN_HIGH_YIELD_N = 10000  # 27 expected failures at 0.9973: the estimate means something
 
 
 # -- the problem the core sees ----------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Limit:
@@ -234,11 +235,21 @@ class ScaleAllocation:
     evaluations: int
     confirmations: tuple[Verified, ...] = ()
 
+
 # -- the core: scales -> cheapest verified allocation ---------------------------------------------
 
-def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | None = None,
-                    draws: int = YIELD_DRAWS, log=None, progress: bool | None = False,
-                    column_names: tuple[str, ...] | None = None) -> ScaleAllocation:
+
+def allocate_scales(
+    model: ScaledModel,
+    target: float,
+    n: int,
+    *,
+    groups: int | None = None,
+    draws: int = YIELD_DRAWS,
+    log=None,
+    progress: bool | None = False,
+    column_names: tuple[str, ...] | None = None,
+) -> ScaleAllocation:
     """The least-cost scales with a verified yield >= target (module docstring, steps 1-7).
 
     n: reducers of each verification Monte Carlo; groups: training groups of
@@ -253,12 +264,14 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
     # the target: the target plus z_conf binomial standard errors, in probit units
     z_need = z_target + float(ndtri(0.5 + 0.5 * model.confidence)) * _binomial_probit_noise(target, n)
     evaluations = 0
-    data = []                       # (scales (k, F), R (k, F), Y (k, M), training group)
+    data = []  # (scales (k, F), R (k, F), Y (k, M), training group)
 
     current = _verify(model, ones, n, 0)
     evaluations += n
-    say(f"allocate: current tolerances: yield {current.estimate:.5f} "
-        f"[{current.low:.5f}, {current.high:.5f}] of {current.n}")
+    say(
+        f"allocate: current tolerances: yield {current.estimate:.5f} "
+        f"[{current.low:.5f}, {current.high:.5f}] of {current.n}"
+    )
 
     groups = groups or max(MIN_TRAIN_GROUPS, TRAIN_GROUPS_PER_FACTOR * F)
     from scipy.stats import qmc
@@ -266,10 +279,19 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
     box = qmc.LatinHypercube(d=F, seed=np.random.default_rng([model.seed, 1])).random(groups)
     S = np.exp(np.log(lower) + (np.log(upper) - np.log(lower)) * box)
     bar = _bar(groups * TRAIN_GROUP, "allocate training", progress)
-    tasks = [(S[g], np.random.default_rng([model.seed, 0x616C6C6F, g]).random(
-        (TRAIN_GROUP, model.columns)), f"allocation-train-{g}") for g in range(groups)]
-    results = (model.evaluate_groups(tasks) if model.evaluate_groups is not None else
-               (model.evaluate(*task) for task in tasks))
+    tasks = [
+        (
+            S[g],
+            np.random.default_rng([model.seed, 0x616C6C6F, g]).random((TRAIN_GROUP, model.columns)),
+            f"allocation-train-{g}",
+        )
+        for g in range(groups)
+    ]
+    results = (
+        model.evaluate_groups(tasks)
+        if model.evaluate_groups is not None
+        else (model.evaluate(*task) for task in tasks)
+    )
     for g, ((scales, U, _), Y) in enumerate(zip(tasks, results)):
         data.append((np.tile(scales, (TRAIN_GROUP, 1)), model.magnitudes(U), Y, g))
         if bar is not None:
@@ -318,7 +340,7 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
                 continue
             p, dp = surrogate.probability(Z, gradient=True)
             size = s * R_yield
-            dZ = size / (size + floor) if model.log_inputs else Z        # dZ / d ln s
+            dZ = size / (size + floor) if model.log_inputs else Z  # dZ / d ln s
             y = p.mean()
             z[k] = _probit(y)
             if YIELD_CLIP < y < 1.0 - YIELD_CLIP:
@@ -360,8 +382,7 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
         def hopeful(S, gradient=False, correction=correction):
             return correction.planned(S, KAPPA, 0.0, gradient)
 
-        candidates = [k for k, done in enumerate(points)
-                      if done.verified.meets(target) and k not in refuted]
+        candidates = [k for k, done in enumerate(points) if done.verified.meets(target) and k not in refuted]
         rounds_left = len(points) - 1 < MAX_ROUNDS
         # patience runs out only with a candidate better than the current tolerances
         cost, again, reaching, expecting = math.inf, False, False, False
@@ -382,40 +403,63 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
                     scales = reach
                     hope = best_reachable(model, hopeful, [reach])[1]
             else:
-                scales = optimise(model, cautious, z_need,
-                                  [reach] + [points[k].verified.scales for k in candidates])
+                scales = optimise(
+                    model, cautious, z_need, [reach] + [points[k].verified.scales for k in candidates]
+                )
             scales = model.snap(scales)
             cost = float(model.cost(scales).sum())
             again = any(np.array_equal(scales, done.verified.scales) for done in points)
         best = min(candidates, key=lambda k: points[k].cost, default=None)
-        search_over = (not rounds_left or again or stuck
-                       or (best is not None and cost >= (1.0 - IMPROVEMENT) * points[best].cost))
+        search_over = (
+            not rounds_left
+            or again
+            or stuck
+            or (best is not None and cost >= (1.0 - IMPROVEMENT) * points[best].cost)
+        )
         if search_over:
             if best is None or len(confirmations) >= MAX_CONFIRMATIONS:
                 break
             if rounds_left:
-                say(f"allocate: the next allocation would cost {cost:.4g}" +
-                    (", one already verified" if again else
-                     f": {PATIENCE} rounds without a cheaper one that meets the target"
-                     if stuck else
-                     f", no less than the cheapest verified one ({points[best].cost:.4g})"))
+                say(
+                    f"allocate: the next allocation would cost {cost:.4g}"
+                    + (
+                        ", one already verified"
+                        if again
+                        else f": {PATIENCE} rounds without a cheaper one that meets the target"
+                        if stuck
+                        else f", no less than the cheapest verified one ({points[best].cost:.4g})"
+                    )
+                )
             # Confirmation: that allocation was chosen because its Monte Carlo met the target,
             # which flatters it a little: the answer's yield is a fresh one
             done = points[best]
             confirmed = monte_carlo(done.verified.scales)
             confirmations.append(confirmed)
-            say(f"allocate: confirmation on fresh draws at cost {done.cost:.4g}: yield "
+            say(
+                f"allocate: confirmation on fresh draws at cost {done.cost:.4g}: yield "
                 f"{confirmed.estimate:.5f} [{confirmed.low:.5f}, {confirmed.high:.5f}] of "
-                f"{confirmed.n}" + ("" if confirmed.meets(target) else
-                                    " (below the target: the search goes on)"))
+                f"{confirmed.n}"
+                + ("" if confirmed.meets(target) else " (below the target: the search goes on)")
+            )
             if confirmed.meets(target):
-                validation += (f"; at the allocation: predicted {done.predicted:.5f}, verified "
-                               f"{done.verified.estimate:.5f}, confirmed on fresh draws "
-                               f"{confirmed.estimate:.5f}" if best else
-                               "; the current tolerances are the cheapest that met the target")
-                return ScaleAllocation(done.verified.scales, True, current, confirmed,
-                                       tuple(points[1:]), samples, validation, evaluations,
-                                       tuple(confirmations))
+                validation += (
+                    f"; at the allocation: predicted {done.predicted:.5f}, verified "
+                    f"{done.verified.estimate:.5f}, confirmed on fresh draws "
+                    f"{confirmed.estimate:.5f}"
+                    if best
+                    else "; the current tolerances are the cheapest that met the target"
+                )
+                return ScaleAllocation(
+                    done.verified.scales,
+                    True,
+                    current,
+                    confirmed,
+                    tuple(points[1:]),
+                    samples,
+                    validation,
+                    evaluations,
+                    tuple(confirmations),
+                )
             refuted.add(best)
             stale = 0
             continue
@@ -424,26 +468,35 @@ def allocate_scales(model: ScaledModel, target: float, n: int, *, groups: int | 
         verified = monte_carlo(scales)
         points.append(Round(float(KAPPA * math.sqrt(var + e * e)), predicted, verified, cost))
         meets = verified.meets(target)
-        say(f"allocate: round {len(points) - 1}" +
-            (" (the cheapest the corrected surrogate expects to meet the target)" if expecting
-             else " (the best yield the search can count on)" if reaching else "") +
-            f": cost {cost:.4g}, predicted {predicted:.5f} (+/- {math.sqrt(var):.3f} probit), "
+        say(
+            f"allocate: round {len(points) - 1}"
+            + (
+                " (the cheapest the corrected surrogate expects to meet the target)"
+                if expecting
+                else " (the best yield the search can count on)"
+                if reaching
+                else ""
+            )
+            + f": cost {cost:.4g}, predicted {predicted:.5f} (+/- {math.sqrt(var):.3f} probit), "
             f"verified {verified.estimate:.5f} [{verified.low:.5f}, {verified.high:.5f}] of "
-            f"{verified.n}" + ("" if meets else " (below the target)"))
+            f"{verified.n}" + ("" if meets else " (below the target)")
+        )
         misses += bool(reaching and not expecting and not meets and hope < z_target)
         if misses >= REACH_TRIES and not candidates and not meets:
-            break                                       # out of reach, as far as can be told
+            break  # out of reach, as far as can be told
         cheaper = meets and all(cost < points[k].cost for k in candidates)
         stale = 0 if cheaper else stale + bool(candidates or meets)
     rounds = tuple(points[1:])
     if confirmations:
         best = max(confirmations, key=lambda c: c.estimate)
         validation += "; no verified allocation was confirmed on fresh draws"
-        return ScaleAllocation(best.scales, False, current, best, rounds, samples, validation,
-                               evaluations, tuple(confirmations))
+        return ScaleAllocation(
+            best.scales, False, current, best, rounds, samples, validation, evaluations, tuple(confirmations)
+        )
     reached = max(reversed(points), key=lambda done: done.verified.estimate)
-    return ScaleAllocation(reached.verified.scales, False, current, reached.verified, rounds,
-                           samples, validation, evaluations)
+    return ScaleAllocation(
+        reached.verified.scales, False, current, reached.verified, rounds, samples, validation, evaluations
+    )
 
 
 class Correction:
@@ -479,8 +532,11 @@ class Correction:
     def _kernel(self, X1, d1, X2, d2):
         F = X1.shape[1]
         squared = ((X1[:, None, :] - X2[None, :, :]) ** 2).sum(axis=2)
-        return (CORRECTION_CONSTANT ** 2 + CORRECTION_SLOPE ** 2 * np.outer(d1, d2)
-                + CORRECTION_LOCAL ** 2 * np.exp(-squared / (2.0 * F * CORRECTION_LENGTH ** 2)))
+        return (
+            CORRECTION_CONSTANT**2
+            + CORRECTION_SLOPE**2 * np.outer(d1, d2)
+            + CORRECTION_LOCAL**2 * np.exp(-squared / (2.0 * F * CORRECTION_LENGTH**2))
+        )
 
     def at(self, S, gradient=False):
         """(z_S, mean of delta, variance of delta) at each row of scales S (m, F); with
@@ -492,22 +548,22 @@ class Correction:
         else:
             z = self.surrogate_probit(S)
         d = self.z_now - z
-        k = self._kernel(x, d, self.X, self.d)                    # (m, k)
-        prior = CORRECTION_CONSTANT ** 2 + CORRECTION_SLOPE ** 2 * d * d + CORRECTION_LOCAL ** 2
-        solved = self._solve(k.T)                                  # (k, m)
+        k = self._kernel(x, d, self.X, self.d)  # (m, k)
+        prior = CORRECTION_CONSTANT**2 + CORRECTION_SLOPE**2 * d * d + CORRECTION_LOCAL**2
+        solved = self._solve(k.T)  # (k, m)
         var = prior - np.einsum("ij,ji->i", k, solved)
         if not gradient:
             return z, k @ self.weights, np.maximum(var, 0.0)
         F = x.shape[1]
-        local = np.exp(-((x[:, None, :] - self.X[None]) ** 2).sum(axis=2)
-                       / (2.0 * F * CORRECTION_LENGTH ** 2))      # (m, k)
+        local = np.exp(
+            -((x[:, None, :] - self.X[None]) ** 2).sum(axis=2) / (2.0 * F * CORRECTION_LENGTH**2)
+        )  # (m, k)
         # dk / dx: the slope part through d = z_now - z_S, the local part through x
-        dk = (-CORRECTION_SLOPE ** 2 * self.d[None, :, None] * dz[:, None, :]
-              - CORRECTION_LOCAL ** 2 * local[..., None] * (x[:, None, :] - self.X[None])
-              / (F * CORRECTION_LENGTH ** 2))                      # (m, k, F)
+        dk = -(CORRECTION_SLOPE**2) * self.d[None, :, None] * dz[:, None, :] - CORRECTION_LOCAL**2 * local[
+            ..., None
+        ] * (x[:, None, :] - self.X[None]) / (F * CORRECTION_LENGTH**2)  # (m, k, F)
         d_mean = np.einsum("mkf,k->mf", dk, self.weights)
-        d_var = -2.0 * CORRECTION_SLOPE ** 2 * d[:, None] * dz - 2.0 * np.einsum(
-            "mkf,km->mf", dk, solved)
+        d_var = -2.0 * CORRECTION_SLOPE**2 * d[:, None] * dz - 2.0 * np.einsum("mkf,km->mf", dk, solved)
         d_var[var <= 0.0] = 0.0
         return z, k @ self.weights, np.maximum(var, 0.0), dz, d_mean, d_var
 
@@ -555,8 +611,7 @@ class _Box:
         return float(z[0]), dz[0, self.free]
 
 
-def best_reachable(model: ScaledModel, probit_at, starts, lower=None,
-                   upper=None) -> tuple[np.ndarray, float]:
+def best_reachable(model: ScaledModel, probit_at, starts, lower=None, upper=None) -> tuple[np.ndarray, float]:
     """The scales (F,) of the highest yield within [lower, upper] (default the bounds), and
     its probit: scipy's L-BFGS-B over ln s from each start (scales (F,)), the best kept.
 
@@ -569,9 +624,14 @@ def best_reachable(model: ScaledModel, probit_at, starts, lower=None,
         return box.lower.copy(), float(probit_at(box.lower[None])[0])
     best, best_z = None, -math.inf
     for start in starts:
-        result = minimize(lambda v: tuple(-x for x in box.probit(probit_at, v)),
-                          box.variables(start), jac=True, method="L-BFGS-B", bounds=box.bounds(),
-                          options={"maxiter": 50})
+        result = minimize(
+            lambda v: tuple(-x for x in box.probit(probit_at, v)),
+            box.variables(start),
+            jac=True,
+            method="L-BFGS-B",
+            bounds=box.bounds(),
+            options={"maxiter": 50},
+        )
         for v in (box.variables(start), np.clip(result.x, box.lo[box.free], box.hi[box.free])):
             z = float(probit_at(box.scales(v)[None])[0])
             if z > best_z:
@@ -579,8 +639,7 @@ def best_reachable(model: ScaledModel, probit_at, starts, lower=None,
     return best, best_z
 
 
-def optimise(model: ScaledModel, probit_at, wanted: float, starts=(), lower=None,
-             upper=None) -> np.ndarray:
+def optimise(model: ScaledModel, probit_at, wanted: float, starts=(), lower=None, upper=None) -> np.ndarray:
     """Least-cost scales (F,) in [lower, upper] (default the bounds) with
     probit_at(s) >= wanted, by SLSQP over ln s.
 
@@ -614,17 +673,22 @@ def optimise(model: ScaledModel, probit_at, wanted: float, starts=(), lower=None
         return box.upper.copy()
     points = [box.variables(np.ones_like(box.lower))] + [box.variables(s) for s in starts]
     a, b = float(box.lo.min()), float(box.hi.max())
-    if gap(a) >= 0:                                     # (gap(b) < 0: the loosest fails)
+    if gap(a) >= 0:  # (gap(b) < 0: the loosest fails)
         points.append(uniform(brentq(gap, a, b, xtol=1e-6) - 2e-6)[box.free])
     best, best_cost = None, math.inf
-    for v in points:                                    # a feasible start is an answer already
+    for v in points:  # a feasible start is an answer already
         if constraint(v) >= 0 and objective(v)[0] < best_cost:
             best, best_cost = box.scales(v), objective(v)[0]
     for x0 in points:
-        result = minimize(objective, x0, jac=True, method="SLSQP", bounds=box.bounds(),
-                          constraints=[{"type": "ineq", "fun": constraint,
-                                        "jac": lambda v: box.probit(probit_at, v)[1]}],
-                          options={"maxiter": 100, "ftol": 1e-8})
+        result = minimize(
+            objective,
+            x0,
+            jac=True,
+            method="SLSQP",
+            bounds=box.bounds(),
+            constraints=[{"type": "ineq", "fun": constraint, "jac": lambda v: box.probit(probit_at, v)[1]}],
+            options={"maxiter": 100, "ftol": 1e-8},
+        )
         v = np.clip(result.x, box.lo[box.free], box.hi[box.free])
         if constraint(v) >= -1e-6 and objective(v)[0] < best_cost:
             best, best_cost = box.scales(v), objective(v)[0]
@@ -674,5 +738,11 @@ def _bar(total, label, progress):
         return None
     from tqdm import tqdm
 
-    return tqdm(total=total, unit="reducer", desc=label, file=sys.stderr, dynamic_ncols=True,
-                disable=None if progress is None else not progress)
+    return tqdm(
+        total=total,
+        unit="reducer",
+        desc=label,
+        file=sys.stderr,
+        dynamic_ncols=True,
+        disable=None if progress is None else not progress,
+    )

@@ -49,22 +49,23 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import norm
 
-from rvfmu.core.checks import InputError
-from rvfmu.core.errors import ErrorSet
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.reducer.errors import ErrorSet
 
 from . import montecarlo, sobol
 from .error_rows import clearance_components, error_vector
 from .evaluate import Outputs, metrics_from, output_columns
 from .sampling import errors_from_unit
 
-Q2_MIN = 0.95          # the check's floor: the linearization explains 95 % of a metric's variance
-SOLVED_N = 64          # base samples solved for the correction and the check (2 x 64 reducers)
-MOMENT_DRAWS = 4096    # draws (no solves) whose mean and spread give e0 and the steps
-PREDICT_ROWS = 4096    # rows predicted at a time (memory: rows x points x 8 bytes)
+Q2_MIN = 0.95  # the check's floor: the linearization explains 95 % of a metric's variance
+SOLVED_N = 64  # base samples solved for the correction and the check (2 x 64 reducers)
+MOMENT_DRAWS = 4096  # draws (no solves) whose mean and spread give e0 and the steps
+PREDICT_ROWS = 4096  # rows predicted at a time (memory: rows x points x 8 bytes)
 JOB = "linearized"
 
 
 # -- the linearization --------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Linearization:
@@ -84,21 +85,20 @@ class Linearization:
     scalar_slope: dict
     solves: int
     like: ErrorSet
-    computed: int = 0       # of the solves, those this run computed (the rest were stored)
+    computed: int = 0  # of the solves, those this run computed (the rest were stored)
 
     def outputs(self, errors: ErrorSet) -> Outputs:
         """The predicted `Outputs` of the reducers `errors`."""
         delta = (error_vector(errors) - self.centre)[:, self.active]
         te = None if self.te0 is None else self.te0 + delta @ self.te_slope
-        scalars = {kind: self.scalar0[kind] + delta @ slope
-                   for kind, slope in self.scalar_slope.items()}
+        scalars = {kind: self.scalar0[kind] + delta @ slope for kind, slope in self.scalar_slope.items()}
         return Outputs(te, scalars, np.ones(errors.samples, dtype=bool))
 
     def predict(self, study, X: np.ndarray) -> np.ndarray:
         """Y (S, M) of the study's metrics at sample rows X (S, D), predicted in batches."""
         parts = []
         for start in range(0, X.shape[0], PREDICT_ROWS):
-            out = self.outputs(errors_from_unit(study, X[start:start + PREDICT_ROWS]))
+            out = self.outputs(errors_from_unit(study, X[start : start + PREDICT_ROWS]))
             parts.append(metrics_from(study, out.te_arcsec, out.scalars))
         return np.concatenate(parts) if parts else np.empty((0, len(study.metrics)))
 
@@ -124,34 +124,61 @@ def linearize(study, backend=None, progress=None, log=None, yes: bool = False) -
     """The study's `Linearization`: its 2A + 1 reducers solved on `backend` (default in this
     process) in batches of the study's batch_size, each stored in the output folder as it
     finishes (job "linearized"): a run started again reads them instead of solving them."""
-    from .run import compute    # the runs' batch loop, shared
+    from .run import compute  # the runs' batch loop, shared
 
     points, active, steps, like = difference_points(study)
     te_columns, kinds = output_columns(study)
     if log is not None:
-        log(f"linearized: {points.shape[0]} reducers (2A + 1) for the central differences along "
-            f"the A = {active.size} error components the study draws")
-    computed = compute(study, JOB, points.shape[0], lambda s, e: points[s:e], backend, progress,
-                       log, yes=yes, columns=te_columns + tuple(f"scalar_{k}" for k in kinds),
-                       like=like)
+        log(
+            f"linearized: {points.shape[0]} reducers (2A + 1) for the central differences along "
+            f"the A = {active.size} error components the study draws"
+        )
+    computed = compute(
+        study,
+        JOB,
+        points.shape[0],
+        lambda s, e: points[s:e],
+        backend,
+        progress,
+        log,
+        yes=yes,
+        columns=te_columns + tuple(f"scalar_{k}" for k in kinds),
+        like=like,
+    )
     Y = computed.Y
     if not np.all(computed.converged):
         bad = int(np.flatnonzero(~computed.converged)[0])
-        raise RuntimeError(f"the reducer of difference point {bad} did not converge: the "
-                           "linearization needs every one; use method = \"saltelli\"")
-    width = (Y[1::2] - Y[2::2]) / steps.sum(axis=1)[:, None]     # (A, columns)
+        raise RuntimeError(
+            f"the reducer of difference point {bad} did not converge: the "
+            'linearization needs every one; use method = "saltelli"'
+        )
+    width = (Y[1::2] - Y[2::2]) / steps.sum(axis=1)[:, None]  # (A, columns)
     K = len(te_columns)
-    return Linearization(points[0], active, Y[0, :K] if K else None, width[:, :K] if K else None,
-                         {k: float(Y[0, K + j]) for j, k in enumerate(kinds)},
-                         {k: width[:, K + j] for j, k in enumerate(kinds)}, points.shape[0], like,
-                         computed.computed_rows)
+    return Linearization(
+        points[0],
+        active,
+        Y[0, :K] if K else None,
+        width[:, :K] if K else None,
+        {k: float(Y[0, K + j]) for j, k in enumerate(kinds)},
+        {k: width[:, K + j] for j, k in enumerate(kinds)},
+        points.shape[0],
+        like,
+        computed.computed_rows,
+    )
 
 
 # -- the corrected indices and the check -----------------------------------------------------
 
-def corrected_indices(problem: dict, predicted: np.ndarray, solved: np.ndarray,
-                      second_order: bool = False, resamples: int = 200,
-                      confidence: float = 0.95, seed: int = 0) -> sobol.Indices:
+
+def corrected_indices(
+    problem: dict,
+    predicted: np.ndarray,
+    solved: np.ndarray,
+    second_order: bool = False,
+    resamples: int = 200,
+    confidence: float = 0.95,
+    seed: int = 0,
+) -> sobol.Indices:
     """Indices of one output: Saltelli's estimators on the linearization's `predicted`
     outputs (n * rows_per_base_sample,) corrected by the first m base samples' `solved`
     outputs (m * rows_per_base_sample,): S_n[y^] + S_m[y] - S_m[y^] (module docstring),
@@ -159,18 +186,28 @@ def corrected_indices(problem: dict, predicted: np.ndarray, solved: np.ndarray,
     rows = np.asarray(solved).size
     big = sobol.indices(problem, predicted, second_order, resamples, confidence, seed)
     small = sobol.indices(problem, solved, second_order, resamples, confidence, seed)
-    small_hat = sobol.indices(problem, np.asarray(predicted)[:rows], second_order, resamples,
-                              confidence, seed)
+    small_hat = sobol.indices(
+        problem, np.asarray(predicted)[:rows], second_order, resamples, confidence, seed
+    )
     if small.constant or small.whole_input or big.constant or small_hat.constant:
         return small if small.whole_input or small.constant else big
     z = norm.ppf(0.5 + confidence / 2)
     st = big.ST_resamples + small.ST_resamples - small_hat.ST_resamples
     s1 = big.S1_resamples + small.S1_resamples - small_hat.S1_resamples
     square = np.full_like(big.S2, np.nan) if second_order else None
-    return sobol.Indices(big.names, big.n, big.S1 + small.S1 - small_hat.S1,
-                         z * s1.std(axis=0, ddof=1), big.ST + small.ST - small_hat.ST,
-                         z * st.std(axis=0, ddof=1), square, square, confidence,
-                         ST_resamples=st, S1_resamples=s1)
+    return sobol.Indices(
+        big.names,
+        big.n,
+        big.S1 + small.S1 - small_hat.S1,
+        z * s1.std(axis=0, ddof=1),
+        big.ST + small.ST - small_hat.ST,
+        z * st.std(axis=0, ddof=1),
+        square,
+        square,
+        confidence,
+        ST_resamples=st,
+        S1_resamples=s1,
+    )
 
 
 @dataclass(frozen=True)
@@ -192,21 +229,30 @@ class Check:
     def lines(self) -> list[str]:
         """What was solved, then one line per metric: the check, passed or failed, and what the
         run does then."""
-        out = [f"linearized: {self.solves} reducers solved for the linearization; its check on "
-               f"{self.rows} solved reducers (the A and B rows of the solved design), floor "
-               f"Q2 >= {Q2_MIN}:"]
+        out = [
+            f"linearized: {self.solves} reducers solved for the linearization; its check on "
+            f"{self.rows} solved reducers (the A and B rows of the solved design), floor "
+            f"Q2 >= {Q2_MIN}:"
+        ]
         for column, q2, error, ok in zip(self.columns, self.q2, self.largest_error, self.passed()):
-            verdict = "passed: its ranking is the corrected linearization's" if ok else \
-                "FAILED: its ranking comes from Saltelli's whole design, solved"
+            verdict = (
+                "passed: its ranking is the corrected linearization's"
+                if ok
+                else "FAILED: its ranking comes from Saltelli's whole design, solved"
+            )
             out.append(f"  {column}: Q2 = {q2:.4f}, largest error {error:.3g}: {verdict}")
         return out
 
     def to_json(self) -> dict:
         """The check for the JSON summary: rows, solves, the Q2 floor, and Q2 and the largest
         error per metric column."""
-        return {"rows": self.rows, "solves": self.solves, "q2_min": Q2_MIN,
-                "q2": dict(zip(self.columns, map(float, self.q2))),
-                "largest_error": dict(zip(self.columns, map(float, self.largest_error)))}
+        return {
+            "rows": self.rows,
+            "solves": self.solves,
+            "q2_min": Q2_MIN,
+            "q2": dict(zip(self.columns, map(float, self.q2))),
+            "largest_error": dict(zip(self.columns, map(float, self.largest_error))),
+        }
 
 
 def q2_score(y: np.ndarray, predicted: np.ndarray) -> float:
@@ -232,5 +278,6 @@ def check(study, solved: np.ndarray, predicted: np.ndarray, solves: int = 0) -> 
     if solved.shape[0] < 2:
         raise InputError("solved rows", solved.shape[0], "the check needs at least 2 reducers")
     q2 = np.array([q2_score(solved[:, j], predicted[:, j]) for j in range(solved.shape[1])])
-    return Check(study.metric_columns, q2, np.max(np.abs(solved - predicted), axis=0),
-                 solved.shape[0], solves)
+    return Check(
+        study.metric_columns, q2, np.max(np.abs(solved - predicted), axis=0), solved.shape[0], solves
+    )

@@ -24,8 +24,11 @@ PERCENTILES = (1, 5, 50, 95, 99)
 def rows(study, start: int, stop: int) -> np.ndarray:
     """Sample rows [start, stop) of the study's Monte Carlo: (stop - start, D) in [0, 1)."""
     D = len(study.columns)
-    return np.stack([np.random.default_rng([study.seed, r]).random(D) for r in range(start, stop)]) \
-        if stop > start else np.empty((0, D))
+    return (
+        np.stack([np.random.default_rng([study.seed, r]).random(D) for r in range(start, stop)])
+        if stop > start
+        else np.empty((0, D))
+    )
 
 
 def sample(study, n: int) -> np.ndarray:
@@ -101,12 +104,18 @@ def analyze(study, Y: np.ndarray, converged: np.ndarray, confidence: float | Non
     for j, column in enumerate(study.metric_columns):
         v = good[:, j]
         if v.size == 0:
-            summaries.append(MetricSummary(column, *(np.nan,) * 3, {p: np.nan for p in PERCENTILES},
-                                           np.nan))
+            summaries.append(MetricSummary(column, *(np.nan,) * 3, {p: np.nan for p in PERCENTILES}, np.nan))
             continue
-        summaries.append(MetricSummary(
-            column, float(v.mean()), float(v.std(ddof=1)) if v.size > 1 else 0.0, float(v.min()),
-            {p: float(np.percentile(v, p)) for p in PERCENTILES}, float(v.max())))
+        summaries.append(
+            MetricSummary(
+                column,
+                float(v.mean()),
+                float(v.std(ddof=1)) if v.size > 1 else 0.0,
+                float(v.min()),
+                {p: float(np.percentile(v, p)) for p in PERCENTILES},
+                float(v.max()),
+            )
+        )
     yields = []
     if study.spec:
         passes_all = np.ones(good.shape[0], dtype=bool)
@@ -125,10 +134,16 @@ def analyze(study, Y: np.ndarray, converged: np.ndarray, confidence: float | Non
         worst = int(np.nanargmin(values))
     else:
         worst = int(np.nanargmax(values))
-    return MCAnalysis(n=Y.shape[0], evaluated=int(ok.sum()), failed=int((~ok).sum()),
-                      not_converged=int((~np.asarray(converged, dtype=bool) & ok).sum()),
-                      summaries=tuple(summaries), yields=tuple(yields), worst=worst,
-                      worst_column=worst_column)
+    return MCAnalysis(
+        n=Y.shape[0],
+        evaluated=int(ok.sum()),
+        failed=int((~ok).sum()),
+        not_converged=int((~np.asarray(converged, dtype=bool) & ok).sum()),
+        summaries=tuple(summaries),
+        yields=tuple(yields),
+        worst=worst,
+        worst_column=worst_column,
+    )
 
 
 def _yield(label, passes, confidence) -> Yield:

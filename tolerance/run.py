@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rvfmu.core.checks import InputError, fits_in_memory, integer
-from rvfmu.core.errors import error_file_values, toml_text
-from rvfmu.core.quasistatic import TECurve, te_curve
+from rvfmu.core.base.checks import InputError, fits_in_memory, integer
+from rvfmu.core.reducer.errors import error_file_values, toml_text
+from rvfmu.core.statics.quasistatic import TECurve, te_curve
 from rvfmu.outputs import output_folder
 
 from . import aliasing, frames, linearized, montecarlo, sobol, summaries
@@ -59,9 +59,11 @@ class Computed:
     def summary(self, job: str) -> str:
         """One line: reducers, batches, reused and computed, wall time [s], rate and backend."""
         rate = f", {self.rate:.1f} reducers/s" if self.computed else ""
-        return (f"{job}: {self.Y.shape[0]} reducers in {self.batches} batches of "
-                f"{self.batch_size} ({self.reused} reused, {self.computed} computed) "
-                f"in {self.seconds:.1f} s{rate} on {self.backend}")
+        return (
+            f"{job}: {self.Y.shape[0]} reducers in {self.batches} batches of "
+            f"{self.batch_size} ({self.reused} reused, {self.computed} computed) "
+            f"in {self.seconds:.1f} s{rate} on {self.backend}"
+        )
 
 
 # Set by the command line's Ctrl-C handler (tolerance/cli.py) beside the KeyboardInterrupt it
@@ -70,8 +72,8 @@ class Computed:
 # next finished batch when this is set.
 STOP = threading.Event()
 
-DAY_SECONDS = 86400.0      # a run estimated above a day needs --yes
-DISK_MARGIN = 1.1          # store size + 10 % must fit in the free space without --yes
+DAY_SECONDS = 86400.0  # a run estimated above a day needs --yes
+DISK_MARGIN = 1.1  # store size + 10 % must fit in the free space without --yes
 
 
 @dataclass(frozen=True)
@@ -105,11 +107,13 @@ class RunPlan:
     def text(self) -> str:
         """One line: the evaluations still to compute, the estimated time and the store's size
         against the free disk space."""
-        return (f"{self.job}: {self.rows} evaluations in {self.batches} batches of "
-                f"{self.batch_size} ({self.missing} to compute); first batch "
-                f"{self.seconds_first:.2f} s -> about {duration_text(self.seconds)} more on "
-                f"{self.backend}; the store takes about {size_text(self.store_bytes)} more "
-                f"({size_text(self.free_bytes)} free)")
+        return (
+            f"{self.job}: {self.rows} evaluations in {self.batches} batches of "
+            f"{self.batch_size} ({self.missing} to compute); first batch "
+            f"{self.seconds_first:.2f} s -> about {duration_text(self.seconds)} more on "
+            f"{self.backend}; the store takes about {size_text(self.store_bytes)} more "
+            f"({size_text(self.free_bytes)} free)"
+        )
 
     def refusal(self) -> str | None:
         """Why this run should not start without confirmation, or None."""
@@ -117,20 +121,23 @@ class RunPlan:
         if self.seconds > DAY_SECONDS:
             reasons.append(f"would take about {duration_text(self.seconds)} on {self.backend}")
         if self.store_bytes * DISK_MARGIN > self.free_bytes:
-            reasons.append(f"would write about {size_text(self.store_bytes)} with "
-                           f"{size_text(self.free_bytes)} free on the output's disk")
+            reasons.append(
+                f"would write about {size_text(self.store_bytes)} with "
+                f"{size_text(self.free_bytes)} free on the output's disk"
+            )
         if not reasons:
             return None
-        return (f"{self.rows} evaluations " + " and ".join(reasons) + " (estimated from the first "
-                f"batch of {self.batch_size}: {self.seconds_first:.2f} s, "
-                f"{size_text(self.bytes_first)}); give --yes to run it anyway, or ask for fewer")
+        return (
+            f"{self.rows} evaluations " + " and ".join(reasons) + " (estimated from the first "
+            f"batch of {self.batch_size}: {self.seconds_first:.2f} s, "
+            f"{size_text(self.bytes_first)}); give --yes to run it anyway, or ask for fewer"
+        )
 
 
 def duration_text(seconds: float) -> str:
     """A duration in seconds as text in the largest unit it reaches: "12 s", "3.5 min",
     "2.0 h", "1.5 days", "1.1 years"."""
-    for unit, size in (("years", 365.25 * DAY_SECONDS), ("days", DAY_SECONDS), ("h", 3600.0),
-                       ("min", 60.0)):
+    for unit, size in (("years", 365.25 * DAY_SECONDS), ("days", DAY_SECONDS), ("h", 3600.0), ("min", 60.0)):
         if seconds >= size:
             return f"{seconds / size:.1f} {unit}"
     return f"{seconds:.0f} s"
@@ -144,10 +151,21 @@ def size_text(size: float) -> str:
     return f"{size:.0f} B"
 
 
-def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: bool | None = False,
-            log=None, output: Path | None = None, yes: bool = False,
-            size_field: tuple[str, int] | None = None, prefix_jobs=(),
-            columns: tuple | None = None, like=None) -> Computed:
+def compute(
+    study: Study,
+    job: str,
+    n_rows: int,
+    rows,
+    backend=None,
+    progress: bool | None = False,
+    log=None,
+    output: Path | None = None,
+    yes: bool = False,
+    size_field: tuple[str, int] | None = None,
+    prefix_jobs=(),
+    columns: tuple | None = None,
+    like=None,
+) -> Computed:
     """Metrics of rows [0, n_rows) of `job`, reusing the batches already in the output folder.
 
     rows(start, stop) -> (stop - start, D) sample rows.  Batches are the
@@ -186,9 +204,18 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
                 written = store.write(s, e, _raw(X), Y, conv)
                 done[(s, e)] = BatchResult(s, e, Y, conv)
             _stop_if_asked()
-            plan = RunPlan(job, n_rows, n_batches, missing, B, backend.workers, backend.describe(),
-                           time.perf_counter() - clock, written.stat().st_size,
-                           shutil.disk_usage(folder).free)
+            plan = RunPlan(
+                job,
+                n_rows,
+                n_batches,
+                missing,
+                B,
+                backend.workers,
+                backend.describe(),
+                time.perf_counter() - clock,
+                written.stat().st_size,
+                shutil.disk_usage(folder).free,
+            )
             if log is not None:
                 log(plan.text())
             refusal = plan.refusal()
@@ -211,12 +238,11 @@ def compute(study: Study, job: str, n_rows: int, rows, backend=None, progress: b
                     bar.close()
     seconds = time.perf_counter() - start_time
     batches = list(_batches(n_rows, B))
-    Y = np.concatenate([done[b].Y for b in batches]) if batches else \
-        np.empty((0, len(study.metrics)))
-    converged = np.concatenate([done[b].converged for b in batches]) if batches else \
-        np.empty(0, dtype=bool)
-    result = Computed(Y, converged, n_batches, n_batches - missing, missing, todo_rows, seconds,
-                      backend.describe(), B)
+    Y = np.concatenate([done[b].Y for b in batches]) if batches else np.empty((0, len(study.metrics)))
+    converged = np.concatenate([done[b].converged for b in batches]) if batches else np.empty(0, dtype=bool)
+    result = Computed(
+        Y, converged, n_batches, n_batches - missing, missing, todo_rows, seconds, backend.describe(), B
+    )
     if log is not None:
         log(result.summary(job))
     return result
@@ -244,7 +270,7 @@ def _copy_prefix(source: JobStore, target: JobStore, n_rows: int, rows, done: di
     try:
         found = source.load(whole, rows)
     except InputError:
-        return   # not a prefix after all, or a damaged file: this job computes its own
+        return  # not a prefix after all, or a damaged file: this job computes its own
     for (start, stop), result in sorted(found.items()):
         if (start, stop) not in done:
             target.write(start, stop, rows(start, stop), result.Y, result.converged)
@@ -261,12 +287,19 @@ def _progress_bar(total, job, progress, reused):
         return None
     from tqdm import tqdm
 
-    return tqdm(total=total, unit="reducer", desc=job, file=sys.stderr, dynamic_ncols=True,
-                disable=None if progress is None else not progress,
-                postfix={"reused batches": reused} if reused else None)
+    return tqdm(
+        total=total,
+        unit="reducer",
+        desc=job,
+        file=sys.stderr,
+        dynamic_ncols=True,
+        disable=None if progress is None else not progress,
+        postfix={"reused batches": reused} if reused else None,
+    )
 
 
 # -- Monte Carlo ------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class MCResult:
@@ -302,18 +335,39 @@ class MCResult:
     def to_json(self) -> dict:
         """The JSON summary (`summaries.mc_json`) with the run's rows, batches, timings,
         backend, aliasing check and the files written."""
-        return summaries.mc_json(self.study, self.analysis, {
-            "computed_rows": int(self.computed.Y.shape[0]), "batch_size": self.study.batch_size,
-            "aliasing": None if self.aliasing is None else self.aliasing.to_json(),
-            "output": str(self.study.output), "files": {k: str(v) for k, v in self.files.items()},
-            "run": {"batches": self.computed.batches, "reused": self.computed.reused,
-                    "computed": self.computed.computed, "seconds": self.computed.seconds,
-                    "backend": self.computed.backend}})
+        return summaries.mc_json(
+            self.study,
+            self.analysis,
+            {
+                "computed_rows": int(self.computed.Y.shape[0]),
+                "batch_size": self.study.batch_size,
+                "aliasing": None if self.aliasing is None else self.aliasing.to_json(),
+                "output": str(self.study.output),
+                "files": {k: str(v) for k, v in self.files.items()},
+                "run": {
+                    "batches": self.computed.batches,
+                    "reused": self.computed.reused,
+                    "computed": self.computed.computed,
+                    "seconds": self.computed.seconds,
+                    "backend": self.computed.backend,
+                },
+            },
+        )
 
 
-def run_mc(study_path, n: int | None = None, *, output=None, processes: int | None = None,
-           workers: int | None = None, scheduler: str | None = None, progress: bool | None = False,
-           plots: bool = True, log=None, yes: bool = False) -> MCResult:
+def run_mc(
+    study_path,
+    n: int | None = None,
+    *,
+    output=None,
+    processes: int | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: bool | None = False,
+    plots: bool = True,
+    log=None,
+    yes: bool = False,
+) -> MCResult:
     """Monte Carlo of a study file: n reducers (default: the study's [montecarlo] n).
 
     Rows are computed in whole batches (n rounded up to a multiple of the batch
@@ -332,28 +386,44 @@ def run_mc(study_path, n: int | None = None, *, output=None, processes: int | No
     progress, plots, yes = _flags(progress, plots, yes)
     study = _load(study_path, output)
     n = study.mc_n if n is None else integer("n", n, 1)
-    backend = make_backend(processes, workers, scheduler)   # its options checked before any work
+    backend = make_backend(processes, workers, scheduler)  # its options checked before any work
     _warn_load(study, log)
     # Whole batches are computed so that a later, larger n reuses every batch as it is.
     n_rows = math.ceil(n / study.batch_size) * study.batch_size
-    computed = compute(study, "mc", n_rows, lambda s, e: montecarlo.rows(study, s, e),
-                       backend, progress, log, yes=yes, size_field=("n", n))
+    computed = compute(
+        study,
+        "mc",
+        n_rows,
+        lambda s, e: montecarlo.rows(study, s, e),
+        backend,
+        progress,
+        log,
+        yes=yes,
+        size_field=("n", n),
+    )
     Y, converged = computed.Y[:n], computed.converged[:n]
     analysis = montecarlo.analyze(study, Y, converged)
     check_rows = min(n, aliasing.CHECK_ROWS)
-    alias = aliasing.check(study, montecarlo.rows(study, 0, check_rows), Y[:check_rows],
-                           Path(study.output) / "mc", Y, study.spec)
+    alias = aliasing.check(
+        study, montecarlo.rows(study, 0, check_rows), Y[:check_rows], Path(study.output) / "mc", Y, study.spec
+    )
     worst_curve = _worst_curve(study, analysis.worst)
     folder = Path(study.output)
-    files = {"summary": folder / "mc_summary.json", "samples": folder / "mc_samples.csv",
-             "worst_errors": folder / "mc_worst_errors.toml"}
+    files = {
+        "summary": folder / "mc_summary.json",
+        "samples": folder / "mc_samples.csv",
+        "worst_errors": folder / "mc_worst_errors.toml",
+    }
     frames.write_samples(files["samples"], frames.mc_frame(study, Y, converged), study)
     worst_errors = errors_from_unit(study, montecarlo.rows(study, analysis.worst, analysis.worst + 1))
-    files["worst_errors"].write_text(toml_text(
-        error_file_values(worst_errors),
-        f"Worst reducer (row {analysis.worst}) of study {study.name!r}, by {analysis.worst_column}.\n"
-        f"Reproduce: rvte te {study.design_source or study.design.name} --errors {files['worst_errors']}"
-        f" --load {study.load_Nm:g} --points {study.points}"))
+    files["worst_errors"].write_text(
+        toml_text(
+            error_file_values(worst_errors),
+            f"Worst reducer (row {analysis.worst}) of study {study.name!r}, by {analysis.worst_column}.\n"
+            f"Reproduce: rvte te {study.design_source or study.design.name} --errors {files['worst_errors']}"
+            f" --load {study.load_Nm:g} --points {study.points}",
+        )
+    )
     if worst_curve is not None:
         from rvfmu.api import write_te_csv
 
@@ -363,9 +433,14 @@ def run_mc(study_path, n: int | None = None, *, output=None, processes: int | No
         if worst_curve is not None:
             from rvfmu.plots import plot_te
 
-            files["worst_te"] = plot_te(worst_curve, folder / "mc_worst_te.png", title=(
-                f"{study.name}: worst of {n} reducers (row {analysis.worst}), "
-                f"te_pp {worst_curve.te_pp_arcsec[0]:.2f}″, {study.points} points/rev"))
+            files["worst_te"] = plot_te(
+                worst_curve,
+                folder / "mc_worst_te.png",
+                title=(
+                    f"{study.name}: worst of {n} reducers (row {analysis.worst}), "
+                    f"te_pp {worst_curve.te_pp_arcsec[0]:.2f}″, {study.points} points/rev"
+                ),
+            )
     result = MCResult(study, n, Y, converged, analysis, worst_curve, computed, alias, files)
     summaries.write_json(files["summary"], result.to_json())
     return result
@@ -381,6 +456,7 @@ def _worst_curve(study: Study, row: int) -> TECurve | None:
 
 
 # -- Sobol ------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class SobolResult:
@@ -402,10 +478,12 @@ class SobolResult:
     def table(self) -> str:
         """The printed summary: the indices of every metric (`summaries.sobol_table`), then the
         linearized check, the rounds and the aliasing check where they exist."""
-        text = summaries.sobol_table(self.study, self.analyses, self.n, self.Y.shape[0],
-                                  self.second_order)
-        lines = [text, *(self.check.lines() if self.check is not None else ()),
-                 *(r.text(self.method) for r in self.rounds)]
+        text = summaries.sobol_table(self.study, self.analyses, self.n, self.Y.shape[0], self.second_order)
+        lines = [
+            text,
+            *(self.check.lines() if self.check is not None else ()),
+            *(r.text(self.method) for r in self.rounds),
+        ]
         return "\n".join([*lines, *(self.aliasing.lines() if self.aliasing else ())])
 
     def to_df(self, second_order: bool = False):
@@ -417,28 +495,39 @@ class SobolResult:
         if not flag("second_order", second_order):
             return frames.sobol_frame(self.analyses)
         if not self.second_order:
-            raise InputError("second_order", True, "this Sobol run computed no second-order "
-                             "indices: run it with second_order=True (rvte sobol --second-order)")
+            raise InputError(
+                "second_order",
+                True,
+                "this Sobol run computed no second-order "
+                "indices: run it with second_order=True (rvte sobol --second-order)",
+            )
         return frames.s2_frame(self.analyses)
 
     def to_json(self) -> dict:
         """The JSON summary (`summaries.sobol_json`) with the method, rounds, checks, the
         files written and the run's batches, timings and backend."""
-        return summaries.sobol_json(self.study, self.analyses, self.n, self.Y.shape[0],
-                                 self.second_order, {
-                                     "method": self.method,
-                                     "rounds": [r.to_json() for r in self.rounds],
-                                     "linearized_check": None if self.check is None
-                                     else self.check.to_json(),
-                                     "aliasing": None if self.aliasing is None
-                                     else self.aliasing.to_json(),
-                                     "output": str(self.study.output),
-                                     "files": {k: str(v) for k, v in self.files.items()},
-                                     "run": {"batches": self.computed.batches,
-                                             "reused": self.computed.reused,
-                                             "computed": self.computed.computed,
-                                             "seconds": self.computed.seconds,
-                                             "backend": self.computed.backend}})
+        return summaries.sobol_json(
+            self.study,
+            self.analyses,
+            self.n,
+            self.Y.shape[0],
+            self.second_order,
+            {
+                "method": self.method,
+                "rounds": [r.to_json() for r in self.rounds],
+                "linearized_check": None if self.check is None else self.check.to_json(),
+                "aliasing": None if self.aliasing is None else self.aliasing.to_json(),
+                "output": str(self.study.output),
+                "files": {k: str(v) for k, v in self.files.items()},
+                "run": {
+                    "batches": self.computed.batches,
+                    "reused": self.computed.reused,
+                    "computed": self.computed.computed,
+                    "seconds": self.computed.seconds,
+                    "backend": self.computed.backend,
+                },
+            },
+        )
 
 
 def sobol_job(n: int, second_order: bool) -> str:
@@ -455,15 +544,26 @@ def other_sobol_jobs(problem: dict, n: int, second_order: bool) -> list:
     runs' first rows.
     """
     per_base = sobol.rows_per_base_sample(problem, second_order)
-    return [(sobol_job(m, second_order), m * per_base) for m in (1 << k for k in range(31))
-            if m != n]
+    return [(sobol_job(m, second_order), m * per_base) for m in (1 << k for k in range(31)) if m != n]
 
 
-def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = None, output=None,
-              processes: int | None = None, workers: int | None = None,
-              scheduler: str | None = None, progress: bool | None = False, plots: bool = True,
-              log=None, yes: bool = False, method: str | None = None,
-              solved_n: int | None = None, rounds: bool | None = None) -> SobolResult:
+def run_sobol(
+    study_path,
+    n: int | None = None,
+    *,
+    second_order: bool | None = None,
+    output=None,
+    processes: int | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: bool | None = False,
+    plots: bool = True,
+    log=None,
+    yes: bool = False,
+    method: str | None = None,
+    solved_n: int | None = None,
+    rounds: bool | None = None,
+) -> SobolResult:
     """Sobol indices of every metric of a study file over its tolerance factors.
 
     n: base samples (a power of 2; default the study's [sobol] n); with
@@ -492,17 +592,18 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     solved_n = study.sobol_solved_n if solved_n is None else sobol_base_samples("solved_n", solved_n)
     rounds = study.sobol_rounds if rounds is None else flag("rounds", rounds)
     second_order = study.second_order if second_order is None else second_order
-    backend = make_backend(processes, workers, scheduler)   # its options checked before any work
+    backend = make_backend(processes, workers, scheduler)  # its options checked before any work
     _warn_load(study, log)
     problem = study.problem()
     _check_sample_memory(problem, n, second_order)
     start = time.perf_counter()
     if method == "linearized" and study.load_Nm == 0.0 and log is not None:
-        log("warning: method linearized at no load: which pins touch depends on the errors, so "
+        log(
+            "warning: method linearized at no load: which pins touch depends on the errors, so "
             "its check usually fails there and the run then solves Saltelli's whole design too "
-            "(docs/studies.md section 4.6)")
-    linear = linearized.linearize(study, backend, progress, log, yes) \
-        if method == "linearized" else None
+            "(docs/studies.md section 4.6)"
+        )
+    linear = linearized.linearize(study, backend, progress, log, yes) if method == "linearized" else None
     # the rounds: Saltelli's n, or the linearized method's solved base samples, doubled from
     # ROUND_START until the order groups stop changing or n (the budget) is reached
     last = min(solved_n, n) if linear is not None else n
@@ -512,11 +613,22 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     history = []
     solved = linear.computed if linear is not None else 0
     for size in sizes:
-        estimate = _estimate(study, problem, n if linear is not None else size, size, linear,
-                             second_order, backend, progress, log, yes)
+        estimate = _estimate(
+            study,
+            problem,
+            n if linear is not None else size,
+            size,
+            linear,
+            second_order,
+            backend,
+            progress,
+            log,
+            yes,
+        )
         groups = {column: a.indices.order_groups() for column, a in estimate[2].items()}
         settled = len(history) >= SETTLED_ROUNDS - 1 and all(
-            r.order_groups == groups for r in history[-(SETTLED_ROUNDS - 1):])
+            r.order_groups == groups for r in history[-(SETTLED_ROUNDS - 1) :]
+        )
         checks = estimate[4].passed() if estimate[4] is not None else np.ones(1, dtype=bool)
         solved += estimate[3].computed_rows
         history.append(SobolRound(size, solved, groups, settled and bool(np.all(checks))))
@@ -531,17 +643,28 @@ def run_sobol(study_path, n: int | None = None, *, second_order: bool | None = N
     files = {"indices": folder / "sobol_indices.json", "ranking": folder / "sobol_ranking.txt"}
     if plots:
         files["bars"] = summaries.plot_sobol(study, analyses, folder / "sobol_bars.png")
-        files["convergence"] = summaries.plot_convergence(study, analyses,
-                                                       folder / "sobol_convergence.png")
-    result = SobolResult(study, n_used, second_order, X, computed.Y, analyses, computed, alias,
-                         files, method, check, tuple(history) if rounds else ())
+        files["convergence"] = summaries.plot_convergence(study, analyses, folder / "sobol_convergence.png")
+    result = SobolResult(
+        study,
+        n_used,
+        second_order,
+        X,
+        computed.Y,
+        analyses,
+        computed,
+        alias,
+        files,
+        method,
+        check,
+        tuple(history) if rounds else (),
+    )
     files["ranking"].write_text(result.table() + "\n")
     summaries.write_json(files["indices"], result.to_json())
     return result
 
 
-ROUND_START = 64     # base samples of the first round (rounds = true)
-SETTLED_ROUNDS = 3   # rounds in a row with the same order groups: settled (two doublings)
+ROUND_START = 64  # base samples of the first round (rounds = true)
+SETTLED_ROUNDS = 3  # rounds in a row with the same order groups: settled (two doublings)
 
 
 @dataclass(frozen=True)
@@ -560,15 +683,21 @@ class SobolRound:
         """One line: the round's size and solves, the order groups per column and whether they
         settled; `method` names the sample ('linearized' counts solved base samples)."""
         what = "solved base samples" if method == "linearized" else "base samples"
-        groups = "; ".join(f"{column}: {summaries.order_text(g) if g else '-'}"
-                           for column, g in self.order_groups.items())
-        return (f"round of {self.size} {what} ({self.solved} reducers solved in this run): "
-                f"{groups}" + (" -> settled, stop" if self.settled else ""))
+        groups = "; ".join(
+            f"{column}: {summaries.order_text(g) if g else '-'}" for column, g in self.order_groups.items()
+        )
+        return f"round of {self.size} {what} ({self.solved} reducers solved in this run): {groups}" + (
+            " -> settled, stop" if self.settled else ""
+        )
 
     def to_json(self) -> dict:
         """The round for the JSON summary: size, solved, order_groups, settled."""
-        return {"size": self.size, "solved": self.solved, "order_groups": self.order_groups,
-                "settled": self.settled}
+        return {
+            "size": self.size,
+            "solved": self.solved,
+            "order_groups": self.order_groups,
+            "settled": self.settled,
+        }
 
 
 def _estimate(study, problem, n, m, linear, second_order, backend, progress, log, yes):
@@ -581,35 +710,74 @@ def _estimate(study, problem, n, m, linear, second_order, backend, progress, log
     analyses, check = {}, None
     if linear is not None:
         rows_m = m * sobol.rows_per_base_sample(problem, second_order)
-        solved = compute(study, sobol_job(m, second_order), rows_m, lambda s, e: X[s:e], backend,
-                         progress, log, yes=yes, prefix_jobs=other_sobol_jobs(problem, m, second_order))
+        solved = compute(
+            study,
+            sobol_job(m, second_order),
+            rows_m,
+            lambda s, e: X[s:e],
+            backend,
+            progress,
+            log,
+            yes=yes,
+            prefix_jobs=other_sobol_jobs(problem, m, second_order),
+        )
         Y = linear.predict(study, X)
         pairs = linearized.independent_rows(problem, rows_m, second_order)
         check = linearized.check(study, solved.Y[pairs], Y[pairs], linear.solves)
         for j, (column, q2) in enumerate(zip(study.metric_columns, check.q2)):
             if q2 >= linearized.Q2_MIN:
-                final = linearized.corrected_indices(problem, Y[:, j], solved.Y[:, j], second_order,
-                                                     study.resamples, study.sobol_confidence,
-                                                     study.seed)
-                conv = sobol.convergence(problem, Y[:, j], second_order, study.resamples,
-                                         study.sobol_confidence, study.seed)
+                final = linearized.corrected_indices(
+                    problem,
+                    Y[:, j],
+                    solved.Y[:, j],
+                    second_order,
+                    study.resamples,
+                    study.sobol_confidence,
+                    study.seed,
+                )
+                conv = sobol.convergence(
+                    problem, Y[:, j], second_order, study.resamples, study.sobol_confidence, study.seed
+                )
                 analyses[column] = sobol.SobolAnalysis(column, final, conv, "linearized", float(q2))
         computed = replace(solved, Y=Y, converged=np.ones(Y.shape[0], dtype=bool))
-        alias_rows = (X[:aliasing.CHECK_ROWS], solved.Y[:aliasing.CHECK_ROWS],
-                      Path(study.output) / sobol_job(m, second_order))
+        alias_rows = (
+            X[: aliasing.CHECK_ROWS],
+            solved.Y[: aliasing.CHECK_ROWS],
+            Path(study.output) / sobol_job(m, second_order),
+        )
     if len(analyses) < len(study.metric_columns):
-        computed = compute(study, job, X.shape[0], lambda s, e: X[s:e], backend, progress, log,
-                           yes=yes, size_field=("n", n),
-                           prefix_jobs=other_sobol_jobs(problem, n, second_order))
+        computed = compute(
+            study,
+            job,
+            X.shape[0],
+            lambda s, e: X[s:e],
+            backend,
+            progress,
+            log,
+            yes=yes,
+            size_field=("n", n),
+            prefix_jobs=other_sobol_jobs(problem, n, second_order),
+        )
         bad = np.flatnonzero(~np.all(np.isfinite(computed.Y), axis=1))
         if bad.size:
-            raise RuntimeError(f"the model failed on {bad.size} of {X.shape[0]} Sobol rows (first: "
-                               f"row {bad[0]}); Sobol indices need every row: check the tolerances")
-        solved_analyses = sobol.analyze(problem, computed.Y, study.metric_columns, second_order,
-                                        study.resamples, study.sobol_confidence, study.seed)
+            raise RuntimeError(
+                f"the model failed on {bad.size} of {X.shape[0]} Sobol rows (first: "
+                f"row {bad[0]}); Sobol indices need every row: check the tolerances"
+            )
+        solved_analyses = sobol.analyze(
+            problem,
+            computed.Y,
+            study.metric_columns,
+            second_order,
+            study.resamples,
+            study.sobol_confidence,
+            study.seed,
+        )
         q2 = dict(zip(study.metric_columns, check.q2)) if check is not None else {}
-        analyses = {column: analyses.get(column) or replace(result, check_q2=q2.get(column))
-                    for column, result in solved_analyses.items()}
+        analyses = {
+            column: analyses.get(column) or replace(result, check_q2=q2.get(column))
+            for column, result in solved_analyses.items()
+        }
         check_rows = min(X.shape[0], aliasing.CHECK_ROWS)
         alias_rows = (X[:check_rows], computed.Y[:check_rows], Path(study.output) / job)
     return X, n, analyses, computed, check, alias_rows
@@ -630,8 +798,9 @@ def stored_batches(study_path, output=None, job: str | None = None) -> int:
 def _check_sample_memory(problem: dict, n: int, second_order: bool) -> None:
     """Refuse a Sobol n whose sample matrix alone would not fit in memory (no --yes helps)."""
     rows = n * sobol.rows_per_base_sample(problem, second_order)
-    fits_in_memory("n", n, rows * problem["num_vars"] * 8,
-                   f"gives {rows} Sobol rows whose sample matrix alone")
+    fits_in_memory(
+        "n", n, rows * problem["num_vars"] * 8, f"gives {rows} Sobol rows whose sample matrix alone"
+    )
 
 
 def _flags(progress, plots, yes) -> tuple:

@@ -36,22 +36,27 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import ndtr, ndtri
 
-from rvfmu.core.design import RVDesign
-from rvfmu.core.errors import CLEARANCES, PER_TOOTH, PHASED, ErrorSet, error_shapes, zero_errors
-from rvfmu.core.units import UM
+from rvfmu.core.base.units import UM
+from rvfmu.core.reducer.design import RVDesign
+from rvfmu.core.reducer.errors import CLEARANCES, PER_TOOTH, PHASED, ErrorSet, error_shapes, zero_errors
 
 from .sequences import LOW_ORDERS, LOW_WEIGHT_MIN, cumulative_pitch_from_draws
 
 SAMPLING_VERSION = 1
 """Bumped whenever the map from a unit row to errors changes: it enters the study hash."""
 
-TRUNCATION_SIGMAS = 3.0     # tolerance = +-3 sigma (process capability 1.0, 99.73 % inside)
+TRUNCATION_SIGMAS = 3.0  # tolerance = +-3 sigma (process capability 1.0, 99.73 % inside)
 DISTRIBUTIONS = ("uniform", "normal")
 
-KIND_OF = {**{name: "zone" for name in PHASED},
-           "pin_pitch": "pitch", "disc_pitch": "pitch",
-           "pin_radial": "band", "pin_radius": "band", "disc_profile": "band",
-           **{name: "clearance" for name in CLEARANCES}}
+KIND_OF = {
+    **{name: "zone" for name in PHASED},
+    "pin_pitch": "pitch",
+    "disc_pitch": "pitch",
+    "pin_radial": "band",
+    "pin_radius": "band",
+    "disc_profile": "band",
+    **{name: "clearance" for name in CLEARANCES},
+}
 assert set(KIND_OF) == set(PHASED + PER_TOOTH + CLEARANCES)
 
 KEYS = {  # tolerance keys of each kind in the study file [um], required first
@@ -60,20 +65,21 @@ KEYS = {  # tolerance keys of each kind in the study file [um], required first
     "band": ("band_um",),
     "clearance": ("max_um", "min_um"),
 }
-REQUIRED = {"zone": 1, "pitch": 1, "band": 1, "clearance": 1}   # how many of KEYS are required
+REQUIRED = {"zone": 1, "pitch": 1, "band": 1, "clearance": 1}  # how many of KEYS are required
 DRAWS = {  # what the columns of one factor are, for the docs and the column names
     "zone": "2 per zone: radius, then phase",
     "pitch": f"per sequence: span, then weight and phase of orders 1-{LOW_ORDERS}, then one "
-             "scatter value per tooth",
+    "scatter value per tooth",
     "band": "1 per tooth",
     "clearance": "1",
 }
 
 _P3 = float(ndtr(TRUNCATION_SIGMAS))
-_RAYLEIGH_TAIL = float(np.exp(-0.5 * TRUNCATION_SIGMAS ** 2))   # P(|circular normal| > 3 sigma)
+_RAYLEIGH_TAIL = float(np.exp(-0.5 * TRUNCATION_SIGMAS**2))  # P(|circular normal| > 3 sigma)
 
 
 # -- the distributions, each a map from u in [0, 1] ------------------------------------------
+
 
 def centred(u, half_width, distribution):
     """A value in [-half_width, +half_width]: uniform, or normal with 3 sigma = half_width (truncated)."""
@@ -103,13 +109,13 @@ def disc_radius(u, radius, distribution):
 
 # -- the columns of each factor ---------------------------------------------------------------
 
+
 def draw_names(factor, design: RVDesign) -> tuple[str, ...]:
     """Names of the unit columns that `factor` draws, in the order they sit in a row."""
     shape = error_shapes(design)[factor.name]
     name = factor.name
     if factor.kind == "zone":
-        return tuple(f"{name}{_index(i)}.{part}" for i in np.ndindex(shape)
-                     for part in ("radius", "phase"))
+        return tuple(f"{name}{_index(i)}.{part}" for i in np.ndindex(shape) for part in ("radius", "phase"))
     if factor.kind == "pitch":
         names = []
         for lead in np.ndindex(shape[:-1]):
@@ -148,9 +154,9 @@ def factor_values(factor, design: RVDesign, U: np.ndarray) -> np.ndarray:
         lead = seq.shape[1]
         flat = seq.reshape(S * lead, per)
         orders = np.arange(1, LOW_ORDERS + 1)
-        weight = (LOW_WEIGHT_MIN + (1.0 - LOW_WEIGHT_MIN) * flat[:, 1:1 + 2 * LOW_ORDERS:2]) / orders
-        phase = 2.0 * np.pi * flat[:, 2:2 + 2 * LOW_ORDERS:2]
-        scatter = centred(flat[:, 1 + 2 * LOW_ORDERS:], TRUNCATION_SIGMAS, "normal")
+        weight = (LOW_WEIGHT_MIN + (1.0 - LOW_WEIGHT_MIN) * flat[:, 1 : 1 + 2 * LOW_ORDERS : 2]) / orders
+        phase = 2.0 * np.pi * flat[:, 2 : 2 + 2 * LOW_ORDERS : 2]
+        scatter = centred(flat[:, 1 + 2 * LOW_ORDERS :], TRUNCATION_SIGMAS, "normal")
         span = factor.cumulative_um * fraction(flat[:, 0], dist)
         values = cumulative_pitch_from_draws(span, phase, weight, scatter, factor.single_um)
         return (values * UM).reshape((S,) + shape)

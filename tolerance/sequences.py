@@ -18,13 +18,12 @@ its sample matrix reproducible (tolerance/sampling.py).
 
 import numpy as np
 
-LOW_ORDER_SHARE = 0.8   # of the cumulative deviation's span carried by orders 1-3
-LOW_ORDERS = 3          # grinding set-up runout: once to three times per revolution
-LOW_WEIGHT_MIN = 0.5    # order amplitudes are uniform in [0.5, 1] / order
+LOW_ORDER_SHARE = 0.8  # of the cumulative deviation's span carried by orders 1-3
+LOW_ORDERS = 3  # grinding set-up runout: once to three times per revolution
+LOW_WEIGHT_MIN = 0.5  # order amplitudes are uniform in [0.5, 1] / order
 
 
-def cumulative_pitch_shape(phase: np.ndarray, weight: np.ndarray,
-                           scatter: np.ndarray) -> np.ndarray:
+def cumulative_pitch_shape(phase: np.ndarray, weight: np.ndarray, scatter: np.ndarray) -> np.ndarray:
     """Cumulative pitch sequences of unit span, tooth 0 at 0: (samples, teeth) [-].
 
     phase (samples, LOW_ORDERS) [rad] and weight (samples, LOW_ORDERS) [-] of the
@@ -72,8 +71,9 @@ def cumulative_pitch_from_draws(span_um, phase, weight, scatter, single_um=None)
     return sequence if single_um is None else limit_single_pitch(sequence, single_um)
 
 
-def cumulative_pitch_sequence(rng: np.random.Generator, teeth: int, total_um: float,
-                              samples: int = 1) -> np.ndarray:
+def cumulative_pitch_sequence(
+    rng: np.random.Generator, teeth: int, total_um: float, samples: int = 1
+) -> np.ndarray:
     """Cumulative pitch deviations (samples, teeth) [um] whose span is exactly `total_um`.
 
     Orders 1-3 with random phases and amplitudes falling as 1/order, plus
@@ -86,8 +86,7 @@ def cumulative_pitch_sequence(rng: np.random.Generator, teeth: int, total_um: fl
     return cumulative_pitch_from_draws(np.full(samples, float(total_um)), phase, weight, scatter)
 
 
-def profile_sequence(rng: np.random.Generator, teeth: int, total_um: float,
-                     samples: int = 1) -> np.ndarray:
+def profile_sequence(rng: np.random.Generator, teeth: int, total_um: float, samples: int = 1) -> np.ndarray:
     """Per-tooth normal profile deviations (samples, teeth) [um], uniform in +-total/2."""
     return rng.uniform(-0.5 * total_um, 0.5 * total_um, (samples, teeth))
 

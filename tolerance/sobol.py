@@ -61,11 +61,12 @@ from SALib.sample import sobol as salib_sample
 from SALib.util import extract_group_names, scale_samples
 from scipy.stats import norm, qmc
 
-WIDE_CI = 0.1            # half-width of an index's interval above which its rank is uncertain
+WIDE_CI = 0.1  # half-width of an index's interval above which its rank is uncertain
 CONVERGED_CHANGE = 0.05  # largest |ST(N) - ST(N/2)| of a converged study (5 % of the variance)
 CONVERGENCE_FRACTIONS = (4, 2, 1)
-WHOLE_INPUT_NOTE = ("the only group holds every factor: S1 = ST = 1 by definition (it is the "
-                    "whole input), exact, no interval")
+WHOLE_INPUT_NOTE = (
+    "the only group holds every factor: S1 = ST = 1 by definition (it is the whole input), exact, no interval"
+)
 
 
 def group_names(problem: dict) -> list[str]:
@@ -82,11 +83,10 @@ def rows_per_base_sample(problem: dict, second_order: bool = False) -> int:
 def sample(problem: dict, n: int, second_order: bool = False, seed: int = 0) -> np.ndarray:
     """Saltelli sample matrix (n * rows_per_base_sample, num_vars) on the problem's bounds."""
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)   # n is checked to be a power of 2 upstream
+        warnings.simplefilter("ignore", UserWarning)  # n is checked to be a power of 2 upstream
         if len(group_names(problem)) == 1:
             return _one_group_sample(problem, n, second_order, seed)
-        return salib_sample.sample(problem, n, calc_second_order=second_order, scramble=True,
-                                   seed=seed)
+        return salib_sample.sample(problem, n, calc_second_order=second_order, scramble=True, seed=seed)
 
 
 def _one_group_sample(problem: dict, n: int, second_order: bool, seed: int) -> np.ndarray:
@@ -102,7 +102,7 @@ def _one_group_sample(problem: dict, n: int, second_order: bool, seed: int) -> n
     base = qmc.Sobol(d=2 * D, scramble=True, seed=seed).random(n)
     A, B = base[:, :D], base[:, D:]
     blocks = (A, B, A, B) if second_order else (A, B, B)
-    rows = np.stack(blocks, axis=1).reshape(-1, D)     # base sample by base sample
+    rows = np.stack(blocks, axis=1).reshape(-1, D)  # base sample by base sample
     return scale_samples(rows, problem)
 
 
@@ -147,21 +147,27 @@ class Indices:
         out = []
         for g in range(len(self.names)):
             notes = [WHOLE_INPUT_NOTE] if self.whole_input else []
-            for label, value, conf in (("S1", self.S1[g], self.S1_conf[g]),
-                                       ("ST", self.ST[g], self.ST_conf[g])):
+            for label, value, conf in (
+                ("S1", self.S1[g], self.S1_conf[g]),
+                ("ST", self.ST[g], self.ST_conf[g]),
+            ):
                 if value < 0:
-                    notes.append(f"{label} {value:.3f} < 0 beyond its CI: not converged, raise n"
-                                 if _beyond_unit_interval(value, conf) else
-                                 f"{label} {value:.3f} < 0 within its CI: reported as 0")
+                    notes.append(
+                        f"{label} {value:.3f} < 0 beyond its CI: not converged, raise n"
+                        if _beyond_unit_interval(value, conf)
+                        else f"{label} {value:.3f} < 0 within its CI: reported as 0"
+                    )
                 elif value > 1:
-                    notes.append(f"{label} {value:.3f} > 1: reported as 1"
-                                 + (", not converged, raise n"
-                                    if _beyond_unit_interval(value, conf) else ""))
+                    notes.append(
+                        f"{label} {value:.3f} > 1: reported as 1"
+                        + (", not converged, raise n" if _beyond_unit_interval(value, conf) else "")
+                    )
                 if conf > WIDE_CI:
                     notes.append(f"{label} CI wide (+-{conf:.2f})")
             if self.S1_above_ST[g]:
-                notes.append(f"S1 {self.S1[g]:.3f} > ST {self.ST[g]:.3f} beyond their CIs: "
-                             "sampling noise, raise n")
+                notes.append(
+                    f"S1 {self.S1[g]:.3f} > ST {self.ST[g]:.3f} beyond their CIs: sampling noise, raise n"
+                )
             out.append(notes)
         return out
 
@@ -169,8 +175,7 @@ class Indices:
     def not_converged(self) -> np.ndarray:
         """(G,) bool: S1 or ST lies outside [0, 1] beyond its interval (the note "not
         converged, raise n")."""
-        return _beyond_unit_interval(self.S1, self.S1_conf) | \
-            _beyond_unit_interval(self.ST, self.ST_conf)
+        return _beyond_unit_interval(self.S1, self.S1_conf) | _beyond_unit_interval(self.ST, self.ST_conf)
 
     @property
     def ci_wide(self) -> np.ndarray:
@@ -198,8 +203,15 @@ class Indices:
         steps = []
         for upper, lower in zip(ranked[:-1], ranked[1:]):
             spread = self.ST_resamples[:, upper] - self.ST_resamples[:, lower]
-            steps.append(RankStep(int(upper), int(lower), float(self.ST[upper] - self.ST[lower]),
-                                  float(z * spread.std(ddof=1)), float(np.mean(spread > 0.0))))
+            steps.append(
+                RankStep(
+                    int(upper),
+                    int(lower),
+                    float(self.ST[upper] - self.ST[lower]),
+                    float(z * spread.std(ddof=1)),
+                    float(np.mean(spread > 0.0)),
+                )
+            )
         return steps
 
     def order_groups(self) -> list[list[int]] | None:
@@ -240,8 +252,14 @@ def _beyond_unit_interval(value, conf):
     return (np.asarray(value) + conf < 0) | (np.asarray(value) - conf > 1)
 
 
-def indices(problem: dict, y: np.ndarray, second_order: bool = False, resamples: int = 200,
-            confidence: float = 0.95, seed: int = 0) -> Indices:
+def indices(
+    problem: dict,
+    y: np.ndarray,
+    second_order: bool = False,
+    resamples: int = 200,
+    confidence: float = 0.95,
+    seed: int = 0,
+) -> Indices:
     """Sobol indices of one output y (n * rows_per_base_sample,) from a Saltelli sample."""
     names = tuple(group_names(problem))
     G = len(names)
@@ -260,18 +278,44 @@ def indices(problem: dict, y: np.ndarray, second_order: bool = False, resamples:
         # The group is the whole input: V_1 = V, so S1 = ST = 1 whatever the sample; SALib's
         # estimators would only add noise around it.  Every resample gives 1 too.
         one, zero = np.ones(1), np.zeros(1)
-        return Indices(names, n, one, zero, one, zero, square, square, confidence,
-                       ST_resamples=np.ones((resamples, 1)), whole_input=True)
+        return Indices(
+            names,
+            n,
+            one,
+            zero,
+            one,
+            zero,
+            square,
+            square,
+            confidence,
+            ST_resamples=np.ones((resamples, 1)),
+            whole_input=True,
+        )
     # SALib seeds its bootstrap only for a truthy seed: 0 would give different CIs each run.
-    si = salib_analyze.analyze(problem, y, calc_second_order=second_order, num_resamples=resamples,
-                               conf_level=confidence, seed=int(seed) + 1, keep_resamples=True)
+    si = salib_analyze.analyze(
+        problem,
+        y,
+        calc_second_order=second_order,
+        num_resamples=resamples,
+        conf_level=confidence,
+        seed=int(seed) + 1,
+        keep_resamples=True,
+    )
     S2 = np.asarray(si["S2"], dtype=float) if second_order else None
     S2_conf = np.asarray(si["S2_conf"], dtype=float) if second_order else None
-    return Indices(names, n, np.asarray(si["S1"], dtype=float), np.asarray(si["S1_conf"], dtype=float),
-                   np.asarray(si["ST"], dtype=float), np.asarray(si["ST_conf"], dtype=float),
-                   S2, S2_conf, confidence,
-                   ST_resamples=np.asarray(si["ST_conf_all"], dtype=float).reshape(resamples, G),
-                   S1_resamples=np.asarray(si["S1_conf_all"], dtype=float).reshape(resamples, G))
+    return Indices(
+        names,
+        n,
+        np.asarray(si["S1"], dtype=float),
+        np.asarray(si["S1_conf"], dtype=float),
+        np.asarray(si["ST"], dtype=float),
+        np.asarray(si["ST_conf"], dtype=float),
+        S2,
+        S2_conf,
+        confidence,
+        ST_resamples=np.asarray(si["ST_conf_all"], dtype=float).reshape(resamples, G),
+        S1_resamples=np.asarray(si["S1_conf_all"], dtype=float).reshape(resamples, G),
+    )
 
 
 @dataclass(frozen=True)
@@ -292,16 +336,26 @@ class Convergence:
         return self.max_change <= CONVERGED_CHANGE
 
 
-def convergence(problem: dict, y: np.ndarray, second_order: bool = False, resamples: int = 200,
-                confidence: float = 0.95, seed: int = 0, final: Indices | None = None) -> Convergence:
+def convergence(
+    problem: dict,
+    y: np.ndarray,
+    second_order: bool = False,
+    resamples: int = 200,
+    confidence: float = 0.95,
+    seed: int = 0,
+    final: Indices | None = None,
+) -> Convergence:
     """Indices from the first n/4, n/2 and all n base samples of a Saltelli sample's outputs y."""
     per = rows_per_base_sample(problem, second_order)
     n = np.asarray(y).size // per
     ns, S1, ST = [], [], []
     for divisor in CONVERGENCE_FRACTIONS:
         m = n // divisor
-        result = final if (divisor == 1 and final is not None) else \
-            indices(problem, np.asarray(y)[:m * per], second_order, resamples, confidence, seed)
+        result = (
+            final
+            if (divisor == 1 and final is not None)
+            else indices(problem, np.asarray(y)[: m * per], second_order, resamples, confidence, seed)
+        )
         ns.append(m)
         S1.append(result.S1)
         ST.append(result.ST)
@@ -315,12 +369,19 @@ class SobolAnalysis:
     column: str
     indices: Indices
     convergence: Convergence
-    method: str = "saltelli"            # or "linearized" (tolerance/linearized.py)
-    check_q2: float | None = None       # the linearization's check on this metric, if it ran
+    method: str = "saltelli"  # or "linearized" (tolerance/linearized.py)
+    check_q2: float | None = None  # the linearization's check on this metric, if it ran
 
 
-def analyze(problem: dict, Y: np.ndarray, columns, second_order: bool = False,
-            resamples: int = 200, confidence: float = 0.95, seed: int = 0) -> dict:
+def analyze(
+    problem: dict,
+    Y: np.ndarray,
+    columns,
+    second_order: bool = False,
+    resamples: int = 200,
+    confidence: float = 0.95,
+    seed: int = 0,
+) -> dict:
     """{column: SobolAnalysis} for every output column of Y (rows, len(columns))."""
     Y = np.asarray(Y, dtype=float).reshape(-1, len(columns))
     out = {}

@@ -38,14 +38,14 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from rvfmu.core.checks import InputError
+from rvfmu.core.base.checks import InputError
 
 from .study import Study, model_fingerprint
 
 FORMAT = "rvte-tolerance-study/1"
 MANIFEST = "manifest.json"
 METADATA_KEY = b"rvte"
-FILE_DIGEST = 16   # hex digits of a batch file's sha256 kept in its name (64 bits: no accident)
+FILE_DIGEST = 16  # hex digits of a batch file's sha256 kept in its name (64 bits: no accident)
 
 
 def rows_hash(X: np.ndarray) -> str:
@@ -72,12 +72,21 @@ def open_output(study: Study, folder: Path | None = None) -> Path:
         check_manifest(folder, read_manifest(folder), study)
     else:
         if folder.exists() and any(folder.iterdir()):
-            raise InputError("output", str(folder), f"is not empty and has no {MANIFEST}: it is not "
-                             "a study output folder; choose an empty or new folder")
+            raise InputError(
+                "output",
+                str(folder),
+                f"is not empty and has no {MANIFEST}: it is not "
+                "a study output folder; choose an empty or new folder",
+            )
         folder.mkdir(parents=True, exist_ok=True)
-        manifest = {"format": FORMAT, "study": study.name, "inputs_hash": study.inputs_hash,
-                    "model_hash": model_fingerprint(), "created": _now(),
-                    "versions": software_versions()}
+        manifest = {
+            "format": FORMAT,
+            "study": study.name,
+            "inputs_hash": study.inputs_hash,
+            "model_hash": model_fingerprint(),
+            "created": _now(),
+            "versions": software_versions(),
+        }
         _write_atomic(folder / "inputs.json", json.dumps(study.inputs(), indent=1, sort_keys=True))
         _write_atomic(manifest_path, json.dumps(manifest, indent=1))
     if study.text:
@@ -92,11 +101,15 @@ def study_output_folder(path, field: str = "output_folder") -> Path:
         raise InputError(field, path, "must be a study output folder")
     folder = Path(path)
     if not folder.is_dir():
-        raise InputError(field, str(folder), "must be an existing study output folder "
-                         "(written by rvte mc or rvte sobol)")
+        raise InputError(
+            field, str(folder), "must be an existing study output folder (written by rvte mc or rvte sobol)"
+        )
     if not (folder / MANIFEST).is_file():
-        raise InputError(field, str(folder), f"is not a study output folder: it has no "
-                         f"{MANIFEST} (rvte mc and rvte sobol write one)")
+        raise InputError(
+            field,
+            str(folder),
+            f"is not a study output folder: it has no {MANIFEST} (rvte mc and rvte sobol write one)",
+        )
     return folder
 
 
@@ -110,9 +123,13 @@ def read_manifest(folder: Path) -> dict:
         if missing:
             raise KeyError(missing[0])
     except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise InputError("output", str(folder), f"has an unreadable {MANIFEST} ({exc}); "
-                         "it is not a study folder this run can trust: choose another output "
-                         "folder or delete this one") from None
+        raise InputError(
+            "output",
+            str(folder),
+            f"has an unreadable {MANIFEST} ({exc}); "
+            "it is not a study folder this run can trust: choose another output "
+            "folder or delete this one",
+        ) from None
     return manifest
 
 
@@ -124,16 +141,24 @@ def check_manifest(folder: Path, manifest: dict, study: Study) -> None:
     theirs, their_model = manifest["inputs_hash"], manifest["model_hash"]
     model = model_fingerprint()
     if theirs != study.inputs_hash:
-        raise InputError("output", str(folder), f"belongs to another study "
-                         f"({manifest.get('study', '?')!r}, inputs hash {theirs[:12]}; this "
-                         f"study's is {study.inputs_hash[:12]}{_differences(folder, study)}): "
-                         "give this study another output folder, or delete that one to start "
-                         "afresh")
+        raise InputError(
+            "output",
+            str(folder),
+            f"belongs to another study "
+            f"({manifest.get('study', '?')!r}, inputs hash {theirs[:12]}; this "
+            f"study's is {study.inputs_hash[:12]}{_differences(folder, study)}): "
+            "give this study another output folder, or delete that one to start "
+            "afresh",
+        )
     if their_model != model:
-        raise InputError("output", str(folder), "was computed by another version of the model "
-                         f"or of the sampling (model hash {their_model[:12]}, now "
-                         f"{model[:12]}): its batches cannot be mixed with new ones; use "
-                         "another output folder or delete this one")
+        raise InputError(
+            "output",
+            str(folder),
+            "was computed by another version of the model "
+            f"or of the sampling (model hash {their_model[:12]}, now "
+            f"{model[:12]}): its batches cannot be mixed with new ones; use "
+            "another output folder or delete this one",
+        )
 
 
 @dataclass(frozen=True)
@@ -168,8 +193,10 @@ class JobStore:
         listing, not one look-up per batch.
         """
         size = self.study.batch_size
-        return self._read_batches(rows, lambda start, stop: start < n_rows and not start % size
-                                  and stop == min(start + size, n_rows))
+        return self._read_batches(
+            rows,
+            lambda start, stop: start < n_rows and not start % size and stop == min(start + size, n_rows),
+        )
 
     def load_all(self, rows) -> dict:
         """Verified results of every batch file of the job, whatever rows it has reached.
@@ -180,8 +207,7 @@ class JobStore:
         not computed yet).
         """
         size = self.study.batch_size
-        return self._read_batches(rows, lambda start, stop: not start % size
-                                  and start < stop <= start + size)
+        return self._read_batches(rows, lambda start, stop: not start % size and start < stop <= start + size)
 
     def _read_batches(self, rows, wanted) -> dict:
         found = {}
@@ -189,8 +215,11 @@ class JobStore:
             if not wanted(start, stop):
                 continue
             if len(paths) > 1:
-                raise InputError("batch", str(paths[1]), f"is a second file for rows {start}-{stop} "
-                                 f"beside {paths[0].name}; delete one of them")
+                raise InputError(
+                    "batch",
+                    str(paths[1]),
+                    f"is a second file for rows {start}-{stop} beside {paths[0].name}; delete one of them",
+                )
             found[(start, stop)] = self.read(paths[0], start, stop, rows(start, stop))
         return found
 
@@ -210,47 +239,79 @@ class JobStore:
         except OSError as exc:
             raise InputError("batch", str(path), f"cannot be read ({exc})") from None
         if not path.stem.endswith(f"-{digest}"):
-            raise InputError("batch", str(path), "is corrupted (its content does not match the "
-                             "checksum in its name); delete that file and run again to recompute "
-                             "its batch")
+            raise InputError(
+                "batch",
+                str(path),
+                "is corrupted (its content does not match the "
+                "checksum in its name); delete that file and run again to recompute "
+                "its batch",
+            )
         try:
             table = pq.read_table(path, page_checksum_verification=True)
             meta = json.loads(table.schema.metadata[METADATA_KEY])
         except (OSError, pa.ArrowException, ValueError, KeyError, TypeError) as exc:
-            raise InputError("batch", str(path), f"is corrupted or truncated ({_short(exc)}); "
-                             "delete that file and run again to recompute its batch") from None
-        if meta.get("inputs_hash") != self.study.inputs_hash or \
-                meta.get("model_hash") != model_fingerprint():
-            raise InputError("batch", str(path), "belongs to another study or model version; "
-                             "delete it (or the whole output folder) and run again")
+            raise InputError(
+                "batch",
+                str(path),
+                f"is corrupted or truncated ({_short(exc)}); "
+                "delete that file and run again to recompute its batch",
+            ) from None
+        if meta.get("inputs_hash") != self.study.inputs_hash or meta.get("model_hash") != model_fingerprint():
+            raise InputError(
+                "batch",
+                str(path),
+                "belongs to another study or model version; "
+                "delete it (or the whole output folder) and run again",
+            )
         if (meta.get("start"), meta.get("stop"), meta.get("job")) != (start, stop, self.job):
-            raise InputError("batch", str(path), f"holds rows {meta.get('start')}-{meta.get('stop')} "
-                             f"of job {meta.get('job')!r}, not what its name says; delete it")
+            raise InputError(
+                "batch",
+                str(path),
+                f"holds rows {meta.get('start')}-{meta.get('stop')} "
+                f"of job {meta.get('job')!r}, not what its name says; delete it",
+            )
         if meta.get("rows_sha256") != rows_hash(X):
-            raise InputError("batch", str(path), "was computed from other sample rows than this "
-                             "study draws; delete it and run again")
+            raise InputError(
+                "batch",
+                str(path),
+                "was computed from other sample rows than this study draws; delete it and run again",
+            )
         missing = [c for c in ("row", "converged", *self.columns) if c not in table.column_names]
         if missing:
             raise InputError("batch", str(path), f"has no column {missing[0]!r}; delete it")
         row = table.column("row").to_numpy()
-        Y = np.column_stack([table.column(c).to_numpy().astype(float) for c in self.columns]) \
-            if self.columns else np.empty((stop - start, 0))
+        Y = (
+            np.column_stack([table.column(c).to_numpy().astype(float) for c in self.columns])
+            if self.columns
+            else np.empty((stop - start, 0))
+        )
         converged = table.column("converged").to_numpy(zero_copy_only=False).astype(bool)
-        if not np.array_equal(row, np.arange(start, stop)) or \
-                meta.get("values_sha256") != values_hash(Y, converged):
-            raise InputError("batch", str(path), "is corrupted (its values do not match the "
-                             "checksum written with them); delete it and run again")
+        if not np.array_equal(row, np.arange(start, stop)) or meta.get("values_sha256") != values_hash(
+            Y, converged
+        ):
+            raise InputError(
+                "batch",
+                str(path),
+                "is corrupted (its values do not match the "
+                "checksum written with them); delete it and run again",
+            )
         return BatchResult(start, stop, Y, converged)
 
-    def write(self, start: int, stop: int, X: np.ndarray, Y: np.ndarray,
-              converged: np.ndarray) -> Path:
+    def write(self, start: int, stop: int, X: np.ndarray, Y: np.ndarray, converged: np.ndarray) -> Path:
         """Write one finished batch (atomically: temporary file, then rename)."""
         Y = np.asarray(Y, dtype=float).reshape(stop - start, len(self.columns))
         converged = np.asarray(converged, dtype=bool)
-        meta = {"format": FORMAT, "job": self.job, "start": start, "stop": stop,
-                "inputs_hash": self.study.inputs_hash, "model_hash": model_fingerprint(),
-                "rows_sha256": rows_hash(X), "values_sha256": values_hash(Y, converged),
-                "columns": list(self.columns)}   # no time stamp: same results, same bytes
+        meta = {
+            "format": FORMAT,
+            "job": self.job,
+            "start": start,
+            "stop": stop,
+            "inputs_hash": self.study.inputs_hash,
+            "model_hash": model_fingerprint(),
+            "rows_sha256": rows_hash(X),
+            "values_sha256": values_hash(Y, converged),
+            "columns": list(self.columns),
+        }  # no time stamp: same results, same bytes
         data = {"row": np.arange(start, stop, dtype=np.int64), "converged": converged}
         data.update({c: Y[:, j] for j, c in enumerate(self.columns)})
         table = pa.table(data).replace_schema_metadata({METADATA_KEY: json.dumps(meta)})
@@ -269,8 +330,18 @@ class JobStore:
                 temporary.unlink(missing_ok=True)
 
 
-PACKAGES = ("rvte", "numpy", "scipy", "SALib", "matplotlib", "pyarrow", "pandas", "numba", "dask",
-            "openturns")
+PACKAGES = (
+    "rvte",
+    "numpy",
+    "scipy",
+    "SALib",
+    "matplotlib",
+    "pyarrow",
+    "pandas",
+    "numba",
+    "dask",
+    "openturns",
+)
 
 
 def software_versions() -> dict:
@@ -293,7 +364,7 @@ def _differences(folder: Path, study: Study) -> str:
         theirs = json.loads((folder / "inputs.json").read_text())
     except (OSError, ValueError):
         return ""
-    ours = json.loads(json.dumps(study.inputs()))   # the same normalisation as the file
+    ours = json.loads(json.dumps(study.inputs()))  # the same normalisation as the file
     keys = sorted(k for k in set(theirs) | set(ours) if theirs.get(k) != ours.get(k))
     return f", differing in: {', '.join(keys)}" if keys else ""
 

@@ -45,7 +45,7 @@ arcsec) and names every tolerance by its error name:
 
 The statistical model of each kind of tolerance is in tolerance/sampling.py.
 A load_Nm beyond 5x the rated torque is refused; beyond 2.5x the runs warn
-(`Study.load_warning`, rvfmu.core.limits).  The study hash
+(`Study.load_warning`, rvfmu.core.reducer.limits).  The study hash
 (`Study.inputs_hash`) covers everything that changes a computed number; the
 spec, the sample counts, the analysis settings and the cost tables are left
 out, so changing them reuses the stored batches.
@@ -63,16 +63,28 @@ from pathlib import Path
 
 import numpy as np
 
-from rvfmu.core.checks import InputError, finite_number, integer
-from rvfmu.core.design import (ESTIMATE_NAMES, PRESET_NAMES, RVDesign, design_from_file_values,
-                               load_design)
-from rvfmu.core.equivalent import check_angles
-from rvfmu.core.errors import (ERROR_FRACTION, ERROR_NAMES, ErrorSet, error_file_values,
-                              error_limits, errors_from_file_values, load_errors)
-from rvfmu.core.limits import check_load, check_speed
-from rvfmu.core.lubricant import REFERENCE_TEMPERATURE_C, check_temperature
-from rvfmu.core.quasistatic import default_points
-from rvfmu.core.units import RPM, UM
+from rvfmu.core.base.checks import InputError, finite_number, integer
+from rvfmu.core.base.units import RPM, UM
+from rvfmu.core.laws.lubricant import REFERENCE_TEMPERATURE_C, check_temperature
+from rvfmu.core.reducer.design import (
+    ESTIMATE_NAMES,
+    PRESET_NAMES,
+    RVDesign,
+    design_from_file_values,
+    load_design,
+)
+from rvfmu.core.reducer.errors import (
+    ERROR_FRACTION,
+    ERROR_NAMES,
+    ErrorSet,
+    error_file_values,
+    error_limits,
+    errors_from_file_values,
+    load_errors,
+)
+from rvfmu.core.reducer.limits import check_load, check_speed
+from rvfmu.core.statics.equivalent import check_angles
+from rvfmu.core.statics.quasistatic import default_points
 
 from . import sampling
 from .cost import CostModel, check_bounds, cost_model
@@ -87,11 +99,13 @@ SECTIONS = {
     "tolerances": None,  # keys: error names
 }
 FACTOR_KEYS = ("distribution", "group", "cost")
-MAX_BATCH = 4096        # reducers per batch: bigger batches only cost memory (S x points x pins)
-METRIC_NAMES_TEXT = ("must be te_pp, rms, lost_motion, torsional_rigidity, order_<k> "
-                     "(k cycles per output revolution), efficiency or no_load_running_torque")
+MAX_BATCH = 4096  # reducers per batch: bigger batches only cost memory (S x points x pins)
+METRIC_NAMES_TEXT = (
+    "must be te_pp, rms, lost_motion, torsional_rigidity, order_<k> "
+    "(k cycles per output revolution), efficiency or no_load_running_torque"
+)
 OUTPUT_SPEED_RPM = 15.0  # default output speed of the friction metrics: the catalogue's rated speed
-MIN_SOBOL_N = 8         # the convergence check analyses N/4 base samples: at least 2
+MIN_SOBOL_N = 8  # the convergence check analyses N/4 base samples: at least 2
 
 
 @dataclass(frozen=True)
@@ -121,21 +135,31 @@ class Factor:
     def largest_um(self) -> tuple[str, float, float]:
         """(key, its value, the largest error size [um] the tolerance draws): half the zone's
         diameter, the cumulative pitch span, half the band, the largest clearance."""
-        key, factor = {"zone": ("position_um", 0.5), "pitch": ("cumulative_um", 1.0),
-                       "band": ("band_um", 0.5), "clearance": ("max_um", 1.0)}[self.kind]
+        key, factor = {
+            "zone": ("position_um", 0.5),
+            "pitch": ("cumulative_um", 1.0),
+            "band": ("band_um", 0.5),
+            "clearance": ("max_um", 1.0),
+        }[self.kind]
         value = getattr(self, key)
         return key, value, factor * value
 
     def __post_init__(self):
         here = f"tolerances.{self.name}"
         if self.name not in ERROR_NAMES:
-            raise InputError(here, self.name, "names no error of docs/model.md section 4; "
-                             f"known names: {', '.join(ERROR_NAMES)}")
+            raise InputError(
+                here,
+                self.name,
+                f"names no error of docs/model.md section 4; known names: {', '.join(ERROR_NAMES)}",
+            )
         if self.kind != sampling.KIND_OF[self.name]:
             raise InputError(f"{here}.kind", self.kind, f"must be {sampling.KIND_OF[self.name]}")
         if self.distribution not in sampling.DISTRIBUTIONS:
-            raise InputError(f"{here}.distribution", self.distribution,
-                             f"must be one of {', '.join(sampling.DISTRIBUTIONS)}")
+            raise InputError(
+                f"{here}.distribution",
+                self.distribution,
+                f"must be one of {', '.join(sampling.DISTRIBUTIONS)}",
+            )
         if not isinstance(self.group, str):
             raise InputError(f"{here}.group", self.group, "must be a name")
         object.__setattr__(self, "group", self.group.strip() or self.name)
@@ -146,8 +170,12 @@ class Factor:
         if self.single_um is not None:
             value = finite_number(f"{here}.single_um", self.single_um)
             if value <= 0:
-                raise InputError(f"{here}.single_um", value, "a single pitch tolerance must be "
-                                 "> 0 um (leave it out for no limit beyond cumulative_um)")
+                raise InputError(
+                    f"{here}.single_um",
+                    value,
+                    "a single pitch tolerance must be "
+                    "> 0 um (leave it out for no limit beyond cumulative_um)",
+                )
         if self.max_um < self.min_um:
             raise InputError(f"{here}.max_um", self.max_um, f"must be >= min_um = {self.min_um}")
         if self.cost is not None:
@@ -221,41 +249,71 @@ class Study:
         check_angles(self.design, self.points, "points", where)
         integer("windup_positions", self.windup_positions, 1, where=where)
         integer("batch_size", self.batch_size, 1, MAX_BATCH, where=where)
-        integer("seed", self.seed, 0, 2 ** 63 - 1, where=where)
+        integer("seed", self.seed, 0, 2**63 - 1, where=where)
         check_load("operating.load_Nm", self.load_Nm, self.design.rated_torque, where)
         if not self.factors:
-            raise InputError("tolerances", None, "a study needs at least one [tolerances.NAME] "
-                             f"table; NAME is one of {', '.join(ERROR_NAMES)}", where)
+            raise InputError(
+                "tolerances",
+                None,
+                "a study needs at least one [tolerances.NAME] "
+                f"table; NAME is one of {', '.join(ERROR_NAMES)}",
+                where,
+            )
         if not self.metrics:
             raise InputError("metrics", [], "name at least one metric", where)
         for name in self.metrics:
             if metric_kind(name) is None:
                 raise InputError("metrics", name, METRIC_NAMES_TEXT, where)
             if metric_kind(name) == "order" and not 1 <= metric_order(name) < self.points // 2:
-                raise InputError("metrics", name, f"the order must be from 1 to {self.points // 2 - 1}"
-                                 f" (Nyquist order of points = {self.points})", where)
+                raise InputError(
+                    "metrics",
+                    name,
+                    f"the order must be from 1 to {self.points // 2 - 1}"
+                    f" (Nyquist order of points = {self.points})",
+                    where,
+                )
         if not finite_number("operating.output_speed_rpm", self.output_speed_rpm, where) > 0.0:
-            raise InputError("operating.output_speed_rpm", self.output_speed_rpm,
-                             "must be a positive output speed [rpm]", where)
-        check_speed("operating.output_speed_rpm", self.output_speed_rpm,
-                    self.output_speed_rpm * RPM, self.design, where)
+            raise InputError(
+                "operating.output_speed_rpm",
+                self.output_speed_rpm,
+                "must be a positive output speed [rpm]",
+                where,
+            )
+        check_speed(
+            "operating.output_speed_rpm",
+            self.output_speed_rpm,
+            self.output_speed_rpm * RPM,
+            self.design,
+            where,
+        )
         check_temperature(self.temperature_C, "operating.temperature_C", where)
         if "efficiency" in self.metrics and not self.load_Nm > 0.0:
-            raise InputError("operating.load_Nm", self.load_Nm, "must be a resisting torque > 0 "
-                             "for the metric efficiency (the output's power over the input's)", where)
+            raise InputError(
+                "operating.load_Nm",
+                self.load_Nm,
+                "must be a resisting torque > 0 "
+                "for the metric efficiency (the output's power over the input's)",
+                where,
+            )
         if len(set(self.metrics)) != len(self.metrics):
             raise InputError("metrics", list(self.metrics), "must not repeat a metric", where)
         for limit in self.spec:
             if limit.metric not in self.metrics:
-                raise InputError("spec", limit.column, f"needs the metric {limit.metric!r} in "
-                                 f"[study] metrics (now {list(self.metrics)})", where)
+                raise InputError(
+                    "spec",
+                    limit.column,
+                    f"needs the metric {limit.metric!r} in [study] metrics (now {list(self.metrics)})",
+                    where,
+                )
         integer("montecarlo.n", self.mc_n, 1, where=where)
         sobol_base_samples("sobol.n", self.sobol_n, where)
         integer("sobol.resamples", self.resamples, 10, where=where)
         check_sobol_method("sobol.method", self.sobol_method, where)
         sobol_base_samples("sobol.solved_n", self.sobol_solved_n, where)
-        for key, value in (("montecarlo.confidence", self.mc_confidence),
-                           ("sobol.confidence", self.sobol_confidence)):
+        for key, value in (
+            ("montecarlo.confidence", self.mc_confidence),
+            ("sobol.confidence", self.sobol_confidence),
+        ):
             if not 0.0 < finite_number(key, value, where) < 1.0:
                 raise InputError(key, value, "must be between 0 and 1 (e.g. 0.95)", where)
         if self.base_errors is not None:
@@ -264,26 +322,35 @@ class Study:
         for factor in self.factors:
             key, value, largest = factor.largest_um
             if largest * UM > limits[factor.name] * (1.0 + 1e-9):
-                raise InputError(f"tolerances.{factor.name}.{key}", value,
-                                 f"allows errors of up to {largest:g} um, where the model takes "
-                                 f"at most {limits[factor.name] / UM:.4g} um for "
-                                 f"{factor.name} on {self.design.name} (ERROR_FRACTION = "
-                                 f"{ERROR_FRACTION:g} x the length it displaces, docs/model.md "
-                                 "section 4)", where)
+                raise InputError(
+                    f"tolerances.{factor.name}.{key}",
+                    value,
+                    f"allows errors of up to {largest:g} um, where the model takes "
+                    f"at most {limits[factor.name] / UM:.4g} um for "
+                    f"{factor.name} on {self.design.name} (ERROR_FRACTION = "
+                    f"{ERROR_FRACTION:g} x the length it displaces, docs/model.md "
+                    "section 4)",
+                    where,
+                )
 
     @property
     def load_warning(self) -> str | None:
-        """A warning when the load is above the momentary maximum class (rvfmu.core.limits)."""
+        """A warning when the load is above the momentary maximum class (rvfmu.core.reducer.limits)."""
         where = self.path.name if self.path else self.name
         return check_load("operating.load_Nm", self.load_Nm, self.design.rated_torque, where)
 
     @property
     def operating_warnings(self) -> list[str]:
         """The warnings of the [operating] table: the load above the momentary maximum class,
-        the output speed above the design's allowable speed (rvfmu.core.limits)."""
+        the output speed above the design's allowable speed (rvfmu.core.reducer.limits)."""
         where = self.path.name if self.path else self.name
-        speed = check_speed("operating.output_speed_rpm", self.output_speed_rpm,
-                            self.output_speed_rpm * RPM, self.design, where)
+        speed = check_speed(
+            "operating.output_speed_rpm",
+            self.output_speed_rpm,
+            self.output_speed_rpm * RPM,
+            self.design,
+            where,
+        )
         return [w for w in (self.load_warning, speed) if w]
 
     # -- the problem definition ----------------------------------------------------------
@@ -310,8 +377,12 @@ class Study:
     def problem(self) -> dict:
         """SALib problem: every column uniform on [0, 1), grouped by factor group."""
         groups = [f.group for f, start, stop in self.layout for _ in range(stop - start)]
-        return {"num_vars": len(self.columns), "names": list(self.columns),
-                "bounds": [[0.0, 1.0]] * len(self.columns), "groups": groups}
+        return {
+            "num_vars": len(self.columns),
+            "names": list(self.columns),
+            "bounds": [[0.0, 1.0]] * len(self.columns),
+            "groups": groups,
+        }
 
     @property
     def metric_columns(self) -> tuple[str, ...]:
@@ -323,12 +394,17 @@ class Study:
         return {
             "design": self.design.file_values(),
             "errors": error_file_values(self.base_errors) if self.base_errors is not None else {},
-            "operating": {"load_Nm": self.load_Nm, "points": self.points,
-                          "windup_positions": self.windup_positions,
-                          # only where it changes a number: the friction metrics
-                          **({"output_speed_rpm": self.output_speed_rpm,
-                              "temperature_C": self.temperature_C}
-                             if set(self.metrics) & {"efficiency", "no_load_running_torque"} else {})},
+            "operating": {
+                "load_Nm": self.load_Nm,
+                "points": self.points,
+                "windup_positions": self.windup_positions,
+                # only where it changes a number: the friction metrics
+                **(
+                    {"output_speed_rpm": self.output_speed_rpm, "temperature_C": self.temperature_C}
+                    if set(self.metrics) & {"efficiency", "no_load_running_torque"}
+                    else {}
+                ),
+            },
             "metrics": list(self.metrics),
             "tolerances": {f.name: f.file_values() for f in self.factors},
             "factor_order": [f.name for f in self.factors],
@@ -352,8 +428,9 @@ def check_sobol_method(field_name: str, method, where: str = "") -> str:
     design solved) or "linearized" (the TE curve linearized in the errors,
     `tolerance.linearized`)."""
     if method not in SOBOL_METHODS:
-        raise InputError(field_name, method, "must be one of " + ", ".join(
-            f'"{m}"' for m in SOBOL_METHODS), where)
+        raise InputError(
+            field_name, method, "must be one of " + ", ".join(f'"{m}"' for m in SOBOL_METHODS), where
+        )
     return method
 
 
@@ -361,8 +438,13 @@ def sobol_base_samples(field_name: str, n, where: str = "") -> int:
     """N of a Sobol study: a power of 2 (balance of the Sobol' sequence), at least MIN_SOBOL_N."""
     n = integer(field_name, n, MIN_SOBOL_N, where=where)
     if n & (n - 1):
-        raise InputError(field_name, n, f"must be a power of 2 (e.g. {1 << n.bit_length()}) so that "
-                         "the Sobol' sequence and its N/4 and N/2 heads are balanced", where)
+        raise InputError(
+            field_name,
+            n,
+            f"must be a power of 2 (e.g. {1 << n.bit_length()}) so that "
+            "the Sobol' sequence and its N/4 and N/2 heads are balanced",
+            where,
+        )
     return n
 
 
@@ -381,8 +463,8 @@ def model_fingerprint() -> str:
     except metadata.PackageNotFoundError:
         digest.update(b"rvte (not installed)")
     core = Path(rvfmu.core.__file__).parent
-    here = Path(__file__).parent      # the sampling and the evaluation change numbers too
-    files = sorted(core.glob("*.py")) + [here / f"{m}.py" for m in ("sampling", "sequences", "evaluate")]
+    here = Path(__file__).parent  # the sampling and the evaluation change numbers too
+    files = sorted(core.rglob("*.py")) + [here / f"{m}.py" for m in ("sampling", "sequences", "evaluate")]
     for path in files:
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
@@ -390,6 +472,7 @@ def model_fingerprint() -> str:
 
 
 # -- reading a study file ----------------------------------------------------------------------
+
 
 def load_study(path: str | Path, output: str | Path | None = None) -> Study:
     """Read and check a study file; `output` overrides its output folder."""
@@ -399,8 +482,7 @@ def load_study(path: str | Path, output: str | Path | None = None) -> Study:
     try:
         text = path.read_bytes().decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputError("study", str(path), f"is not a readable UTF-8 TOML study file ({exc})") \
-            from None
+        raise InputError("study", str(path), f"is not a readable UTF-8 TOML study file ({exc})") from None
     try:
         values = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -420,11 +502,12 @@ def study_from_values(values: dict, path: Path, text: str = "", output=None) -> 
             _known(table, SECTIONS[name], f"[{name}]", where)
     head, op = sections["study"], sections["operating"]
     if "design" not in head:
-        raise InputError("study.design", None, f"is missing: a preset ({', '.join(PRESET_NAMES)}) "
-                         "or a design file", where)
+        raise InputError(
+            "study.design", None, f"is missing: a preset ({', '.join(PRESET_NAMES)}) or a design file", where
+        )
     design_source = _text("study.design", head["design"], where)
     if design_source not in PRESET_NAMES + ESTIMATE_NAMES:
-        design_source = str(_beside(path, design_source))   # so that reports can name the file
+        design_source = str(_beside(path, design_source))  # so that reports can name the file
     design = load_design(design_source)
     errors_source = head.get("errors")
     base_errors = None
@@ -448,21 +531,24 @@ def study_from_values(values: dict, path: Path, text: str = "", output=None) -> 
         out = Path(path.stem) / "output"
     return Study(
         name=_text("study.name", head.get("name", path.stem), where),
-        design=design, design_source=design_source,
-        base_errors=base_errors, errors_source=errors_source or "",
+        design=design,
+        design_source=design_source,
+        base_errors=base_errors,
+        errors_source=errors_source or "",
         factors=_factors(sections["tolerances"], where),
-        seed=integer("study.seed", head.get("seed", 0), 0, 2 ** 63 - 1, where),
+        seed=integer("study.seed", head.get("seed", 0), 0, 2**63 - 1, where),
         metrics=tuple(metrics),
         batch_size=integer("study.batch_size", head.get("batch_size", 64), 1, MAX_BATCH, where),
         output=out if out.is_absolute() or output is not None else study_dir / out,
         load_Nm=finite_number("operating.load_Nm", op.get("load_Nm", 0.0), where),
         points=integer("operating.points", op["points"], 8, where=where) if "points" in op else None,
-        windup_positions=integer("operating.windup_positions", op.get("windup_positions", 8), 1,
-                                 where=where),
-        output_speed_rpm=finite_number("operating.output_speed_rpm",
-                                       op.get("output_speed_rpm", OUTPUT_SPEED_RPM), where),
-        temperature_C=finite_number("operating.temperature_C",
-                                    op.get("temperature_C", REFERENCE_TEMPERATURE_C), where),
+        windup_positions=integer("operating.windup_positions", op.get("windup_positions", 8), 1, where=where),
+        output_speed_rpm=finite_number(
+            "operating.output_speed_rpm", op.get("output_speed_rpm", OUTPUT_SPEED_RPM), where
+        ),
+        temperature_C=finite_number(
+            "operating.temperature_C", op.get("temperature_C", REFERENCE_TEMPERATURE_C), where
+        ),
         spec=_spec(sections["spec"], metrics, where),
         mc_n=integer("montecarlo.n", sections["montecarlo"].get("n", 1000), 1, where=where),
         mc_confidence=sections["montecarlo"].get("confidence", 0.95),
@@ -473,7 +559,8 @@ def study_from_values(values: dict, path: Path, text: str = "", output=None) -> 
         sobol_method=sections["sobol"].get("method", "saltelli"),
         sobol_solved_n=sections["sobol"].get("solved_n", 64),
         sobol_rounds=_bool("sobol.rounds", sections["sobol"].get("rounds", False), where),
-        path=path, text=text,
+        path=path,
+        text=text,
     )
 
 
@@ -494,28 +581,42 @@ def study_from_store(folder: Path, name: str, inputs: dict, study_text: str = ""
     try:
         values = tomllib.loads(study_text)
     except tomllib.TOMLDecodeError as exc:
-        raise InputError("study.toml", str(folder / "study.toml"), f"is not valid TOML ({exc})") \
-            from None
+        raise InputError("study.toml", str(folder / "study.toml"), f"is not valid TOML ({exc})") from None
     for section in ("study", "spec", "montecarlo", "sobol"):
         if not isinstance(values.get(section, {}), dict):
-            raise InputError("study.toml", str(folder / "study.toml"), f"has {section} = "
-                             f"{values[section]!r} where a [{section}] table belongs: it is not "
-                             "the study file rvte copies there; restore it or run the study again")
+            raise InputError(
+                "study.toml",
+                str(folder / "study.toml"),
+                f"has {section} = "
+                f"{values[section]!r} where a [{section}] table belongs: it is not "
+                "the study file rvte copies there; restore it or run the study again",
+            )
     head, sections = values.get("study", {}), {k: values.get(k, {}) for k in ("montecarlo", "sobol")}
     try:
         design = design_from_file_values(inputs["design"], where="inputs.json")
-        errors = errors_from_file_values(design, inputs["errors"], "inputs.json") \
-            if inputs["errors"] else None
-        factors = tuple(Factor(name=factor, kind=sampling.KIND_OF.get(factor),
-                               **inputs["tolerances"][factor]) for factor in inputs["factor_order"])
+        errors = (
+            errors_from_file_values(design, inputs["errors"], "inputs.json") if inputs["errors"] else None
+        )
+        factors = tuple(
+            Factor(name=factor, kind=sampling.KIND_OF.get(factor), **inputs["tolerances"][factor])
+            for factor in inputs["factor_order"]
+        )
         metrics = tuple(inputs["metrics"])
         operating = inputs["operating"]
         return Study(
-            name=name, design=design, factors=factors,
-            design_source=str(head.get("design", design.name)), base_errors=errors,
-            errors_source=str(head.get("errors", "")), seed=inputs["seed"], metrics=metrics,
-            batch_size=inputs["batch_size"], output=folder, load_Nm=operating["load_Nm"],
-            points=operating["points"], windup_positions=operating["windup_positions"],
+            name=name,
+            design=design,
+            factors=factors,
+            design_source=str(head.get("design", design.name)),
+            base_errors=errors,
+            errors_source=str(head.get("errors", "")),
+            seed=inputs["seed"],
+            metrics=metrics,
+            batch_size=inputs["batch_size"],
+            output=folder,
+            load_Nm=operating["load_Nm"],
+            points=operating["points"],
+            windup_positions=operating["windup_positions"],
             output_speed_rpm=operating.get("output_speed_rpm", OUTPUT_SPEED_RPM),
             temperature_C=operating.get("temperature_C", REFERENCE_TEMPERATURE_C),
             spec=_spec(values.get("spec", {}), metrics, "study.toml"),
@@ -528,10 +629,15 @@ def study_from_store(folder: Path, name: str, inputs: dict, study_text: str = ""
             sobol_method=sections["sobol"].get("method", "saltelli"),
             sobol_solved_n=sections["sobol"].get("solved_n", 64),
             sobol_rounds=sections["sobol"].get("rounds", False),
-            path=folder / "study.toml", text=study_text)
+            path=folder / "study.toml",
+            text=study_text,
+        )
     except (KeyError, TypeError) as exc:
-        raise InputError("inputs.json", str(folder / "inputs.json"), f"lacks {exc} or holds a "
-                         "value of the wrong type: it is not the inputs.json rvte writes") from None
+        raise InputError(
+            "inputs.json",
+            str(folder / "inputs.json"),
+            f"lacks {exc} or holds a value of the wrong type: it is not the inputs.json rvte writes",
+        ) from None
 
 
 def _factors(table: dict, where: str) -> tuple[Factor, ...]:
@@ -540,25 +646,37 @@ def _factors(table: dict, where: str) -> tuple[Factor, ...]:
     for name, values in table.items():
         kind = sampling.KIND_OF.get(name)
         if kind is not None and not isinstance(values, dict):
-            raise InputError(f"tolerances.{name}", values, "must be a table with its tolerance "
-                             f"({', '.join(sampling.KEYS[kind])})", where)
+            raise InputError(
+                f"tolerances.{name}",
+                values,
+                f"must be a table with its tolerance ({', '.join(sampling.KEYS[kind])})",
+                where,
+            )
         values = values if isinstance(values, dict) else {}
-        if kind is None:   # an unknown error name: say so, whatever keys its table holds
-            raise InputError(f"tolerances.{name}", name, "names no error of docs/model.md "
-                             f"section 4; the errors are {', '.join(ERROR_NAMES)}", where)
+        if kind is None:  # an unknown error name: say so, whatever keys its table holds
+            raise InputError(
+                f"tolerances.{name}",
+                name,
+                f"names no error of docs/model.md section 4; the errors are {', '.join(ERROR_NAMES)}",
+                where,
+            )
         if kind is not None:
             keys = sampling.KEYS[kind]
             _known(values, keys + FACTOR_KEYS, f"[tolerances.{name}]", where)
-            required = keys[:sampling.REQUIRED[kind]]
+            required = keys[: sampling.REQUIRED[kind]]
             missing = [k for k in required if k not in values]
             if missing:
-                raise InputError(f"tolerances.{name}.{missing[0]}", None, f"is missing: a {kind} "
-                                 f"tolerance needs {', '.join(required)} (um)", where)
+                raise InputError(
+                    f"tolerances.{name}.{missing[0]}",
+                    None,
+                    f"is missing: a {kind} tolerance needs {', '.join(required)} (um)",
+                    where,
+                )
         if "cost" in values:
             values = {**values, "cost": cost_model(values["cost"], f"tolerances.{name}.cost", where)}
         try:
             factors.append(Factor(name=name, kind=kind, **values))
-        except InputError as exc:   # the same message, located in the study file
+        except InputError as exc:  # the same message, located in the study file
             raise InputError(exc.field, exc.value, exc.allowed, where) from None
     return tuple(factors)
 
@@ -568,8 +686,12 @@ def _spec(table: dict, metrics, where: str) -> tuple[SpecLimit, ...]:
     limits = []
     for column, value in table.items():
         if column not in by_column:
-            raise InputError(f"spec.{column}", value, "must be the column of a metric in [study] "
-                             f"metrics: {', '.join(by_column) or '(none)'}", where)
+            raise InputError(
+                f"spec.{column}",
+                value,
+                f"must be the column of a metric in [study] metrics: {', '.join(by_column) or '(none)'}",
+                where,
+            )
         metric = by_column[column]
         sense = "min" if metric_kind(metric) in LOWER_LIMITED else "max"
         limits.append(SpecLimit(metric, column, finite_number(f"spec.{column}", value, where), sense))
@@ -579,8 +701,9 @@ def _spec(table: dict, metrics, where: str) -> tuple[SpecLimit, ...]:
 def _known(values: dict, allowed, what: str, where: str) -> None:
     for key in values:
         if key not in allowed:
-            raise InputError(key, values[key], f"is not a key of {what}; known keys: "
-                             f"{', '.join(allowed)}", where)
+            raise InputError(
+                key, values[key], f"is not a key of {what}; known keys: {', '.join(allowed)}", where
+            )
 
 
 def _text(name, value, where) -> str:
@@ -611,5 +734,15 @@ def _beside(study_path: Path, name: str) -> Path:
     return given if given.is_absolute() else study_path.resolve().parent / given
 
 
-__all__ = ["Factor", "SpecLimit", "Study", "load_study", "study_from_values", "study_from_store",
-           "model_fingerprint", "sobol_base_samples", "check_sobol_method", "flag"]
+__all__ = [
+    "Factor",
+    "SpecLimit",
+    "Study",
+    "load_study",
+    "study_from_values",
+    "study_from_store",
+    "model_fingerprint",
+    "sobol_base_samples",
+    "check_sobol_method",
+    "flag",
+]

@@ -43,9 +43,11 @@ def operating_text(study) -> str:
         load += f" at {study.output_speed_rpm:g} rpm output, the lubricant at {study.temperature_C:g} C"
     pin_order = d.z_p * d.z_c
     nyquist = study.points // 2
-    resolve = (f"resolves the pin-passing order {pin_order}" if nyquist > pin_order else
-               f"below the pin-passing order {pin_order}: its effect is measured by the "
-               "aliasing check")
+    resolve = (
+        f"resolves the pin-passing order {pin_order}"
+        if nyquist > pin_order
+        else f"below the pin-passing order {pin_order}: its effect is measured by the aliasing check"
+    )
     return f"{d.name}, {load}, {study.points} points per output revolution ({resolve})"
 
 
@@ -63,7 +65,7 @@ def column_label(column: str) -> str:
 def _limit_label(limit) -> str:
     """A spec limit for a figure legend: 'spec <= 30 arcsec' (its axis names the metric)."""
     label = column_label(limit.column)
-    unit = label[label.rfind("[") + 1:-1] if label.endswith("]") else ""
+    unit = label[label.rfind("[") + 1 : -1] if label.endswith("]") else ""
     sense = "≤" if limit.sense == "max" else "≥"
     return f"spec {sense} {limit.limit:g} {unit}".rstrip()
 
@@ -75,6 +77,7 @@ def _suptitle(fig, text: str) -> None:
 
 # -- Monte Carlo ------------------------------------------------------------------------------
 
+
 def mc_table(study, analysis: MCAnalysis, computed=None, aliasing=None) -> str:
     """The distribution of every metric, the yields and the worst reducer, as text.
 
@@ -84,11 +87,15 @@ def mc_table(study, analysis: MCAnalysis, computed=None, aliasing=None) -> str:
     a = analysis
     counted = f"{a.n} reducers analysed"
     if computed is not None:
-        counted += (f" ({computed.Y.shape[0]} computed in {computed.batches} batches of "
-                    f"{computed.batch_size}"
-                    + ("; the rest are kept for a larger -n)" if computed.Y.shape[0] > a.n else ")"))
-    lines = [f"Monte Carlo of study {study.name!r}: {counted} (seed {study.seed})",
-             f"  {operating_text(study)}"]
+        counted += (
+            f" ({computed.Y.shape[0]} computed in {computed.batches} batches of "
+            f"{computed.batch_size}"
+            + ("; the rest are kept for a larger -n)" if computed.Y.shape[0] > a.n else ")")
+        )
+    lines = [
+        f"Monte Carlo of study {study.name!r}: {counted} (seed {study.seed})",
+        f"  {operating_text(study)}",
+    ]
     heads = ["mean", "std", "min"] + [f"p{p}" for p in PERCENTILES] + ["max"]
     width = max(len(c) for c in study.metric_columns) + 2
     lines.append(f"  {'metric':<{width}}" + "".join(f"{h:>10}" for h in heads))
@@ -96,9 +103,11 @@ def mc_table(study, analysis: MCAnalysis, computed=None, aliasing=None) -> str:
         values = [s.mean, s.std, s.minimum] + [s.percentiles[p] for p in PERCENTILES] + [s.maximum]
         lines.append(f"  {s.column:<{width}}" + "".join(f"{v:>10.4g}" for v in values))
     for y in a.yields:
-        lines.append(f"  yield {y.label}: {y.passed}/{y.n} = {100 * y.fraction:.2f} % "
-                     f"({100 * y.confidence:g} % {y.method} interval {100 * y.low:.2f} - "
-                     f"{100 * y.high:.2f} %)")
+        lines.append(
+            f"  yield {y.label}: {y.passed}/{y.n} = {100 * y.fraction:.2f} % "
+            f"({100 * y.confidence:g} % {y.method} interval {100 * y.low:.2f} - "
+            f"{100 * y.high:.2f} %)"
+        )
     if not a.yields:
         lines.append("  no [spec] in the study: no yield")
     if a.failed:
@@ -116,16 +125,39 @@ def mc_json(study, analysis: MCAnalysis, extra: dict) -> dict:
     and the keys of `extra`."""
     a = analysis
     return {
-        "study": study.name, "job": "mc", "inputs_hash": study.inputs_hash,
-        "operating": operating_text(study), "n": a.n, "evaluated": a.evaluated,
-        "failed": a.failed, "not_converged": a.not_converged,
-        "metrics": {s.column: {"mean": s.mean, "std": s.std, "min": s.minimum, "max": s.maximum,
-                               "percentiles": {str(p): v for p, v in s.percentiles.items()}}
-                    for s in a.summaries},
-        "yields": [{"limit": y.label, "passed": y.passed, "n": y.n, "fraction": y.fraction,
-                    "low": y.low, "high": y.high, "confidence": y.confidence, "method": y.method}
-                   for y in a.yields],
-        "worst": {"row": a.worst, "column": a.worst_column}, **extra,
+        "study": study.name,
+        "job": "mc",
+        "inputs_hash": study.inputs_hash,
+        "operating": operating_text(study),
+        "n": a.n,
+        "evaluated": a.evaluated,
+        "failed": a.failed,
+        "not_converged": a.not_converged,
+        "metrics": {
+            s.column: {
+                "mean": s.mean,
+                "std": s.std,
+                "min": s.minimum,
+                "max": s.maximum,
+                "percentiles": {str(p): v for p, v in s.percentiles.items()},
+            }
+            for s in a.summaries
+        },
+        "yields": [
+            {
+                "limit": y.label,
+                "passed": y.passed,
+                "n": y.n,
+                "fraction": y.fraction,
+                "low": y.low,
+                "high": y.high,
+                "confidence": y.confidence,
+                "method": y.method,
+            }
+            for y in a.yields
+        ],
+        "worst": {"row": a.worst, "column": a.worst_column},
+        **extra,
     }
 
 
@@ -159,8 +191,11 @@ def figure_mc(study, Y: np.ndarray, analysis: MCAnalysis):
                 ax.axvline(limit.limit, color="C3", ls="--", lw=1.0, label=_limit_label(limit))
             y = next((y for y in analysis.yields if y.label == str(limit)), None)
             if y is not None:
-                ax_c.set_title(f"{label}: yield {100 * y.fraction:.1f} % ({100 * y.low:.1f}-"
-                               f"{100 * y.high:.1f} %, {100 * y.confidence:g} % Wilson)", fontsize=9)
+                ax_c.set_title(
+                    f"{label}: yield {100 * y.fraction:.1f} % ({100 * y.low:.1f}-"
+                    f"{100 * y.high:.1f} %, {100 * y.confidence:g} % Wilson)",
+                    fontsize=9,
+                )
             ax_h.legend(fontsize=8)
         for ax in (ax_h, ax_c):
             ax.grid(alpha=0.3)
@@ -181,8 +216,7 @@ NOTES_LEGEND = (
     "Notes:",
     "  < 0 within its CI: negative estimates are sampling noise around zero: reported as 0 "
     "(SALib's maintainers' advice when the CI includes 0).",
-    "  < 0 beyond its CI / > 1: reported as 0 / 1; beyond the CI the estimate has not "
-    "converged: raise n.",
+    "  < 0 beyond its CI / > 1: reported as 0 / 1; beyond the CI the estimate has not converged: raise n.",
     "  S1 > ST beyond their CIs: the true S1 never exceeds ST (ST adds the interactions), so "
     "this is sampling noise: raise n.",
     f"  CI wide: the interval is wider than +-{WIDE_CI:g}; factors whose indices differ by less "
@@ -195,16 +229,24 @@ NOTES_LEGEND = (
 
 def sobol_table(study, analyses: dict, n: int, evaluations: int, second_order: bool) -> str:
     """Ranking table of every metric, with intervals, notes and the convergence check."""
-    lines = [f"Sobol ranking of study {study.name!r}: {n} base samples, {evaluations} evaluations, "
-             f"{len(study.groups)} factors",
-             f"  {operating_text(study)}"]
+    lines = [
+        f"Sobol ranking of study {study.name!r}: {n} base samples, {evaluations} evaluations, "
+        f"{len(study.groups)} factors",
+        f"  {operating_text(study)}",
+    ]
     for column, result in analyses.items():
         ind, conv = result.indices, result.convergence
         conf = f"{100 * ind.confidence:g} %"
         lines.append("")
-        lines.append(f"{column}  (S1, ST with {conf} bootstrap CI, {study.resamples} resamples)"
-                     + ("; Saltelli's design evaluated on the TE linearized in the errors, "
-                        f"check Q2 = {result.check_q2:.4f}" if result.method == "linearized" else ""))
+        lines.append(
+            f"{column}  (S1, ST with {conf} bootstrap CI, {study.resamples} resamples)"
+            + (
+                "; Saltelli's design evaluated on the TE linearized in the errors, "
+                f"check Q2 = {result.check_q2:.4f}"
+                if result.method == "linearized"
+                else ""
+            )
+        )
         if ind.constant:
             lines.append("  the metric did not vary over the sample: every index is 0")
             continue
@@ -214,26 +256,35 @@ def sobol_table(study, analyses: dict, n: int, evaluations: int, second_order: b
         for rank, g in enumerate(ind.ranking(), start=1):
             s1 = f"{ind.S1_reported[g]:.3f} ± {ind.S1_conf[g]:.3f}"
             st = f"{ind.ST_reported[g]:.3f} ± {ind.ST_conf[g]:.3f}"
-            lines.append(f"  {rank:>4}  {ind.names[g]:<{width}}{s1:>16}{st:>16}  "
-                         + "; ".join(flags[g]))
+            lines.append(f"  {rank:>4}  {ind.names[g]:<{width}}{s1:>16}{st:>16}  " + "; ".join(flags[g]))
         lines.append(f"  sum S1 = {ind.S1_reported.sum():.3f} (1 - sum S1 = share of interactions)")
         groups = ind.order_groups()
         if groups is not None:
-            lines.append(f"  order: {order_text(groups)}  (ranks joined by '-' cannot be told "
-                         f"apart: the {conf} CI of their ST difference includes 0)")
-            loose = [(rank, step) for rank, step in enumerate(ind.order(), start=1)
-                     if not step.settled]
+            lines.append(
+                f"  order: {order_text(groups)}  (ranks joined by '-' cannot be told "
+                f"apart: the {conf} CI of their ST difference includes 0)"
+            )
+            loose = [(rank, step) for rank, step in enumerate(ind.order(), start=1) if not step.settled]
             if loose:
-                lines.append("  not settled: " + ", ".join(
-                    f"{rank}~{rank + 1} {step.difference:+.3f} ± {step.half_width:.3f}"
-                    for rank, step in loose))
+                lines.append(
+                    "  not settled: "
+                    + ", ".join(
+                        f"{rank}~{rank + 1} {step.difference:+.3f} ± {step.half_width:.3f}"
+                        for rank, step in loose
+                    )
+                )
         changes = ", ".join(f"N={m}" for m in conv.n)
         state = "converged" if conv.converged else "NOT converged: raise n"
-        lines.append(f"  convergence ({changes}): max |ST(N) - ST(N/2)| = {conv.max_change:.3f} "
-                     f"-> {state} (limit {CONVERGED_CHANGE})")
+        lines.append(
+            f"  convergence ({changes}): max |ST(N) - ST(N/2)| = {conv.max_change:.3f} "
+            f"-> {state} (limit {CONVERGED_CHANGE})"
+        )
         if second_order and ind.S2 is not None:
-            pairs = [(ind.S2[a, b], ind.names[a], ind.names[b]) for a in range(len(ind.names))
-                     for b in range(a + 1, len(ind.names))]
+            pairs = [
+                (ind.S2[a, b], ind.names[a], ind.names[b])
+                for a in range(len(ind.names))
+                for b in range(a + 1, len(ind.names))
+            ]
             top = sorted(pairs, key=lambda p: -p[0])[:5]
             lines.append("  largest S2: " + ", ".join(f"{a} x {b} {v:.3f}" for v, a, b in top))
     lines.append("")
@@ -246,8 +297,7 @@ def order_text(groups) -> str:
     return " | ".join(str(g[0]) if len(g) == 1 else f"{g[0]}-{g[-1]}" for g in groups)
 
 
-def sobol_json(study, analyses: dict, n: int, evaluations: int, second_order: bool,
-               extra: dict) -> dict:
+def sobol_json(study, analyses: dict, n: int, evaluations: int, second_order: bool, extra: dict) -> dict:
     """A Sobol study's summary for scripts: per metric column of `analyses`, every group's
     rank, S1 and ST with their intervals and notes, and the keys of `extra`; n base samples,
     `evaluations` model runs."""
@@ -257,43 +307,74 @@ def sobol_json(study, analyses: dict, n: int, evaluations: int, second_order: bo
         flags = ind.flags()
         rank_of = {int(g): r for r, g in enumerate(ind.ranking(), start=1)}
         steps = {step.upper: step for step in ind.order() or ()}
-        groups = [{"name": name, "rank": rank_of[g],
-                   "S1": _num(ind.S1[g]), "S1_conf": _num(ind.S1_conf[g]),
-                   "ST": _num(ind.ST[g]), "ST_conf": _num(ind.ST_conf[g]),
-                   "S1_reported": _num(ind.S1_reported[g]), "ST_reported": _num(ind.ST_reported[g]),
-                   "notes": flags[g], "next": _step_json(ind, steps.get(g))}
-                  for g, name in enumerate(ind.names)]
+        groups = [
+            {
+                "name": name,
+                "rank": rank_of[g],
+                "S1": _num(ind.S1[g]),
+                "S1_conf": _num(ind.S1_conf[g]),
+                "ST": _num(ind.ST[g]),
+                "ST_conf": _num(ind.ST_conf[g]),
+                "S1_reported": _num(ind.S1_reported[g]),
+                "ST_reported": _num(ind.ST_reported[g]),
+                "notes": flags[g],
+                "next": _step_json(ind, steps.get(g)),
+            }
+            for g, name in enumerate(ind.names)
+        ]
         groups.sort(key=lambda item: item["rank"])
-        entry = {"constant": ind.constant, "groups": groups, "order_groups": ind.order_groups(),
-                 "method": result.method, "check_q2": _num(result.check_q2)
-                 if result.check_q2 is not None else None,
-                 "convergence": {"n": list(conv.n),
-                                 "ST": {name: [_num(v) for v in conv.ST[:, g]]
-                                        for g, name in enumerate(ind.names)},
-                                 "S1": {name: [_num(v) for v in conv.S1[:, g]]
-                                        for g, name in enumerate(ind.names)},
-                                 "max_change_ST": _num(conv.max_change),
-                                 "converged": bool(conv.converged),
-                                 "limit": CONVERGED_CHANGE}}
+        entry = {
+            "constant": ind.constant,
+            "groups": groups,
+            "order_groups": ind.order_groups(),
+            "method": result.method,
+            "check_q2": _num(result.check_q2) if result.check_q2 is not None else None,
+            "convergence": {
+                "n": list(conv.n),
+                "ST": {name: [_num(v) for v in conv.ST[:, g]] for g, name in enumerate(ind.names)},
+                "S1": {name: [_num(v) for v in conv.S1[:, g]] for g, name in enumerate(ind.names)},
+                "max_change_ST": _num(conv.max_change),
+                "converged": bool(conv.converged),
+                "limit": CONVERGED_CHANGE,
+            },
+        }
         if second_order and ind.S2 is not None:
-            entry["S2"] = {f"{ind.names[a]} x {ind.names[b]}": {"S2": _num(ind.S2[a, b]),
-                                                               "S2_conf": _num(ind.S2_conf[a, b])}
-                           for a in range(len(ind.names)) for b in range(a + 1, len(ind.names))}
+            entry["S2"] = {
+                f"{ind.names[a]} x {ind.names[b]}": {
+                    "S2": _num(ind.S2[a, b]),
+                    "S2_conf": _num(ind.S2_conf[a, b]),
+                }
+                for a in range(len(ind.names))
+                for b in range(a + 1, len(ind.names))
+            }
         metrics[column] = entry
-    return {"study": study.name, "job": "sobol", "inputs_hash": study.inputs_hash,
-            "operating": operating_text(study), "n": n, "second_order": second_order,
-            "evaluations": evaluations, "resamples": study.resamples,
-            "confidence": study.sobol_confidence, "factors": list(study.groups),
-            "metrics": metrics, **extra}
+    return {
+        "study": study.name,
+        "job": "sobol",
+        "inputs_hash": study.inputs_hash,
+        "operating": operating_text(study),
+        "n": n,
+        "second_order": second_order,
+        "evaluations": evaluations,
+        "resamples": study.resamples,
+        "confidence": study.sobol_confidence,
+        "factors": list(study.groups),
+        "metrics": metrics,
+        **extra,
+    }
 
 
 def _step_json(ind, step) -> dict | None:
     """A group's order over the next rank (`sobol.RankStep`) for sobol_indices.json."""
     if step is None:
         return None
-    return {"factor": ind.names[step.lower], "difference": _num(step.difference),
-            "half_width": _num(step.half_width), "kept": _num(step.kept),
-            "settled": step.settled}
+    return {
+        "factor": ind.names[step.lower],
+        "difference": _num(step.difference),
+        "half_width": _num(step.half_width),
+        "kept": _num(step.kept),
+        "settled": step.settled,
+    }
 
 
 def figure_sobol(study, analyses: dict, runs: dict | None = None):
@@ -314,22 +395,37 @@ def figure_sobol(study, analyses: dict, runs: dict | None = None):
         ind = result.indices
         order = ind.ranking()
         x = np.arange(len(order))
-        ax.bar(x - 0.2, ind.S1_reported[order], 0.4, yerr=ind.S1_conf[order], capsize=3,
-               label="S1 (alone)", color="C0")
-        ax.bar(x + 0.2, ind.ST_reported[order], 0.4, yerr=ind.ST_conf[order], capsize=3,
-               label="ST (with interactions)", color="C1")
+        ax.bar(
+            x - 0.2,
+            ind.S1_reported[order],
+            0.4,
+            yerr=ind.S1_conf[order],
+            capsize=3,
+            label="S1 (alone)",
+            color="C0",
+        )
+        ax.bar(
+            x + 0.2,
+            ind.ST_reported[order],
+            0.4,
+            yerr=ind.ST_conf[order],
+            capsize=3,
+            label="ST (with interactions)",
+            color="C1",
+        )
         shaded = (runs or {}).get(column) or ind.order_groups() or []
         label = "ranks whose order is not settled"
         for run in shaded:
-            if len(run) > 1:   # rank r sits at x = r - 1; a gap keeps neighbouring runs apart
+            if len(run) > 1:  # rank r sits at x = r - 1; a gap keeps neighbouring runs apart
                 ax.axvspan(run[0] - 1.45, run[-1] - 0.55, color="0.87", zorder=0, label=label)
                 label = None
         ax.set_xticks(x, [ind.names[g] for g in order], rotation=30, ha="right", fontsize=8)
         ax.set_xlabel("tolerance factors, ranked by ST")
         ax.set_ylabel("Sobol index (share of variance)")
         ax.set_ylim(0, 1.05)
-        ax.set_title(f"{column_label(column)}: {100 * ind.confidence:g} % bootstrap intervals, "
-                     f"N = {ind.n}", fontsize=9)
+        ax.set_title(
+            f"{column_label(column)}: {100 * ind.confidence:g} % bootstrap intervals, N = {ind.n}", fontsize=9
+        )
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3, axis="y")
     _suptitle(fig, f"{study.name}: {operating_text(study)}")
@@ -358,8 +454,9 @@ def figure_convergence(study, analyses: dict):
         ax.minorticks_off()
         ax.set_xlabel("base samples N")
         ax.set_ylabel("total Sobol index ST")
-        ax.set_title(f"{column_label(column)}: ST moves by at most {conv.max_change:.3f} "
-                     f"from N/2 to N", fontsize=9)
+        ax.set_title(
+            f"{column_label(column)}: ST moves by at most {conv.max_change:.3f} from N/2 to N", fontsize=9
+        )
         ax.grid(alpha=0.3)
     axes[0, -1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.02, 0.5))
     _suptitle(fig, f"{study.name}: convergence of the Sobol ranking")
@@ -373,6 +470,7 @@ def plot_convergence(study, analyses: dict, path: Path) -> Path:
 
 
 # -- files ------------------------------------------------------------------------------------
+
 
 def write_json(path: Path, data: dict) -> Path:
     """Write `data` to `path` as indented JSON (numpy numbers and arrays as plain ones);
@@ -394,4 +492,3 @@ def _json_default(value):
     if isinstance(value, Path):
         return str(value)
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
-

@@ -17,15 +17,17 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import log_ndtr, ndtr
 
-DEGREE = 2                  # total degree of the chaos; 3 fitted no better on the RV-40E studies
-SIGMA_FLOOR = 0.02          # residual sigma >= this x the metric's spread: keeps the yield smooth
-SURROGATE_KIND = ("polynomial chaos (OpenTURNS FunctionalChaosAlgorithm, Legendre degree "
-                  f"{DEGREE}, LARS, corrected leave-one-out) of each spec metric and of its "
-                  "residual variance")
-
+DEGREE = 2  # total degree of the chaos; 3 fitted no better on the RV-40E studies
+SIGMA_FLOOR = 0.02  # residual sigma >= this x the metric's spread: keeps the yield smooth
+SURROGATE_KIND = (
+    "polynomial chaos (OpenTURNS FunctionalChaosAlgorithm, Legendre degree "
+    f"{DEGREE}, LARS, corrected leave-one-out) of each spec metric and of its "
+    "residual variance"
+)
 
 
 # -- the surrogate ------------------------------------------------------------------------------
+
 
 class Chaos:
     """A sparse polynomial chaos on inputs in [-1, 1]^d: fitted by OpenTURNS, evaluated by numpy.
@@ -44,11 +46,14 @@ class Chaos:
         basis = ot.OrthogonalProductPolynomialFactory([ot.LegendreFactory()] * d)
         enumerate_ = basis.getEnumerateFunction()
         algo = ot.FunctionalChaosAlgorithm(
-            ot.Sample(np.ascontiguousarray(X)), ot.Sample(np.ascontiguousarray(y)[:, None]),
+            ot.Sample(np.ascontiguousarray(X)),
+            ot.Sample(np.ascontiguousarray(y)[:, None]),
             ot.JointDistribution([ot.Uniform(-1.0, 1.0)] * d),
             ot.FixedStrategy(basis, enumerate_.getBasisSizeFromTotalDegree(degree)),
-            ot.LeastSquaresStrategy(ot.LeastSquaresMetaModelSelectionFactory(
-                ot.LARS(), ot.CorrectedLeaveOneOut())))
+            ot.LeastSquaresStrategy(
+                ot.LeastSquaresMetaModelSelectionFactory(ot.LARS(), ot.CorrectedLeaveOneOut())
+            ),
+        )
         algo.run()
         result = algo.getResult()
         self.degree = degree
@@ -76,7 +81,7 @@ class Chaos:
     def value_gradient(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Values (n,) and gradient (n, d) with respect to X at X (n, d) in [-1, 1]."""
         P, D = self._legendre(X, derivatives=True)
-        value, gradient = np.zeros(P.shape[2]), np.zeros(P.shape[1:])      # (n,), (d, n)
+        value, gradient = np.zeros(P.shape[2]), np.zeros(P.shape[1:])  # (n,), (d, n)
         for alpha, c in zip(self.alpha, self.coefficients):
             nonzero = np.flatnonzero(alpha)
             if nonzero.size == 0:
@@ -84,14 +89,14 @@ class Chaos:
                 continue
             factors = [P[alpha[i], i] for i in nonzero]
             value += c * np.prod(factors, axis=0)
-            for j, i in enumerate(nonzero):             # product rule: one factor differentiated
-                others = factors[:j] + factors[j + 1:]
+            for j, i in enumerate(nonzero):  # product rule: one factor differentiated
+                others = factors[:j] + factors[j + 1 :]
                 gradient[i] += c * D[alpha[i], i] * (np.prod(others, axis=0) if others else 1.0)
         return value, gradient.T
 
     def _legendre(self, X, derivatives: bool):
         """Orthonormal Legendre values P (degree + 1, d, n) at X (n, d), and their derivatives."""
-        X = np.ascontiguousarray(X.T)                   # (d, n): each polynomial row contiguous
+        X = np.ascontiguousarray(X.T)  # (d, n): each polynomial row contiguous
         P = np.empty((self.degree + 1,) + X.shape)
         D = np.zeros_like(P) if derivatives else None
         P[0] = 1.0
@@ -99,9 +104,9 @@ class Chaos:
             P[1] = X
             if derivatives:
                 D[1] = 1.0
-        for n in range(1, self.degree):                 # Bonnet's recursion
+        for n in range(1, self.degree):  # Bonnet's recursion
             P[n + 1] = ((2 * n + 1) * X * P[n] - n * P[n - 1]) / (n + 1)
-            if derivatives:                             # P'_{n+1} = P'_{n-1} + (2n + 1) P_n
+            if derivatives:  # P'_{n+1} = P'_{n-1} + (2n + 1) P_n
                 D[n + 1] = D[n - 1] + (2 * n + 1) * P[n]
         norm = np.sqrt(2.0 * np.arange(self.degree + 1) + 1.0)[:, None, None]
         P *= norm
@@ -118,8 +123,7 @@ class Surrogate:
     `Chaos`; e standard normal.  Lines are treated as independent given Z.
     """
 
-    def __init__(self, Z: np.ndarray, Y: np.ndarray, limits: tuple,
-                 degree: int = DEGREE):
+    def __init__(self, Z: np.ndarray, Y: np.ndarray, limits: tuple, degree: int = DEGREE):
         self.limits = limits
         self.low, self.high = Z.min(axis=0), Z.max(axis=0)
         self.high = np.where(self.high > self.low, self.high, self.low + 1.0)
@@ -133,12 +137,18 @@ class Surrogate:
             mean = Chaos(X, g, degree)
             residual = g - mean(X)
             tiny = (1e-3 * spread) ** 2
-            log_variance = Chaos(X, np.log(residual ** 2 + tiny), degree)
+            log_variance = Chaos(X, np.log(residual**2 + tiny), degree)
             # in-sample residuals understate the spread by the terms fitted; E[log chi2_1] = -1.2704
             inflate = X.shape[0] / max(1, X.shape[0] - mean.coefficients.size)
             fitted = log_variance(X)
-            self.fits[column] = (log, mean, log_variance, inflate, SIGMA_FLOOR * spread,
-                                 (fitted.min(), fitted.max()))
+            self.fits[column] = (
+                log,
+                mean,
+                log_variance,
+                inflate,
+                SIGMA_FLOOR * spread,
+                (fitted.min(), fitted.max()),
+            )
 
     def unit(self, Z: np.ndarray) -> np.ndarray:
         """Inputs mapped onto [-1, 1] over the training range (clipped: no extrapolation)."""
@@ -172,12 +182,15 @@ class Surrogate:
         with respect to Z (n, F) (zero along an input clipped to the training range)."""
         X = self.unit(Z)
         p = np.ones(Z.shape[0])
-        d_log_p = np.zeros(Z.shape) if gradient else None   # d ln p / dX
+        d_log_p = np.zeros(Z.shape) if gradient else None  # d ln p / dX
         cache = {}
         for limit in self.limits:
             if limit.column not in cache:
-                cache[limit.column] = (self.mean_sigma_gradient(limit.column, X) if gradient else
-                                       self.mean_sigma(limit.column, X))
+                cache[limit.column] = (
+                    self.mean_sigma_gradient(limit.column, X)
+                    if gradient
+                    else self.mean_sigma(limit.column, X)
+                )
             mu, sigma = cache[limit.column][:2]
             bound = self.transform(limit.column, limit.limit)
             sign = 1.0 if limit.sense == "max" else -1.0
@@ -204,6 +217,7 @@ class Surrogate:
             mu, sigma = self.mean_sigma(column, X)
             q2 = 1.0 - np.mean((g - mu) ** 2) / max(np.var(g), 1e-300)
             e = (g - mu) / sigma
-            parts.append(f"column {column}: Q2 {q2:.3f}, standardised residual mean "
-                         f"{e.mean():+.2f} sd {e.std():.2f}")
+            parts.append(
+                f"column {column}: Q2 {q2:.3f}, standardised residual mean {e.mean():+.2f} sd {e.std():.2f}"
+            )
         return "; ".join(parts)

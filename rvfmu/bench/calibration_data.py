@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.checks import InputError, finite_number, non_negative, positive
-from ..core.design import ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, preset_file
-from ..core.errors import ErrorSet, load_errors
+from ..core.base.checks import InputError, finite_number, non_negative, positive
+from ..core.reducer.design import ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, preset_file
+from ..core.reducer.errors import ErrorSet, load_errors
 from .measured import MeasuredTE
 
 CATALOGUE_KEYS = ("torsional_rigidity_Nm_per_arcmin", "lost_motion_arcmin", "rated_torque_Nm")
@@ -49,21 +49,32 @@ class Catalogue:
 
     def figures(self) -> dict:
         """The stiffness figures given: {name: value}."""
-        return {k: v for k, v in (("torsional_rigidity_Nm_per_arcmin",
-                                   self.torsional_rigidity_Nm_per_arcmin),
-                                  ("lost_motion_arcmin", self.lost_motion_arcmin)) if v is not None}
+        return {
+            k: v
+            for k, v in (
+                ("torsional_rigidity_Nm_per_arcmin", self.torsional_rigidity_Nm_per_arcmin),
+                ("lost_motion_arcmin", self.lost_motion_arcmin),
+            )
+            if v is not None
+        }
 
     def labels(self) -> list[str]:
         """A name for each of `values`."""
-        return (list(self.figures())
-                + [f"1 - efficiency, {v:g} rpm {t:g} N*m" for v, t, _ in self.efficiency]
-                + [f"running torque N*m, {v:g} rpm" for v, _ in self.running_torque])
+        return (
+            list(self.figures())
+            + [f"1 - efficiency, {v:g} rpm {t:g} N*m" for v, t, _ in self.efficiency]
+            + [f"running torque N*m, {v:g} rpm" for v, _ in self.running_torque]
+        )
 
     def values(self) -> np.ndarray:
         """Every figure as calibration compares it: the stiffness figures, the loss share
         1 - efficiency of each efficiency point, the running torques."""
-        return np.array(list(self.figures().values()) + [1.0 - e for _, _, e in self.efficiency]
-                        + [t for _, t in self.running_torque], dtype=float)
+        return np.array(
+            list(self.figures().values())
+            + [1.0 - e for _, _, e in self.efficiency]
+            + [t for _, t in self.running_torque],
+            dtype=float,
+        )
 
 
 @dataclass(frozen=True)
@@ -104,8 +115,9 @@ def read_toml(field: str, path) -> dict:
 
 
 def is_catalogue(values: dict) -> bool:
-    return any(k in values for k in CATALOGUE_KEYS + tuple(FRICTION_CATALOGUE_KEYS)) and \
-        "dataset" not in values
+    return (
+        any(k in values for k in CATALOGUE_KEYS + tuple(FRICTION_CATALOGUE_KEYS)) and "dataset" not in values
+    )
 
 
 def catalogue_dataset(path, values: dict, load: float = 0.0, errors=None) -> DataSet:
@@ -118,8 +130,9 @@ def catalogue_dataset(path, values: dict, load: float = 0.0, errors=None) -> Dat
     known = CATALOGUE_KEYS + tuple(FRICTION_CATALOGUE_KEYS) + CATALOGUE_NOTES
     unknown = [k for k in values if k not in known]
     if unknown:
-        raise InputError(unknown[0], values[unknown[0]], "is not a catalogue key; known: "
-                         + ", ".join(known), where)
+        raise InputError(
+            unknown[0], values[unknown[0]], "is not a catalogue key; known: " + ", ".join(known), where
+        )
     figures = {k: positive(k, values[k], where) for k in CATALOGUE_KEYS if k in values}
     points = {}
     for key, allowed in FRICTION_CATALOGUE_KEYS.items():
@@ -131,26 +144,36 @@ def catalogue_dataset(path, values: dict, load: float = 0.0, errors=None) -> Dat
             at = f"{where} {key} {k + 1}"
             unknown = [x for x in entry if x not in allowed]
             if unknown:
-                raise InputError(unknown[0], entry[unknown[0]], f"is not a [[{key}]] key; known: "
-                                 + ", ".join(allowed), at)
+                raise InputError(
+                    unknown[0], entry[unknown[0]], f"is not a [[{key}]] key; known: " + ", ".join(allowed), at
+                )
             needed = allowed[:3] if key == "efficiency" else allowed[:2]
             missing = [x for x in needed if x not in entry]
             if missing:
                 raise InputError(missing[0], None, f"every [[{key}]] needs " + ", ".join(needed), at)
             numbers = [positive(x, entry[x], at) for x in needed]
             if key == "efficiency" and not numbers[2] < 1.0:
-                raise InputError("efficiency", numbers[2], "must be below 1 (a fraction: 0.85, "
-                                 "not 85 %)", at)
+                raise InputError("efficiency", numbers[2], "must be below 1 (a fraction: 0.85, not 85 %)", at)
             rows.append(tuple(numbers))
         points[key] = tuple(rows)
     if not set(figures) - {"rated_torque_Nm"} and not any(points.values()):
-        raise InputError("data", str(path), "a catalogue file needs torsional_rigidity_Nm_per_arcmin, "
-                         "lost_motion_arcmin, [[efficiency]] or [[running_torque]]")
+        raise InputError(
+            "data",
+            str(path),
+            "a catalogue file needs torsional_rigidity_Nm_per_arcmin, "
+            "lost_motion_arcmin, [[efficiency]] or [[running_torque]]",
+        )
     return DataSet(where, load, errors, catalogue=Catalogue(**figures, **points))
 
 
-def peaks_datasets(path, values: dict, design: RVDesign, load: float = 0.0,
-                   errors: str | Path | ErrorSet | None = None, read_record=None) -> list[DataSet]:
+def peaks_datasets(
+    path,
+    values: dict,
+    design: RVDesign,
+    load: float = 0.0,
+    errors: str | Path | ErrorSet | None = None,
+    read_record=None,
+) -> list[DataSet]:
     """The [[dataset]] tables of a data-set TOML, each with te_pp_arcsec (a measured TE
     peak-to-peak) or data (a bench CSV, read by read_record(path) -> MeasuredTE), and
     load_Nm, errors (an error file, relative to this file) and error_scale (x the errors),
@@ -159,14 +182,23 @@ def peaks_datasets(path, values: dict, design: RVDesign, load: float = 0.0,
     where = path.name
     unknown = [k for k in values if k not in DATASETS_KEYS]
     if unknown:
-        raise InputError(unknown[0], values[unknown[0]], "is not a data-set file key; known: "
-                         + ", ".join(DATASETS_KEYS), where)
+        raise InputError(
+            unknown[0],
+            values[unknown[0]],
+            "is not a data-set file key; known: " + ", ".join(DATASETS_KEYS),
+            where,
+        )
     entries = values.get("dataset")
     if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
-        raise InputError("data", str(path), "is neither a catalogue TOML (it has none of "
-                         "torsional_rigidity_Nm_per_arcmin, lost_motion_arcmin, [[efficiency]], "
-                         "[[running_torque]]) nor a data-set TOML (one or more [[dataset]] "
-                         "tables)", where)
+        raise InputError(
+            "data",
+            str(path),
+            "is neither a catalogue TOML (it has none of "
+            "torsional_rigidity_Nm_per_arcmin, lost_motion_arcmin, [[efficiency]], "
+            "[[running_torque]]) nor a data-set TOML (one or more [[dataset]] "
+            "tables)",
+            where,
+        )
     top = {"load_Nm": load, "errors": errors, "error_scale": 1.0}
     for key in ("load_Nm", "error_scale"):
         if key in values:
@@ -179,8 +211,12 @@ def peaks_datasets(path, values: dict, design: RVDesign, load: float = 0.0,
         at = f"{where} dataset {k + 1}"
         unknown = [key for key in entry if key not in DATASET_KEYS]
         if unknown:
-            raise InputError(unknown[0], entry[unknown[0]], "is not a [[dataset]] key; known: "
-                             + ", ".join(DATASET_KEYS), at)
+            raise InputError(
+                unknown[0],
+                entry[unknown[0]],
+                "is not a [[dataset]] key; known: " + ", ".join(DATASET_KEYS),
+                at,
+            )
         name = str(entry.get("name", k + 1))
         load_k = non_negative("load_Nm", entry.get("load_Nm", top["load_Nm"]), at)
         scale = non_negative("error_scale", entry.get("error_scale", top["error_scale"]), at)
@@ -193,16 +229,21 @@ def peaks_datasets(path, values: dict, design: RVDesign, load: float = 0.0,
                 cache[str(source)] = load_errors(source, design)
             err = cache[str(source)].scaled(scale)
         if ("te_pp_arcsec" in entry) == ("data" in entry):
-            raise InputError("te_pp_arcsec", None, "give either te_pp_arcsec (a measured peak) or "
-                             "data (a bench CSV), not both or neither", at)
+            raise InputError(
+                "te_pp_arcsec",
+                None,
+                "give either te_pp_arcsec (a measured peak) or data (a bench CSV), not both or neither",
+                at,
+            )
         if "data" in entry:
             if read_record is None:
                 raise InputError("data", entry["data"], "bench records are read by rvfmu.api", at)
             record = read_record(path.parent / str(entry["data"]))
             out.append(DataSet(name, load_k, err, measured=record))
         else:
-            out.append(DataSet(name, load_k, err,
-                               te_pp_arcsec=positive("te_pp_arcsec", entry["te_pp_arcsec"], at)))
+            out.append(
+                DataSet(name, load_k, err, te_pp_arcsec=positive("te_pp_arcsec", entry["te_pp_arcsec"], at))
+            )
     return out
 
 
@@ -225,5 +266,12 @@ def design_sources(spec) -> dict | None:
     return preset_file(name).get("sources") if name in PRESET_NAMES else None
 
 
-__all__ = ["Catalogue", "DataSet", "read_toml", "is_catalogue", "catalogue_dataset",
-           "peaks_datasets", "design_sources"]
+__all__ = [
+    "Catalogue",
+    "DataSet",
+    "read_toml",
+    "is_catalogue",
+    "catalogue_dataset",
+    "peaks_datasets",
+    "design_sources",
+]

@@ -59,11 +59,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.base.checks import InputError, integer
+from ..core.reducer.design import RVDesign
+from ..core.reducer.errors import toml_text
 from .calibration_problem import Problem, evaluate, residuals, residuals_of, values_at
 from .calibration_values import setting
-from ..core.checks import InputError, integer
-from ..core.design import RVDesign
-from ..core.errors import toml_text
 
 # differential_evolution budget: popsize x (number of values) members, maxiter generations.
 # Seeded (seed 003's number): the same data give the same fit.
@@ -79,7 +79,7 @@ JACOBIAN_STEP = 1e-3
 # A singular value of J below this share of the largest, or below SENSITIVITY_FLOOR: that
 # direction is not identifiable.  The floor: a residual change under 1e-6 (arcsec, or
 # relative) for a factor e in the values is below what the solver resolves (its
-# regularisation moves a TE by ~1e-6 of itself, rvfmu/core/metrics.py).
+# regularisation moves a TE by ~1e-6 of itself, rvfmu/core/statics/metrics.py).
 SINGULAR_RELATIVE = 1e-6
 SENSITIVITY_FLOOR = 1e-6
 # A figure more than this share beyond the range the design gives at the corners
@@ -130,32 +130,49 @@ class Calibration:
     @property
     def v_index(self) -> tuple[float, float]:
         """Mean squared residual before and after: seed 003's V for peaks."""
-        return (float(np.mean(self.residuals_before ** 2)),
-                float(np.mean(self.residuals_after ** 2)))
+        return (float(np.mean(self.residuals_before**2)), float(np.mean(self.residuals_after**2)))
 
     def misfit(self) -> list[dict]:
         """One row per data set: measured, before, after (the quantity: one peak, a curve's
         RMS misfit, catalogue figures) and the misfit before and after with the improvement
         in % ((|before| - |after|) / |before|), as seed 003's table."""
         rows = []
-        for d, measured, before, after in zip(self.problem.datasets, self.problem.measured(),
-                                              self.before, self.after):
+        for d, measured, before, after in zip(
+            self.problem.datasets, self.problem.measured(), self.before, self.after
+        ):
             if self.problem.target == "peaks":
                 b, a = float(before[0] - measured[0]), float(after[0] - measured[0])
-                row = {"name": d.name, "measured": float(measured[0]), "before": float(before[0]),
-                       "after": float(after[0]), "misfit_before": b, "misfit_after": a}
+                row = {
+                    "name": d.name,
+                    "measured": float(measured[0]),
+                    "before": float(before[0]),
+                    "after": float(after[0]),
+                    "misfit_before": b,
+                    "misfit_after": a,
+                }
             elif self.problem.target == "curve":
                 b = float(np.sqrt(np.mean((before - measured) ** 2)))
                 a = float(np.sqrt(np.mean((after - measured) ** 2)))
-                row = {"name": d.name, "measured": float(np.ptp(measured)),
-                       "before": float(np.ptp(before)), "after": float(np.ptp(after)),
-                       "misfit_before": b, "misfit_after": a}
+                row = {
+                    "name": d.name,
+                    "measured": float(np.ptp(measured)),
+                    "before": float(np.ptp(before)),
+                    "after": float(np.ptp(after)),
+                    "misfit_before": b,
+                    "misfit_after": a,
+                }
             else:
                 b = float(np.sqrt(np.mean(((before - measured) / measured) ** 2)))
                 a = float(np.sqrt(np.mean(((after - measured) / measured) ** 2)))
-                row = {"name": d.name, "figures": d.catalogue.labels(),
-                       "measured": measured.tolist(), "before": before.tolist(),
-                       "after": after.tolist(), "misfit_before": b, "misfit_after": a}
+                row = {
+                    "name": d.name,
+                    "figures": d.catalogue.labels(),
+                    "measured": measured.tolist(),
+                    "before": before.tolist(),
+                    "after": after.tolist(),
+                    "misfit_before": b,
+                    "misfit_after": a,
+                }
             row["improvement_percent"] = (100.0 * (abs(b) - abs(a)) / abs(b)) if b else float("nan")
             rows.append(row)
         return rows
@@ -165,8 +182,14 @@ class Calibration:
         return np.sqrt(np.mean((0.01 * self.jacobian) ** 2, axis=0))
 
 
-def calibrate(problem: Problem, maxiter: int = DE_MAXITER, popsize: int = DE_POPSIZE,
-              seed: int = DE_SEED, progress=None, refuse: bool = False) -> Calibration:
+def calibrate(
+    problem: Problem,
+    maxiter: int = DE_MAXITER,
+    popsize: int = DE_POPSIZE,
+    seed: int = DE_SEED,
+    progress=None,
+    refuse: bool = False,
+) -> Calibration:
     """Fit the problem's values: differential evolution on ln(value) within the bounds, then
     least squares from its best member; the uncertainty from the Jacobian at the optimum.
 
@@ -197,18 +220,31 @@ def calibrate(problem: Problem, maxiter: int = DE_MAXITER, popsize: int = DE_POP
     start = np.clip(np.zeros(lower.size), lower, upper)
     best = start
     if maxiter > 0:
-        de = differential_evolution(lambda x: _half_ss(r(x)),
-                                    list(zip(lower, upper)), maxiter=maxiter, popsize=popsize,
-                                    tol=DE_TOL, seed=seed, polish=False, init="latinhypercube",
-                                    updating="immediate")
+        de = differential_evolution(
+            lambda x: _half_ss(r(x)),
+            list(zip(lower, upper)),
+            maxiter=maxiter,
+            popsize=popsize,
+            tol=DE_TOL,
+            seed=seed,
+            polish=False,
+            init="latinhypercube",
+            updating="immediate",
+        )
         best = de.x
         messages.append(f"differential_evolution: {de.message} ({de.nit} generations)")
         # The design as given may fit better than every member (a flat misfit): start there.
-        if np.array_equal(start, np.zeros(lower.size)) and \
-                _half_ss(residuals_of(problem, before)) < de.fun:
+        if np.array_equal(start, np.zeros(lower.size)) and _half_ss(residuals_of(problem, before)) < de.fun:
             best = start
-    ls = least_squares(r, best, bounds=(lower, upper), jac="2-point", diff_step=JACOBIAN_STEP,
-                       x_scale=1.0, max_nfev=LS_MAX_EVALUATIONS)
+    ls = least_squares(
+        r,
+        best,
+        bounds=(lower, upper),
+        jac="2-point",
+        diff_step=JACOBIAN_STEP,
+        x_scale=1.0,
+        max_nfev=LS_MAX_EVALUATIONS,
+    )
     messages.append(f"least_squares: {ls.message}")
     x = ls.x
     jac = _jacobian(r, x)
@@ -224,8 +260,21 @@ def calibrate(problem: Problem, maxiter: int = DE_MAXITER, popsize: int = DE_POP
     error = unreachable or out_of_reach(problem, at_lower, at_upper, jac, res, after)
     if refuse and error is not None:
         raise error
-    return Calibration(problem, values, sigma, at_lower | at_upper, before, after, jac, dof,
-                       count[0], design, ok_before and ok_after, tuple(messages), error)
+    return Calibration(
+        problem,
+        values,
+        sigma,
+        at_lower | at_upper,
+        before,
+        after,
+        jac,
+        dof,
+        count[0],
+        design,
+        ok_before and ok_after,
+        tuple(messages),
+        error,
+    )
 
 
 def _figures(problem: Problem, model: list[np.ndarray]) -> list[tuple[str, float, float, slice]]:
@@ -239,11 +288,18 @@ def _figures(problem: Problem, model: list[np.ndarray]) -> list[tuple[str, float
                 row += 1
             continue
         if problem.target == "curve":
-            out.append((f"te_pp_arcsec of the curve {d.name}", float(np.ptp(measured)),
-                        float(np.ptp(modelled)), slice(row, row + measured.size)))
+            out.append(
+                (
+                    f"te_pp_arcsec of the curve {d.name}",
+                    float(np.ptp(measured)),
+                    float(np.ptp(modelled)),
+                    slice(row, row + measured.size),
+                )
+            )
         else:
-            out.append((f"te_pp_arcsec of {d.name}", float(measured[0]), float(modelled[0]),
-                        slice(row, row + 1)))
+            out.append(
+                (f"te_pp_arcsec of {d.name}", float(measured[0]), float(modelled[0]), slice(row, row + 1))
+            )
         row += measured.size
     return out
 
@@ -257,23 +313,26 @@ def beyond_reach(problem: Problem) -> InputError | None:
     params = problem.parameters
     if any(p.bounds_given for p in params) or len(params) > REACH_MAX_VALUES:
         return None
-    corners = np.array(np.meshgrid(*[(p.lower, p.upper) for p in params],
-                                   indexing="ij")).reshape(len(params), -1).T    # (2^p, p)
-    reached = [[f[2] for f in _figures(problem, evaluate(problem, problem.design_at(c))[0])]
-               for c in corners]
-    reached = np.array(reached, dtype=float)                                     # (2^p, F)
+    corners = (
+        np.array(np.meshgrid(*[(p.lower, p.upper) for p in params], indexing="ij")).reshape(len(params), -1).T
+    )  # (2^p, p)
+    reached = [[f[2] for f in _figures(problem, evaluate(problem, problem.design_at(c))[0])] for c in corners]
+    reached = np.array(reached, dtype=float)  # (2^p, F)
     for f, (name, measured, _, _) in enumerate(_figures(problem, problem.measured())):
         column = reached[:, f][np.isfinite(reached[:, f])]
         if column.size == 0:
             continue
         low, high = float(column.min()), float(column.max())
         if not low * (1.0 - REACH_MARGIN) <= measured <= high * (1.0 + REACH_MARGIN):
-            window = ", ".join(f"{p.name} {p.lower:.4g} to {p.upper:.4g} {p.unit}"
-                               for p in params)
-            return InputError(name, measured, f"out of the fit's reach: within the default "
-                              f"bounds ({window}) the design gives {low:.4g} to {high:.4g}; nothing "
-                              "written; check the figure, or give --bounds NAME=LOWER:UPPER "
-                              "if the value truly lies beyond")
+            window = ", ".join(f"{p.name} {p.lower:.4g} to {p.upper:.4g} {p.unit}" for p in params)
+            return InputError(
+                name,
+                measured,
+                f"out of the fit's reach: within the default "
+                f"bounds ({window}) the design gives {low:.4g} to {high:.4g}; nothing "
+                "written; check the figure, or give --bounds NAME=LOWER:UPPER "
+                "if the value truly lies beyond",
+            )
     return None
 
 
@@ -298,8 +357,7 @@ def out_of_reach(problem: Problem, at_lower, at_upper, jac, res, after) -> Input
                 continue
             # of the figures that press, the one the value moves most, relative to itself (a
             # relative residual's slope is d(model)/d ln(value) / measured)
-            slope = np.linalg.norm(jac[rows, k]) * (abs(measured) if problem.target == "catalogue"
-                                                    else 1.0)
+            slope = np.linalg.norm(jac[rows, k]) * (abs(measured) if problem.target == "catalogue" else 1.0)
             moves = slope / max(abs(modelled), 1e-300)
             if best is None or moves > best[0]:
                 best = (moves, k, f)
@@ -314,13 +372,19 @@ def out_of_reach(problem: Problem, at_lower, at_upper, jac, res, after) -> Input
         p = problem.parameters[k]
         side, bound = ("upper", p.upper) if at_upper[k] else ("lower", p.lower)
         figure = figures[f]
-        parts.append(f"{p.name} ends at its {side} bound {bound:.4g} {p.unit} (the default "
-                     f"search range {p.lower:.4g} to {p.upper:.4g}), where the model gives "
-                     f"{figure[0]} = {figure[2]:.4g}" + ("" if f == pressed[0][2] else
-                                                          f" against {figure[1]:.4g}"))
-    return InputError(name, measured, "out of the fit's reach: " + "; ".join(parts)
-                      + ": nothing written; check the figure, or give --bounds NAME=LOWER:UPPER "
-                      "if the value truly lies beyond")
+        parts.append(
+            f"{p.name} ends at its {side} bound {bound:.4g} {p.unit} (the default "
+            f"search range {p.lower:.4g} to {p.upper:.4g}), where the model gives "
+            f"{figure[0]} = {figure[2]:.4g}" + ("" if f == pressed[0][2] else f" against {figure[1]:.4g}")
+        )
+    return InputError(
+        name,
+        measured,
+        "out of the fit's reach: "
+        + "; ".join(parts)
+        + ": nothing written; check the figure, or give --bounds NAME=LOWER:UPPER "
+        "if the value truly lies beyond",
+    )
 
 
 def _half_ss(r):
@@ -353,14 +417,18 @@ def _sigma_log(jac, res, dof):
 
 # -- the calibrated design file --------------------------------------------------------------
 
-def design_text(calibration: Calibration, data_names, sources: dict | None = None,
-                from_design: str = "") -> str:
+
+def design_text(
+    calibration: Calibration, data_names, sources: dict | None = None, from_design: str = ""
+) -> str:
     """A complete design TOML of the calibrated design, loadable by `rvte te`: a header saying
     what was fitted to what, every design key, and the [sources] table (for R_pd)."""
     cal = calibration
-    lines = [f"Calibrated by rvte calibrate ({cal.problem.target}) from {from_design or cal.problem.design.name}",
-             "against " + ", ".join(str(n) for n in data_names) + ".",
-             "Fitted (1-sigma from the Jacobian at the optimum; inf: not identifiable from the data):"]
+    lines = [
+        f"Calibrated by rvte calibrate ({cal.problem.target}) from {from_design or cal.problem.design.name}",
+        "against " + ", ".join(str(n) for n in data_names) + ".",
+        "Fitted (1-sigma from the Jacobian at the optimum; inf: not identifiable from the data):",
+    ]
     for p, v, s in zip(cal.problem.parameters, cal.values, cal.sigma):
         lines.append(f"  {p.name} = {v:.6g} +- {s:.3g} {p.unit} ({setting(p, v)})")
     lines.append("Every other value as in the design calibrated.")

@@ -18,7 +18,7 @@ model - measured at x = ln(value / start): what the fit
   data set's loads are solved once per stiffness state and every friction value
   costs only the losses.
 - Speeds of catalogue friction points are checked against the design's allowable output
-  speed as every speed is (`rvfmu.core.limits.check_speed`): refused beyond SPEED_FACTOR x
+  speed as every speed is (`rvfmu.core.reducer.limits.check_speed`): refused beyond SPEED_FACTOR x
   it, a warning of the problem above it.
 - Cheap evaluations: a data set's model costs its grid, `points` per output
   revolution, not its rows (`rvfmu.bench.compare`); data sets at the same load are
@@ -41,18 +41,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.base.checks import InputError, integer
+from ..core.base.units import RPM
+from ..core.reducer.design import RVDesign
+from ..core.reducer.errors import stack, zero_errors
+from ..core.reducer.limits import check_speed
+from ..core.statics.quasistatic import windup
 from .calibration_data import DataSet
 from .calibration_values import LOAD_FREE_FIELDS, Parameter, parameters
 from .compare import as_bench_sees, model_grid, periodic
-from ..core.checks import InputError, integer
-from ..core.limits import check_speed
-from ..core.design import RVDesign
-from ..core.errors import stack, zero_errors
-from ..core.quasistatic import windup
-from ..core.units import RPM
 
 TARGETS = ("peaks", "curve", "catalogue")
-POINTS_PER_CRANK_TURN = 32          # default grid: 32 z_p points per output revolution
+POINTS_PER_CRANK_TURN = 32  # default grid: 32 z_p points per output revolution
 # A misfit that is not a number (a pose that did not solve) counts as this, in arcsec.
 FAILED_RESIDUAL = 1e6
 
@@ -77,8 +77,10 @@ class Problem:
     @property
     def log_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds of x = ln(value / start)."""
-        return (np.log([p.lower / p.value for p in self.parameters]),
-                np.log([p.upper / p.value for p in self.parameters]))
+        return (
+            np.log([p.lower / p.value for p in self.parameters]),
+            np.log([p.upper / p.value for p in self.parameters]),
+        )
 
     def fields_at(self, values) -> dict:
         """The design fields (SI) that the fitted `values` (p,), each in its unit, set."""
@@ -98,25 +100,37 @@ class Problem:
 def check_target(datasets, target: str | None) -> str:
     """The target: as given (checked against what the data sets bring), or the one they all
     bring (catalogue figures, peaks, bench curves) when None."""
-    kinds = {"catalogue" if d.catalogue else "peaks" if d.te_pp_arcsec is not None else "curve"
-             for d in datasets}
+    kinds = {
+        "catalogue" if d.catalogue else "peaks" if d.te_pp_arcsec is not None else "curve" for d in datasets
+    }
     if target is None:
         if len(kinds) > 1:
-            raise InputError("target", None, f"the data bring {' and '.join(sorted(kinds))}: "
-                             "choose one with --target peaks, curve or catalogue")
+            raise InputError(
+                "target",
+                None,
+                f"the data bring {' and '.join(sorted(kinds))}: "
+                "choose one with --target peaks, curve or catalogue",
+            )
         return kinds.pop()
     if target not in TARGETS:
         raise InputError("target", target, "must be one of " + ", ".join(TARGETS))
     for d in datasets:
-        ok = (d.catalogue is not None if target == "catalogue" else
-              d.measured is not None if target == "curve" else
-              d.catalogue is None)
+        ok = (
+            d.catalogue is not None
+            if target == "catalogue"
+            else d.measured is not None
+            if target == "curve"
+            else d.catalogue is None
+        )
         if not ok:
-            what = ("catalogue figures (a TOML with torsional_rigidity_Nm_per_arcmin, "
-                    "lost_motion_arcmin, [[efficiency]], [[running_torque]])"
-                    if target == "catalogue" else
-                    "a bench record (CSV)" if target == "curve" else
-                    "a TE peak (te_pp_arcsec) or a bench record")
+            what = (
+                "catalogue figures (a TOML with torsional_rigidity_Nm_per_arcmin, "
+                "lost_motion_arcmin, [[efficiency]], [[running_torque]])"
+                if target == "catalogue"
+                else "a bench record (CSV)"
+                if target == "curve"
+                else "a TE peak (te_pp_arcsec) or a bench record"
+            )
             raise InputError("target", target, f"needs {what} in every data set; {d.name} has none")
     return target
 
@@ -127,16 +141,29 @@ def default_points(design: RVDesign) -> int:
     return POINTS_PER_CRANK_TURN * design.z_p
 
 
-def problem(design: RVDesign, datasets, fit, target: str | None = None, bounds=None,
-            sources=None, points: int | None = None) -> Problem:
+def problem(
+    design: RVDesign,
+    datasets,
+    fit,
+    target: str | None = None,
+    bounds=None,
+    sources=None,
+    points: int | None = None,
+) -> Problem:
     """A checked calibration problem (see `Problem`)."""
     datasets = tuple(datasets)
     if not datasets:
         raise InputError("data", [], "give one or more data files")
     target = check_target(datasets, target)
     points = default_points(design) if points is None else integer("points", points, 8)
-    return Problem(design, parameters(design, fit, bounds, sources), datasets, target, points,
-                   _speed_warnings(design, datasets))
+    return Problem(
+        design,
+        parameters(design, fit, bounds, sources),
+        datasets,
+        target,
+        points,
+        _speed_warnings(design, datasets),
+    )
 
 
 def _speed_warnings(design: RVDesign, datasets) -> tuple[str, ...]:
@@ -149,14 +176,16 @@ def _speed_warnings(design: RVDesign, datasets) -> tuple[str, ...]:
             continue
         for key, rows in (("efficiency", c.efficiency), ("running_torque", c.running_torque)):
             for k, row in enumerate(rows):
-                note = check_speed("output_speed_rpm", row[0], row[0] * RPM, design,
-                                   f"{d.name} {key} {k + 1}")
+                note = check_speed(
+                    "output_speed_rpm", row[0], row[0] * RPM, design, f"{d.name} {key} {k + 1}"
+                )
                 if note:
                     notes.append(f"{d.name} {key} {k + 1}: {note}")
     return tuple(notes)
 
 
 # -- the model and the residuals -------------------------------------------------------------
+
 
 def evaluate(problem: Problem, design: RVDesign) -> tuple[list[np.ndarray], bool]:
     """(the model's quantity of each data set for `design`, as `DataSet.target_value` gives
@@ -168,11 +197,16 @@ def evaluate(problem: Problem, design: RVDesign) -> tuple[list[np.ndarray], bool
             c = d.catalogue
             parts = []
             if c.figures():
-                model = design if c.rated_torque_Nm is None else design.with_fields(
-                    rated_torque=c.rated_torque_Nm)
+                model = (
+                    design
+                    if c.rated_torque_Nm is None
+                    else design.with_fields(rated_torque=c.rated_torque_Nm)
+                )
                 w = windup(model, _errors(design, d))
-                figures = {"torsional_rigidity_Nm_per_arcmin": w.torsional_rigidity_Nm_per_arcmin()[0],
-                           "lost_motion_arcmin": w.lost_motion_arcmin()[0]}
+                figures = {
+                    "torsional_rigidity_Nm_per_arcmin": w.torsional_rigidity_Nm_per_arcmin()[0],
+                    "lost_motion_arcmin": w.lost_motion_arcmin()[0],
+                }
                 parts.append(np.array([figures[key] for key in c.figures()]))
                 converged &= bool(w.converged[0])
             if c.efficiency or c.running_torque:
@@ -191,8 +225,9 @@ def evaluate(problem: Problem, design: RVDesign) -> tuple[list[np.ndarray], bool
         span = None
         if sets[0].measured is not None:
             span = (float(sets[0].measured.theta_in.min()), float(sets[0].measured.theta_in.max()))
-        grid = model_grid(design, stack([_errors(design, d) for d in sets]), load, problem.points,
-                          sense, span)
+        grid = model_grid(
+            design, stack([_errors(design, d) for d in sets]), load, problem.points, sense, span
+        )
         converged &= bool(np.all(grid.converged))
         for row, (k, d) in enumerate(zip(members, sets)):
             if d.measured is None:
@@ -215,7 +250,7 @@ def _friction_figures(design: RVDesign, dataset: DataSet) -> tuple[np.ndarray, b
     speed of the data set's catalogue, every equilibrium converged), from the power
     balance (`friction.efficiency_from_loads`) on the data set's contact loads, solved
     once for each state of the fields that set them (module docstring)."""
-    from ..core.friction import contact_loads, crank_turn_angles, efficiency_from_loads
+    from ..core.losses.friction import contact_loads, crank_turn_angles, efficiency_from_loads
 
     c = dataset.catalogue
     speeds = sorted({row[0] for row in c.efficiency + c.running_torque})
@@ -225,9 +260,12 @@ def _friction_figures(design: RVDesign, dataset: DataSet) -> tuple[np.ndarray, b
     if hit is None or hit[0] is not dataset:
         if len(_LOADS) > 32:
             _LOADS.clear()
-        forward = contact_loads(design, _errors(design, dataset),
-                                np.concatenate([[0.0], -np.asarray(loads, dtype=float)]),
-                                crank_turn_angles(design))
+        forward = contact_loads(
+            design,
+            _errors(design, dataset),
+            np.concatenate([[0.0], -np.asarray(loads, dtype=float)]),
+            crank_turn_angles(design),
+        )
         hit = _LOADS[key] = (dataset, forward)
     emap = efficiency_from_loads(design, hit[1], speeds, loads)
     efficiency = [emap.efficiency[speeds.index(v), loads.index(t)] for v, t, _ in c.efficiency]
@@ -256,5 +294,14 @@ def residuals(problem: Problem, x) -> np.ndarray:
     return residuals_of(problem, evaluate(problem, problem.design_at(values_at(problem, x)))[0])
 
 
-__all__ = ["TARGETS", "Problem", "check_target", "default_points", "problem", "evaluate",
-           "residuals_of", "values_at", "residuals"]
+__all__ = [
+    "TARGETS",
+    "Problem",
+    "check_target",
+    "default_points",
+    "problem",
+    "evaluate",
+    "residuals_of",
+    "values_at",
+    "residuals",
+]

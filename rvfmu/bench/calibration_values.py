@@ -24,7 +24,7 @@ OUTPUT_STIFFNESS_BOUND_FACTOR, MODIFICATION_SCALE_BOUNDS).
   (needle) bearing between a cam and its disc, is the bearing inside
   `crank_disc_bearing_stiffness`.  The presets take each in series with its part
   of the crankshaft bent and sheared between its supports (docs/model.md
-  section 6, `rvfmu.core.compliance.crank_split`).  Fitting R_pd therefore sets
+  section 6, `rvfmu.core.laws.compliance.crank_split`).  Fitting R_pd therefore sets
   crank_disc_bearing_stiffness = series(R_pd, the crank at a cam), and R_b
   crank_carrier_bearing_stiffness = series(R_b, the crank's common part), with
   the crank's diameter and span from the design's [sources] table (or its
@@ -36,33 +36,47 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..core.checks import InputError, finite_number, positive
-from ..core.design import DESIGN_FIELDS, RVDesign
-from ..core import compliance
-from ..core.stiffness import cam_positions, series
-from ..core.units import ARCMIN, ARCSEC, MM
+from ..core.base.checks import InputError, finite_number, positive
+from ..core.base.units import ARCMIN, ARCSEC, MM
+from ..core.laws import compliance
+from ..core.laws.stiffness import cam_positions, series
+from ..core.reducer.design import DESIGN_FIELDS, RVDesign
 
 # The stiffness fields of a design: every one may be fitted.
 STIFFNESS_FIELDS = tuple(spec for spec in DESIGN_FIELDS if spec.file_key.endswith("_N_per_m"))
 _BY_NAME = {**{s.field: s for s in STIFFNESS_FIELDS}, **{s.file_key: s for s in STIFFNESS_FIELDS}}
 # The friction fields that may be fitted (to efficiencies and running torques), with their
 # units; with the bearings' pitch diameters they leave the contact loads as they are.
-FRICTION_UNITS = {"pin_disc_friction": "1", "pin_groove_friction": "1", "mesh_friction": "1",
-                  "needle_friction": "1", "tapered_friction": "1", "main_bearing_friction": "1",
-                  "bearing_drag_factor": "1", "lubricant_viscosity": "cSt", "seal_torque": "N*m"}
+FRICTION_UNITS = {
+    "pin_disc_friction": "1",
+    "pin_groove_friction": "1",
+    "mesh_friction": "1",
+    "needle_friction": "1",
+    "tapered_friction": "1",
+    "main_bearing_friction": "1",
+    "bearing_drag_factor": "1",
+    "lubricant_viscosity": "cSt",
+    "seal_torque": "N*m",
+}
 FRICTION_FIELDS = tuple(spec for spec in DESIGN_FIELDS if spec.field in FRICTION_UNITS)
-_FRICTION_BY_NAME = {**{s.field: s for s in FRICTION_FIELDS},
-                     **{s.file_key: s for s in FRICTION_FIELDS}}
-LOAD_FREE_FIELDS = tuple(FRICTION_UNITS) + ("needle_pitch_diameter", "tapered_pitch_diameter",
-                                            "main_bearing_pitch_diameter")
+_FRICTION_BY_NAME = {**{s.field: s for s in FRICTION_FIELDS}, **{s.file_key: s for s in FRICTION_FIELDS}}
+LOAD_FREE_FIELDS = tuple(FRICTION_UNITS) + (
+    "needle_pitch_diameter",
+    "tapered_pitch_diameter",
+    "main_bearing_pitch_diameter",
+)
 
 # Seed 003's support stiffnesses and the design field each one sets (module docstring).
-SEED003_NAMES = {"R_ca": "main_bearing_stiffness", "R_b": "crank_carrier_bearing_stiffness",
-                 "R_pd": "crank_disc_bearing_stiffness"}
-SEED003_DOC = {"R_ca": "carrier angular contact bearings (seed 003)",
-               "R_b": "crank tapered roller bearings in the carrier (seed 003), in series with "
-                      "the crank's common part",
-               "R_pd": "crank-disc needle bearing (seed 003), in series with the crank at a cam"}
+SEED003_NAMES = {
+    "R_ca": "main_bearing_stiffness",
+    "R_b": "crank_carrier_bearing_stiffness",
+    "R_pd": "crank_disc_bearing_stiffness",
+}
+SEED003_DOC = {
+    "R_ca": "carrier angular contact bearings (seed 003)",
+    "R_b": "crank tapered roller bearings in the carrier (seed 003), in series with the crank's common part",
+    "R_pd": "crank-disc needle bearing (seed 003), in series with the crank at a cam",
+}
 
 # Default bounds: the starting value divided and multiplied by this.  Wide enough for an
 # estimate from a formula (the presets' bearing stiffnesses are within x3 of seed 003's
@@ -73,10 +87,12 @@ DEFAULT_BOUND_FACTOR = 4.0
 OUTPUT_STIFFNESS = "output_stiffness"
 MODIFICATION_SCALE = "modification_scale"
 OTHER_NAMES = {
-    OUTPUT_STIFFNESS: ("output_compliance", "N*m/arcmin",
-                       "torsional stiffness in series with the output (sets output_compliance)"),
-    MODIFICATION_SCALE: ("d_rp,d_rrp", "x",
-                         "factor on the modification pair d_rp, d_rrp (their ratio kept)"),
+    OUTPUT_STIFFNESS: (
+        "output_compliance",
+        "N*m/arcmin",
+        "torsional stiffness in series with the output (sets output_compliance)",
+    ),
+    MODIFICATION_SCALE: ("d_rp,d_rrp", "x", "factor on the modification pair d_rp, d_rrp (their ratio kept)"),
 }
 # Without a series compliance in the design, output_stiffness starts at the rated torque per
 # arcmin (a catalogue frame's rigidity is about 0.3 of that, the model's without it about 1)
@@ -130,15 +146,20 @@ def resolve_name(name: str) -> tuple[str, str]:
         return _BY_NAME[text].field, _BY_NAME[text].field
     if text in _FRICTION_BY_NAME:
         return _FRICTION_BY_NAME[text].field, _FRICTION_BY_NAME[text].field
-    allowed = ", ".join(list(SEED003_NAMES) + [s.field for s in STIFFNESS_FIELDS] + list(OTHER_NAMES)
-                        + list(FRICTION_UNITS))
-    raise InputError("fit", text, f"is not a value the calibration fits; fit one or more of {allowed} "
-                     "(or their file keys, e.g. pin_disc_stiffness_N_per_m)")
+    allowed = ", ".join(
+        list(SEED003_NAMES) + [s.field for s in STIFFNESS_FIELDS] + list(OTHER_NAMES) + list(FRICTION_UNITS)
+    )
+    raise InputError(
+        "fit",
+        text,
+        f"is not a value the calibration fits; fit one or more of {allowed} "
+        "(or their file keys, e.g. pin_disc_stiffness_N_per_m)",
+    )
 
 
 def crank_parts(design: RVDesign, sources: dict | None, name: str) -> tuple[float, float]:
     """(at each cam, common to both cams) stiffnesses [N/m] of the crankshaft between its
-    bearings (`rvfmu.core.compliance.crank_split`, cams by `stiffness.cam_positions`): the
+    bearings (`rvfmu.core.laws.compliance.crank_split`, cams by `stiffness.cam_positions`): the
     springs in series with R_pd and with R_b.  From [sources] crank_diameter_mm and
     crank_span_mm and the design's disc width and Young's modulus; the tilt in the bearings
     takes the tapered roller pair that the design's crank_carrier_bearing_stiffness holds
@@ -146,26 +167,37 @@ def crank_parts(design: RVDesign, sources: dict | None, name: str) -> tuple[floa
     crank-carrier stiffness leaves no bearing behind the crank."""
     needed = ("crank_diameter_mm", "crank_span_mm")
     if not sources or any(k not in sources for k in needed):
-        raise InputError("fit", name, "needs the crankshaft's compliance in series with the "
-                         "bearing: the design file (or its preset) must have a [sources] "
-                         "table with crank_diameter_mm and crank_span_mm; or fit "
-                         f"{SEED003_NAMES[name]} itself")
+        raise InputError(
+            "fit",
+            name,
+            "needs the crankshaft's compliance in series with the "
+            "bearing: the design file (or its preset) must have a [sources] "
+            "table with crank_diameter_mm and crank_span_mm; or fit "
+            f"{SEED003_NAMES[name]} itself",
+        )
     diameter = positive("sources.crank_diameter_mm", sources["crank_diameter_mm"]) * MM
     span = positive("sources.crank_span_mm", sources["crank_span_mm"]) * MM
     cams = cam_positions(span, design.disc_width)
-    influence = compliance.crank_influence(design.youngs_modulus, design.poisson_ratio,
-                                           diameter, span, cams)
+    influence = compliance.crank_influence(design.youngs_modulus, design.poisson_ratio, diameter, span, cams)
     pair = compliance.crank_pair(influence, span, cams, design.crank_carrier_bearing_stiffness)
     if pair <= 0.0:
-        raise InputError("crank_carrier_bearing_stiffness_N_per_m", design.crank_carrier_bearing_stiffness,
-                         f"must be below the crankshaft's common stiffness {1.0 / influence[0, 1]:.4g} "
-                         "N/m to hold a tapered roller pair in series with it")
+        raise InputError(
+            "crank_carrier_bearing_stiffness_N_per_m",
+            design.crank_carrier_bearing_stiffness,
+            f"must be below the crankshaft's common stiffness {1.0 / influence[0, 1]:.4g} "
+            "N/m to hold a tapered roller pair in series with it",
+        )
     at_cam, common = compliance.crank_split(influence, span, cams, pair)
     return 1.0 / at_cam, 1.0 / common
 
 
-def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dict | None = None,
-               factor: float = DEFAULT_BOUND_FACTOR) -> tuple[Parameter, ...]:
+def parameters(
+    design: RVDesign,
+    names,
+    bounds: dict | None = None,
+    sources: dict | None = None,
+    factor: float = DEFAULT_BOUND_FACTOR,
+) -> tuple[Parameter, ...]:
     """The values to fit: names (--fit), bounds {name: (lower, upper)} (in each value's unit)
     for some of them (default: start / factor to start x factor; OUTPUT_STIFFNESS_BOUND_FACTOR
     and MODIFICATION_SCALE_BOUNDS for the two that are not stiffnesses), sources: the
@@ -182,8 +214,9 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
     for key, pair in (bounds or {}).items():
         name = resolve_name(key)[0]
         if name not in [n for n, _ in resolved]:
-            raise InputError("bounds", key, "is not among the fitted names: "
-                             + ", ".join(n for n, _ in resolved))
+            raise InputError(
+                "bounds", key, "is not among the fitted names: " + ", ".join(n for n, _ in resolved)
+            )
         given[name] = _bound_pair(name, pair)
     out = []
     for name, field in resolved:
@@ -194,31 +227,49 @@ def parameters(design: RVDesign, names, bounds: dict | None = None, sources: dic
             current = getattr(design, field)
             if field == "lubricant_viscosity" and current == 0.0:
                 # not stated: start from its grade's at 40 C; the fit states it (every temperature)
-                from ..core.lubricant import viscosity_cSt
+                from ..core.laws.lubricant import viscosity_cSt
+
                 current = viscosity_cSt(design)
             if not current > 0.0:
-                raise InputError("fit", name, f"is fitted on its logarithm, and the design's "
-                                 f"{_FRICTION_BY_NAME[name].file_key} is {current:g}: give it a "
-                                 "starting value > 0")
+                raise InputError(
+                    "fit",
+                    name,
+                    f"is fitted on its logarithm, and the design's "
+                    f"{_FRICTION_BY_NAME[name].file_key} is {current:g}: give it a "
+                    "starting value > 0",
+                )
             lower, upper = given.get(name, (current / factor, current * factor))
-            out.append(Parameter(name, field, current, lower, upper, unit=FRICTION_UNITS[name],
-                                 bounds_given=name in given))
+            out.append(
+                Parameter(
+                    name, field, current, lower, upper, unit=FRICTION_UNITS[name], bounds_given=name in given
+                )
+            )
             continue
-        law = {"crank_disc_bearing_stiffness": ("crank_disc", "needle_rollers"),
-               "crank_carrier_bearing_stiffness": ("crank_carrier", "tapered_rollers")}.get(field)
+        law = {
+            "crank_disc_bearing_stiffness": ("crank_disc", "needle_rollers"),
+            "crank_carrier_bearing_stiffness": ("crank_carrier", "tapered_rollers"),
+        }.get(field)
         if law is not None and law[0] in design.roller_laws:
-            raise InputError("fit", name, f"sets {field}, but that bearing follows the roller law "
-                             f"({law[1]} = {getattr(design, law[1])}): its stiffness comes from "
-                             f"its rollers; fit another value, or set {law[1]} = 0 to fit it as "
-                             "a linear spring")
+            raise InputError(
+                "fit",
+                name,
+                f"sets {field}, but that bearing follows the roller law "
+                f"({law[1]} = {getattr(design, law[1])}): its stiffness comes from "
+                f"its rollers; fit another value, or set {law[1]} = 0 to fit it as "
+                "a linear spring",
+            )
         current = getattr(design, field)
         crank = None
         if name in ("R_pd", "R_b"):
             crank = crank_parts(design, sources, name)[0 if name == "R_pd" else 1]
             if current >= crank:
-                raise InputError(f"{field}_N_per_m", current, f"must be below the crankshaft's "
-                                 f"stiffness {crank:.4g} N/m in series with it to hold a "
-                                 f"bearing ({name})")
+                raise InputError(
+                    f"{field}_N_per_m",
+                    current,
+                    f"must be below the crankshaft's "
+                    f"stiffness {crank:.4g} N/m in series with it to hold a "
+                    f"bearing ({name})",
+                )
             current = 1.0 / (1.0 / current - 1.0 / crank)
         lower, upper = given.get(name, (current / factor, current * factor))
         out.append(Parameter(name, field, current, lower, upper, crank, bounds_given=name in given))
@@ -234,16 +285,18 @@ def _other_parameter(design: RVDesign, name: str, bounds) -> Parameter:
         else:
             start, factor = design.rated_torque, OUTPUT_STIFFNESS_BOUND_FACTOR
         lower, upper = bounds or (start / factor, start * factor)
-        return Parameter(name, field, start, lower, upper, unit=unit,
-                         bounds_given=bounds is not None)
+        return Parameter(name, field, start, lower, upper, unit=unit, bounds_given=bounds is not None)
     base = (design.d_rp, design.d_rrp)
     if design.tip_root_clearance <= 0.0:
-        raise InputError("fit", name, f"scales the modification pair, which leaves no tip and root "
-                         f"clearance here (d_rrp - d_rp = {design.tip_root_clearance / MM:.4g} mm): "
-                         "give the design a clearance to scale first")
+        raise InputError(
+            "fit",
+            name,
+            f"scales the modification pair, which leaves no tip and root "
+            f"clearance here (d_rrp - d_rp = {design.tip_root_clearance / MM:.4g} mm): "
+            "give the design a clearance to scale first",
+        )
     lower, upper = bounds or MODIFICATION_SCALE_BOUNDS
-    return Parameter(name, field, 1.0, lower, upper, unit=unit, base=base,
-                     bounds_given=bounds is not None)
+    return Parameter(name, field, 1.0, lower, upper, unit=unit, base=base, bounds_given=bounds is not None)
 
 
 def _bound_pair(name, pair):
@@ -264,12 +317,15 @@ def _bound_pair(name, pair):
 
 # -- what a fitted value is and sets, for reports -------------------------------------------
 
+
 def setting(parameter: Parameter, value: float) -> str:
     """What the fitted `value` sets in the design, in file units, for reports."""
     p = parameter
     if p.series_with is not None:
-        return (f"{p.field} = series({p.name}, crankshaft {p.series_with:.4g} N/m) = "
-                f"{p.field_values(value)[p.field]:.6g}")
+        return (
+            f"{p.field} = series({p.name}, crankshaft {p.series_with:.4g} N/m) = "
+            f"{p.field_values(value)[p.field]:.6g}"
+        )
     if p.name == OUTPUT_STIFFNESS:
         return f"output_compliance_arcsec_per_Nm = {p.field_values(value)['output_compliance'] / ARCSEC:.6g}"
     if p.name == MODIFICATION_SCALE:
@@ -287,6 +343,16 @@ def describe(parameter: Parameter) -> str:
     return parameter.field
 
 
-__all__ = ["SEED003_NAMES", "STIFFNESS_FIELDS", "FRICTION_FIELDS", "OUTPUT_STIFFNESS",
-           "MODIFICATION_SCALE", "Parameter", "resolve_name", "crank_parts", "parameters",
-           "setting", "describe"]
+__all__ = [
+    "SEED003_NAMES",
+    "STIFFNESS_FIELDS",
+    "FRICTION_FIELDS",
+    "OUTPUT_STIFFNESS",
+    "MODIFICATION_SCALE",
+    "Parameter",
+    "resolve_name",
+    "crank_parts",
+    "parameters",
+    "setting",
+    "describe",
+]

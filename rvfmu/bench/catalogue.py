@@ -36,13 +36,13 @@ from dataclasses import dataclass
 from importlib import metadata, resources
 from pathlib import Path
 
+from ..core.base.checks import InputError
+from ..core.reducer.design import ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, in_file_units, preset, preset_file
+from ..core.statics.quasistatic import Windup, windup
 from .calibration_data import Catalogue, DataSet
 from .calibration_fit import Calibration, calibrate
 from .calibration_problem import problem
 from .calibration_values import MODIFICATION_SCALE, OUTPUT_STIFFNESS
-from ..core.checks import InputError
-from ..core.design import ESTIMATE_SUFFIX, PRESET_NAMES, RVDesign, in_file_units, preset, preset_file
-from ..core.quasistatic import Windup, windup
 
 CATALOGUE_FILE = "catalogue.toml"
 # A calibrated preset matches its frame's rigidity when within this share of it.
@@ -65,7 +65,7 @@ class Frame:
 
 
 def _catalogue_values() -> dict:
-    text = resources.files("rvfmu.core.presets").joinpath(CATALOGUE_FILE).read_text()
+    text = resources.files("rvfmu.core.reducer.presets").joinpath(CATALOGUE_FILE).read_text()
     return tomllib.loads(text)
 
 
@@ -84,8 +84,9 @@ def frame_of(name: str) -> Frame:
     base = str(name).removesuffix(ESTIMATE_SUFFIX)
     values = _catalogue_values()
     if base not in values["presets"]:
-        raise InputError("preset", name, f"has no catalogue frame; presets with one: "
-                         f"{', '.join(values['presets'])}")
+        raise InputError(
+            "preset", name, f"has no catalogue frame; presets with one: {', '.join(values['presets'])}"
+        )
     frame = values["presets"][base]
     return Frame(frame, source=source(), **values["frames"][frame])
 
@@ -93,9 +94,11 @@ def frame_of(name: str) -> Frame:
 def target(frame: Frame) -> Catalogue:
     """What a preset of `frame` is calibrated to: its rigidity, and its lost-motion bound x
     the aim, at its rated torque."""
-    return Catalogue(torsional_rigidity_Nm_per_arcmin=frame.torsional_rigidity_Nm_per_arcmin,
-                     lost_motion_arcmin=lost_motion_aim() * frame.lost_motion_max_arcmin,
-                     rated_torque_Nm=frame.rated_torque_Nm)
+    return Catalogue(
+        torsional_rigidity_Nm_per_arcmin=frame.torsional_rigidity_Nm_per_arcmin,
+        lost_motion_arcmin=lost_motion_aim() * frame.lost_motion_max_arcmin,
+        rated_torque_Nm=frame.rated_torque_Nm,
+    )
 
 
 @dataclass(frozen=True)
@@ -114,8 +117,9 @@ def figures(design: RVDesign) -> Figures:
 
 def figures_of(w: Windup) -> Figures:
     """The catalogue figures of a windup test (its first sample)."""
-    return Figures(float(w.torsional_rigidity_Nm_per_arcmin()[0]), float(w.lost_motion_arcmin()[0]),
-                   bool(w.converged[0]))
+    return Figures(
+        float(w.torsional_rigidity_Nm_per_arcmin()[0]), float(w.lost_motion_arcmin()[0]), bool(w.converged[0])
+    )
 
 
 @dataclass(frozen=True)
@@ -147,14 +151,23 @@ def against_catalogue(names=PRESET_NAMES) -> list[PresetAgainstCatalogue]:
     rows = []
     for name in names:
         tests = (windup(preset(name + ESTIMATE_SUFFIX)), windup(preset(name)))
-        rows.append(PresetAgainstCatalogue(
-            name, frame_of(name), tests[1].design.rated_torque, figures_of(tests[0]),
-            figures_of(tests[1]), preset_file(name).get("calibration"), tests))
+        rows.append(
+            PresetAgainstCatalogue(
+                name,
+                frame_of(name),
+                tests[1].design.rated_torque,
+                figures_of(tests[0]),
+                figures_of(tests[1]),
+                preset_file(name).get("calibration"),
+                tests,
+            )
+        )
     return rows
 
 
-def calibrate_preset(name: str, maxiter: int | None = None, popsize: int | None = None,
-                     progress=None) -> Calibration:
+def calibrate_preset(
+    name: str, maxiter: int | None = None, popsize: int | None = None, progress=None
+) -> Calibration:
     """Fit CALIBRATION_FIT of preset `name`'s estimate to its frame's catalogue `target`."""
     if name not in PRESET_NAMES:
         raise InputError("preset", name, f"must be one of {', '.join(PRESET_NAMES)}")
@@ -162,8 +175,7 @@ def calibrate_preset(name: str, maxiter: int | None = None, popsize: int | None 
     frame = frame_of(name)
     data = DataSet(frame.name, catalogue=target(frame))
     options = {k: v for k, v in (("maxiter", maxiter), ("popsize", popsize)) if v is not None}
-    return calibrate(problem(design, [data], CALIBRATION_FIT, "catalogue"), progress=progress,
-                     **options)
+    return calibrate(problem(design, [data], CALIBRATION_FIT, "catalogue"), progress=progress, **options)
 
 
 def calibration_table(cal: Calibration, frame: Frame, command: str) -> str:
@@ -179,9 +191,9 @@ def calibration_table(cal: Calibration, frame: Frame, command: str) -> str:
     lines = [
         "",
         "# Calibration against the catalogue figures of the frame (rvfmu/bench/catalogue.py):",
-        f"# written by `{command}`.  `preset(\"{cal.problem.design.name.removesuffix(ESTIMATE_SUFFIX)}\")` "
+        f'# written by `{command}`.  `preset("{cal.problem.design.name.removesuffix(ESTIMATE_SUFFIX)}")` '
         "applies [calibration.fields]",
-        f"# over the values above; \"{cal.problem.design.name}\" is the preset without them.",
+        f'# over the values above; "{cal.problem.design.name}" is the preset without them.',
         "[calibration]",
         f'frame = "{frame.name}"',
         f"source = {json.dumps(frame.source)}",
@@ -195,8 +207,12 @@ def calibration_table(cal: Calibration, frame: Frame, command: str) -> str:
     ]
     for p, v in zip(cal.problem.parameters, cal.values):
         lines.append(f"{p.name} = {float(v):.6g}    # {p.unit}")
-    lines += [f'fit = "differential_evolution, then least_squares: {cal.evaluations} model evaluations"',
-              f'rvte = "{version}"', "", "[calibration.fields]"]
+    lines += [
+        f'fit = "differential_evolution, then least_squares: {cal.evaluations} model evaluations"',
+        f'rvte = "{version}"',
+        "",
+        "[calibration.fields]",
+    ]
     lines += [f"{key} = {value:.6g}" for key, value in in_file_units(fields).items()]
     return "\n".join(lines) + "\n"
 
@@ -214,6 +230,20 @@ def write_calibration(path: str | Path, table: str) -> None:
     path.write_text(new)
 
 
-__all__ = ["Frame", "Figures", "PresetAgainstCatalogue", "frame_of", "target", "figures", "figures_of",
-           "against_catalogue", "calibrate_preset", "calibration_table", "write_calibration",
-           "lost_motion_aim", "source", "RIGIDITY_TOLERANCE", "CALIBRATION_FIT"]
+__all__ = [
+    "Frame",
+    "Figures",
+    "PresetAgainstCatalogue",
+    "frame_of",
+    "target",
+    "figures",
+    "figures_of",
+    "against_catalogue",
+    "calibrate_preset",
+    "calibration_table",
+    "write_calibration",
+    "lost_motion_aim",
+    "source",
+    "RIGIDITY_TOLERANCE",
+    "CALIBRATION_FIT",
+]

@@ -6,7 +6,7 @@ and why so:
 
 - The model is evaluated where the bench was, at the record's input angles: on an
   even grid of `points` per output revolution (quasi-static equilibria,
-  `rvfmu.core.quasistatic.equilibria`) and interpolated linearly to the record's
+  `rvfmu.core.statics.quasistatic.equilibria`) and interpolated linearly to the record's
   rows.  When the ratio is a whole number (every preset) the model's TE repeats
   every output revolution (the sun turns i times, every crank z_p times), so one
   revolution of grid serves a record of many; otherwise the grid spans the
@@ -34,11 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import metrics
-from ..core.design import RVDesign
-from ..core.errors import ErrorSet
-from ..core.quasistatic import default_points, equilibria, input_angles
-from ..core.units import ARCSEC
+from ..core.base.units import ARCSEC
+from ..core.reducer.design import RVDesign
+from ..core.reducer.errors import ErrorSet
+from ..core.statics import metrics
+from ..core.statics.quasistatic import default_points, equilibria, input_angles
 from .measured import MeasuredTE
 
 REVOLUTION = 2.0 * np.pi
@@ -80,8 +80,14 @@ class ModelGrid:
         return np.stack([np.interp(theta, grid, curve) for curve in te])
 
 
-def model_grid(design: RVDesign, errors: ErrorSet, load: float, points: int, sense: int = 1,
-               theta_range: tuple[float, float] | None = None) -> ModelGrid:
+def model_grid(
+    design: RVDesign,
+    errors: ErrorSet,
+    load: float,
+    points: int,
+    sense: int = 1,
+    theta_range: tuple[float, float] | None = None,
+) -> ModelGrid:
     """The model's TE [arcsec] of every reducer of `errors` at a resisting `load` [N*m],
     `points` per output revolution.
 
@@ -180,7 +186,7 @@ class Comparison:
 
     @property
     def rms_difference_arcsec(self) -> float:
-        return float(np.sqrt(np.mean(self.difference_arcsec ** 2)))
+        return float(np.sqrt(np.mean(self.difference_arcsec**2)))
 
     @property
     def correlation(self) -> float:
@@ -198,30 +204,45 @@ class Comparison:
         for amplitude in self.spectrum[:2]:
             top = np.argsort(-amplitude[1:], kind="stable")[:count] + 1
             chosen.update(int(k) for k in top if amplitude[k] > metrics.NOISE_FLOOR_ARCSEC)
-        return [(float(self.orders[k]), *(float(a) for a in self.spectrum[:, k]))
-                for k in sorted(chosen)]
+        return [(float(self.orders[k]), *(float(a) for a in self.spectrum[:, k])) for k in sorted(chosen)]
 
 
-def compare_te(measured: MeasuredTE, design: RVDesign, errors: ErrorSet, load: float = 0.0,
-               points: int | None = None) -> Comparison:
+def compare_te(
+    measured: MeasuredTE, design: RVDesign, errors: ErrorSet, load: float = 0.0, points: int | None = None
+) -> Comparison:
     """The bench record `measured` beside the model of `design` with `errors` (one reducer)
     at the resisting `load` [N*m] the bench ran at; `points` per output revolution of the
     model's grid (default `default_points`, 8 per pin-passing period, as `rvte te`)."""
     if points is None:
         points = default_points(design)
-    grid = model_grid(design, errors, load, points, measured.sense,
-                      (float(measured.theta_in.min()), float(measured.theta_in.max())))
+    grid = model_grid(
+        design,
+        errors,
+        load,
+        points,
+        measured.sense,
+        (float(measured.theta_in.min()), float(measured.theta_in.max())),
+    )
     raw = grid.at(measured.theta_in)[0]
     model = as_bench_sees(measured, raw)[0]
     curves = np.stack([measured.te_reducer_arcsec, model, measured.te_reducer_arcsec - model])
     even = even_in_output(measured, curves)
     bins, spectrum = metrics.order_spectrum(even)
     shift, best = _best_shift(even[0], even[1], measured.revolutions)
-    return Comparison(measured=measured, design=design, load_Nm=float(load), points=int(points),
-                      periodic=grid.period is not None, converged=bool(grid.converged[0]),
-                      model_raw_arcsec=raw, model_arcsec=model,
-                      orders=bins / measured.revolutions, spectrum=spectrum, shift_deg=shift,
-                      shift_correlation=best)
+    return Comparison(
+        measured=measured,
+        design=design,
+        load_Nm=float(load),
+        points=int(points),
+        periodic=grid.period is not None,
+        converged=bool(grid.converged[0]),
+        model_raw_arcsec=raw,
+        model_arcsec=model,
+        orders=bins / measured.revolutions,
+        spectrum=spectrum,
+        shift_deg=shift,
+        shift_correlation=best,
+    )
 
 
 def _best_shift(a, b, revolutions):

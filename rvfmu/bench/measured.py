@@ -44,9 +44,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import metrics
-from ..core.checks import InputError, integer, positive
-from ..core.units import ARCSEC, DEG
+from ..core.base.checks import InputError, integer, positive
+from ..core.base.units import ARCSEC, DEG
+from ..core.statics import metrics
 
 UNITS = ("deg", "rad", "counts")
 
@@ -164,8 +164,11 @@ def angle_rad(name: str, values, unit: str, counts_per_rev: float | None = None)
         return values.copy()
     if unit == "counts":
         if counts_per_rev is None:
-            raise InputError("counts_per_rev", None, f"column {name} is in counts: give the "
-                             "encoder's counts per revolution")
+            raise InputError(
+                "counts_per_rev",
+                None,
+                f"column {name} is in counts: give the encoder's counts per revolution",
+            )
         return values * (REVOLUTION / positive("counts_per_rev", counts_per_rev))
     raise InputError("units", unit, "must be one of " + ", ".join(UNITS))
 
@@ -186,31 +189,51 @@ def check_rows(columns: dict, first_row: int = 1, time_name: str | None = None) 
     longest = max(lengths, key=lengths.get)
     for name, n in lengths.items():
         if n != lengths[longest]:
-            raise InputError(name, f"{n} rows", f"ends after row {first_row + n - 1}, "
-                             f"{longest} after row {first_row + lengths[longest] - 1}: every "
-                             "column needs a value on every row")
+            raise InputError(
+                name,
+                f"{n} rows",
+                f"ends after row {first_row + n - 1}, "
+                f"{longest} after row {first_row + lengths[longest] - 1}: every "
+                "column needs a value on every row",
+            )
     for name, v in given.items():
         bad = np.flatnonzero(~np.isfinite(v))
         if bad.size:
             listed = ", ".join(str(first_row + k) for k in bad[:5]) + (", ..." if bad.size > 5 else "")
-            raise InputError(name, float(v[bad[0]]), f"row {first_row + bad[0]} is not a finite "
-                             f"number (rows of this column that are not: {listed}); no row is "
-                             "dropped silently: remove or fill them")
+            raise InputError(
+                name,
+                float(v[bad[0]]),
+                f"row {first_row + bad[0]} is not a finite "
+                f"number (rows of this column that are not: {listed}); no row is "
+                "dropped silently: remove or fill them",
+            )
     if time_name in given:
         v = given[time_name]
         back = np.flatnonzero(np.diff(v) <= 0.0)
         if back.size:
             k = back[0] + 1
-            raise InputError(time_name, float(v[k]), f"row {first_row + k} is not later than row "
-                             f"{first_row + k - 1} ({v[k - 1]:g} s): time must increase from row "
-                             f"to row ({back.size} of {v.size - 1} steps do not)")
+            raise InputError(
+                time_name,
+                float(v[k]),
+                f"row {first_row + k} is not later than row "
+                f"{first_row + k - 1} ({v[k - 1]:g} s): time must increase from row "
+                f"to row ({back.size} of {v.size - 1} steps do not)",
+            )
     return lengths[longest]
 
 
-def measure_te(theta_in_rad, theta_out_rad, ratio: float, time_s=None,
-               remove_orders=(1,), remove_input_orders=(), keep_orders=(),
-               names=("theta_in", "theta_out", "time_s"), first_row: int = 1,
-               rollovers: tuple[int, int] = (0, 0)) -> MeasuredTE:
+def measure_te(
+    theta_in_rad,
+    theta_out_rad,
+    ratio: float,
+    time_s=None,
+    remove_orders=(1,),
+    remove_input_orders=(),
+    keep_orders=(),
+    names=("theta_in", "theta_out", "time_s"),
+    first_row: int = 1,
+    rollovers: tuple[int, int] = (0, 0),
+) -> MeasuredTE:
     """TE of a bench record over its whole output revolutions, the bench's runout removed.
 
     theta_in_rad, theta_out_rad: (rows,) encoder angles [rad], unwrapped (`unwrap`);
@@ -221,71 +244,95 @@ def measure_te(theta_in_rad, theta_out_rad, ratio: float, time_s=None,
     """
     ratio = positive("ratio", ratio)
     name_in, name_out, name_time = names
-    check_rows({name_in: theta_in_rad, name_out: theta_out_rad, name_time: time_s}, first_row,
-               name_time)
+    check_rows({name_in: theta_in_rad, name_out: theta_out_rad, name_time: time_s}, first_row, name_time)
     theta_in = np.asarray(theta_in_rad, dtype=float)
     theta_out = np.asarray(theta_out_rad, dtype=float)
     time = None if time_s is None else np.asarray(time_s, dtype=float)
     n = theta_in.size
     if n < 3:
-        raise InputError(name_in, f"{n} rows", "at least one whole output revolution of rows "
-                         "is needed")
+        raise InputError(name_in, f"{n} rows", "at least one whole output revolution of rows is needed")
     out_orders, in_orders = _orders(remove_orders, remove_input_orders, keep_orders, ratio)
 
     # The input turns one way: its sense, and np.interp below needs a monotonic abscissa.
     sense = 1 if theta_in[-1] > theta_in[0] else -1
     if theta_in[-1] == theta_in[0]:
-        raise InputError(name_in, float(theta_in[0] / DEG), f"the input ends where it starts "
-                         f"(rows {first_row} and {first_row + n - 1}): it must turn")
+        raise InputError(
+            name_in,
+            float(theta_in[0] / DEG),
+            f"the input ends where it starts (rows {first_row} and {first_row + n - 1}): it must turn",
+        )
     back = np.flatnonzero(sense * np.diff(theta_in) < 0.0)
     if back.size:
         k = back[0] + 1
-        raise InputError(name_in, f"row {first_row + k}", f"the input turns back there by "
-                         f"{abs(theta_in[k] - theta_in[k - 1]) / DEG:.4g} deg after turning "
-                         f"{'positive' if sense > 0 else 'negative'} ({back.size} of {n - 1} "
-                         "steps do): it must turn one way through the record, and rows must be "
-                         "closer than half a revolution of either shaft for a roll-over to be told "
-                         "from a move")
+        raise InputError(
+            name_in,
+            f"row {first_row + k}",
+            f"the input turns back there by "
+            f"{abs(theta_in[k] - theta_in[k - 1]) / DEG:.4g} deg after turning "
+            f"{'positive' if sense > 0 else 'negative'} ({back.size} of {n - 1} "
+            "steps do): it must turn one way through the record, and rows must be "
+            "closer than half a revolution of either shaft for a roll-over to be told "
+            "from a move",
+        )
     turned_out = sense * (theta_out[-1] - theta_out[0])
     if turned_out <= 0.0:
-        raise InputError(name_out, f"{sense * turned_out / DEG:.6g} deg", f"the output turns the "
-                         f"other way than the input ({sense * (theta_in[-1] - theta_in[0]) / DEG:.6g}"
-                         " deg): input and output turn the same way (docs/model.md section 2); "
-                         "negate one column if its encoder counts the other way")
-    phi = sense * (theta_in - theta_in[0]) / ratio        # nominal output angle turned [rad]
+        raise InputError(
+            name_out,
+            f"{sense * turned_out / DEG:.6g} deg",
+            f"the output turns the "
+            f"other way than the input ({sense * (theta_in[-1] - theta_in[0]) / DEG:.6g}"
+            " deg): input and output turn the same way (docs/model.md section 2); "
+            "negate one column if its encoder counts the other way",
+        )
+    phi = sense * (theta_in - theta_in[0]) / ratio  # nominal output angle turned [rad]
     # A record of n revolutions that ends a hair short of them (noise, a last row not quite
     # there) still has n: a shortfall of up to half a row's step is no missing sample.
     slack = 0.5 * phi[-1] / (n - 1)
     revolutions = int(np.floor((min(turned_out, phi[-1]) + slack) / REVOLUTION))
     if revolutions < 1:
-        raise InputError(name_out, float(f"{turned_out / DEG:.6g}"), f"the output turns "
-                         f"{turned_out / DEG:.4g} deg over rows {first_row} to {first_row + n - 1}:"
-                         " at least one whole output revolution (360 deg) is needed, as te_pp, the "
-                         "order spectrum and the runout fit are defined over whole revolutions")
+        raise InputError(
+            name_out,
+            float(f"{turned_out / DEG:.6g}"),
+            f"the output turns "
+            f"{turned_out / DEG:.4g} deg over rows {first_row} to {first_row + n - 1}:"
+            " at least one whole output revolution (360 deg) is needed, as te_pp, the "
+            "order spectrum and the runout fit are defined over whole revolutions",
+        )
     used = int(np.searchsorted(phi, revolutions * REVOLUTION + slack, side="right"))
     last = first_row + used - 1
 
     measured_ratio = _slope(theta_out[:used], theta_in[:used])
     off = measured_ratio / ratio - 1.0
     if abs(off) > RATIO_TOLERANCE:
-        raise InputError("ratio", ratio, f"the data show {measured_ratio:.6g} (least-squares slope "
-                         f"of {name_in} against {name_out}, rows {first_row} to {last}), "
-                         f"{100 * off:+.3g} % off; more than {100 * RATIO_TOLERANCE:g} % off is "
-                         "refused (it would be a TE ramp, not a TE): check the ratio, the units "
-                         "and the counts per revolution")
+        raise InputError(
+            "ratio",
+            ratio,
+            f"the data show {measured_ratio:.6g} (least-squares slope "
+            f"of {name_in} against {name_out}, rows {first_row} to {last}), "
+            f"{100 * off:+.3g} % off; more than {100 * RATIO_TOLERANCE:g} % off is "
+            "refused (it would be a TE ramp, not a TE): check the ratio, the units "
+            "and the counts per revolution",
+        )
     warnings = []
     if abs(off) > RATIO_WARNING:
-        warnings.append(f"the stated ratio {ratio:g} is {100 * off:+.3g} % off the data's "
-                        f"{measured_ratio:.6g}: that adds a TE ramp of about "
-                        f"{abs(off) * REVOLUTION / ARCSEC:.3g}\u2033 per output revolution")
+        warnings.append(
+            f"the stated ratio {ratio:g} is {100 * off:+.3g} % off the data's "
+            f"{measured_ratio:.6g}: that adds a TE ramp of about "
+            f"{abs(off) * REVOLUTION / ARCSEC:.3g}\u2033 per output revolution"
+        )
 
     points = used // revolutions
     nyquist = points // 2
-    for field, order, line in ([("remove_orders", k, k) for k in out_orders]
-                               + [("remove_input_orders", m, m * ratio) for m in in_orders]):
+    for field, order, line in [("remove_orders", k, k) for k in out_orders] + [
+        ("remove_input_orders", m, m * ratio) for m in in_orders
+    ]:
         if line >= nyquist:
-            raise InputError(field, order, f"is output order {line:g}, not below the Nyquist order "
-                             f"{nyquist} of the {points} rows per output revolution")
+            raise InputError(
+                field,
+                order,
+                f"is output order {line:g}, not below the Nyquist order "
+                f"{nyquist} of the {points} rows per output revolution",
+            )
 
     te_raw = (theta_out - theta_in / ratio) / ARCSEC
     offset = float(te_raw[:used].mean())
@@ -295,15 +342,16 @@ def measure_te(theta_in_rad, theta_out_rad, ratio: float, time_s=None,
         columns += [np.cos(k * theta_out), np.sin(k * theta_out)]
     for m in in_orders:
         columns += [np.cos(m * theta_in), np.sin(m * theta_in)]
-    design = np.stack(columns, axis=1)                    # (rows, 1 + 2 * components)
+    design = np.stack(columns, axis=1)  # (rows, 1 + 2 * components)
     coef = np.linalg.lstsq(design[:used], te[:used], rcond=None)[0]
     runout = design[:, 1:] @ coef[1:]
     reducer = te - coef[0] - runout
     components = tuple(
         RunoutComponent(shaft, order, float(np.hypot(a, b)), float(np.degrees(np.arctan2(b, a))))
-        for (shaft, order), (a, b) in zip([("output", k) for k in out_orders]
-                                          + [("input", m) for m in in_orders],
-                                          coef[1:].reshape(-1, 2)))
+        for (shaft, order), (a, b) in zip(
+            [("output", k) for k in out_orders] + [("input", m) for m in in_orders], coef[1:].reshape(-1, 2)
+        )
+    )
 
     # Evenly over the whole revolutions (all rows bracket the last grid point).
     curves = np.stack([te, reducer])
@@ -322,18 +370,36 @@ def measure_te(theta_in_rad, theta_out_rad, ratio: float, time_s=None,
     # te_pp of each revolution: phi is sorted, so each revolution is a run of rows.
     rev = np.minimum((phi[:used] / REVOLUTION).astype(int), revolutions - 1)
     starts = np.searchsorted(rev, np.arange(revolutions))
-    by_rev = (np.maximum.reduceat(curves[:, :used], starts, axis=1)
-              - np.minimum.reduceat(curves[:, :used], starts, axis=1))
+    by_rev = np.maximum.reduceat(curves[:, :used], starts, axis=1) - np.minimum.reduceat(
+        curves[:, :used], starts, axis=1
+    )
 
     return MeasuredTE(
-        ratio=ratio, measured_ratio=float(measured_ratio), first_row=first_row, rows_total=n,
-        rows_after=n - used, rollovers=tuple(rollovers), sense=sense, revolutions=revolutions,
-        points_per_revolution=points, theta_in=theta_in[:used], theta_out=theta_out[:used],
-        time=None if time is None else time[:used], te_arcsec=te[:used],
-        runout_arcsec=runout[:used], te_reducer_arcsec=reducer[:used], offset_arcsec=offset,
-        components=components, te_pp_by_revolution_arcsec=by_rev, orders=orders,
-        spectrum=spectrum, hz=hz, spectrum_hz=spectrum_hz, output_speed_hz=speed,
-        warnings=tuple(warnings))
+        ratio=ratio,
+        measured_ratio=float(measured_ratio),
+        first_row=first_row,
+        rows_total=n,
+        rows_after=n - used,
+        rollovers=tuple(rollovers),
+        sense=sense,
+        revolutions=revolutions,
+        points_per_revolution=points,
+        theta_in=theta_in[:used],
+        theta_out=theta_out[:used],
+        time=None if time is None else time[:used],
+        te_arcsec=te[:used],
+        runout_arcsec=runout[:used],
+        te_reducer_arcsec=reducer[:used],
+        offset_arcsec=offset,
+        components=components,
+        te_pp_by_revolution_arcsec=by_rev,
+        orders=orders,
+        spectrum=spectrum,
+        hz=hz,
+        spectrum_hz=spectrum_hz,
+        output_speed_hz=speed,
+        warnings=tuple(warnings),
+    )
 
 
 def _slope(x, y) -> float:
@@ -349,13 +415,18 @@ def _orders(remove_orders, remove_input_orders, keep_orders, ratio):
     inputs = sorted({integer("remove_input_orders", m, 1) for m in remove_input_orders})
     for k in keep_orders:
         if integer("keep_orders", k, 1) not in out:
-            raise InputError("keep_orders", k, f"keeps an order that is not removed (remove_orders "
-                             f"= {sorted(set(out))})")
+            raise InputError(
+                "keep_orders", k, f"keeps an order that is not removed (remove_orders = {sorted(set(out))})"
+            )
     out = sorted(set(out) - {int(k) for k in keep_orders})
     for m in inputs:
         for k in out:
             if abs(m * ratio - k) < 0.5:
-                raise InputError("remove_input_orders", m, f"input order {m} is output order "
-                                 f"{m * ratio:g} at ratio {ratio:g}, the same line as output order "
-                                 f"{k} in remove_orders: remove it once")
+                raise InputError(
+                    "remove_input_orders",
+                    m,
+                    f"input order {m} is output order "
+                    f"{m * ratio:g} at ratio {ratio:g}, the same line as output order "
+                    f"{k} in remove_orders: remove it once",
+                )
     return tuple(out), tuple(inputs)

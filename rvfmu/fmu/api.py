@@ -6,13 +6,20 @@ import zipfile
 from pathlib import Path
 
 from ..api import resolve_design, resolve_errors
-from ..core.checks import InputError
+from ..core.base.checks import InputError
 from ..outputs import output_file
 from ..progress import counter as progress_counter
 
 
-def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress=None,
-              native: bool = False, fmi_version=2) -> Path:
+def fmu_build(
+    design,
+    errors=None,
+    output="RVReducer.fmu",
+    points=None,
+    progress=None,
+    native: bool = False,
+    fmi_version=2,
+) -> Path:
     """Build the reducer FMU; returns its path.  progress(total, done): optional.
 
     design: a preset name, a design file or an RVDesign; errors: an error file, an
@@ -24,8 +31,8 @@ def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress
     pythonfmu one.  fmi_version: 2 or 3 (as a number or its text); 3 only with
     native (pythonfmu makes FMI 2.0 FMUs only).
     """
-    from ..core.quasistatic import default_points
-    from ..core.te_map import TORQUE_FRACTIONS
+    from ..core.statics.quasistatic import default_points
+    from ..core.steppers.te_map import TORQUE_FRACTIONS
 
     fmi_version = check_fmi_version(fmi_version, native)
     if native:
@@ -40,11 +47,19 @@ def fmu_build(design, errors=None, output="RVReducer.fmu", points=None, progress
     output = fmu_output(output)
     points = default_points(resolve_design(design)) if points is None else points
     total = 2 * len(TORQUE_FRACTIONS) * points
-    sources = {"design": design if isinstance(design, (str, Path)) else None,
-               "errors": errors if isinstance(errors, (str, Path)) else None}
+    sources = {
+        "design": design if isinstance(design, (str, Path)) else None,
+        "errors": errors if isinstance(errors, (str, Path)) else None,
+    }
     design = resolve_design(design)
-    return build_fmu(design, resolve_errors(design, errors), output, points=points,
-                     progress=progress_counter(total, progress), sources=sources)
+    return build_fmu(
+        design,
+        resolve_errors(design, errors),
+        output,
+        points=points,
+        progress=progress_counter(total, progress),
+        sources=sources,
+    )
 
 
 FMI_VERSIONS = (2, 3)
@@ -55,8 +70,11 @@ def fmu_output(output) -> Path:
     `output` (`rvte fmu build -o`): an FMU is a zip whose importers look for the .fmu suffix,
     and writing x.fmu for x.zip would put the file where the user does not look."""
     if output is None or str(output) == "" or Path(output).suffix.lower() != ".fmu":
-        raise InputError("output", None if output is None else str(output),
-                         "must end in .fmu (the FMU file to write, -o/--output)")
+        raise InputError(
+            "output",
+            None if output is None else str(output),
+            "must end in .fmu (the FMU file to write, -o/--output)",
+        )
     return output_file("output", output)
 
 
@@ -67,8 +85,11 @@ def check_fmi_version(fmi_version, native: bool) -> int:
         raise InputError("fmi_version", fmi_version, "must be 2 or 3 (FMI 2.0 or FMI 3.0)")
     version = int(float(text))
     if version == 3 and not native:
-        raise InputError("fmi_version", fmi_version, "FMI 3.0 needs the native FMU (--native): "
-                         "the pythonfmu FMU is FMI 2.0 only")
+        raise InputError(
+            "fmi_version",
+            fmi_version,
+            "FMI 3.0 needs the native FMU (--native): the pythonfmu FMU is FMI 2.0 only",
+        )
     return version
 
 
@@ -81,13 +102,17 @@ def fmu_info(path) -> str:
     if not path.is_file() or not zipfile.is_zipfile(path):
         raise InputError("fmu", str(path), "must be an FMU file (a zip archive)")
     md = read_model_description(str(path))
-    lines = [f"{md.modelName}  FMI {md.fmiVersion} co-simulation  ({md.generationTool})",
-             *_bundled(path),
-             f"{'name':<24} {'causality':<10} {'variability':<12} {'start':>12}  {'unit':<7} description"]
+    lines = [
+        f"{md.modelName}  FMI {md.fmiVersion} co-simulation  ({md.generationTool})",
+        *_bundled(path),
+        f"{'name':<24} {'causality':<10} {'variability':<12} {'start':>12}  {'unit':<7} description",
+    ]
     for v in md.modelVariables:
         start = "" if v.start is None else str(v.start)
-        lines.append(f"{v.name:<24} {v.causality:<10} {v.variability:<12} {start:>12}  "
-                     f"{v.unit or '':<7} {v.description or ''}")
+        lines.append(
+            f"{v.name:<24} {v.causality:<10} {v.variability:<12} {start:>12}  "
+            f"{v.unit or '':<7} {v.description or ''}"
+        )
     if md.defaultExperiment is not None:
         e = md.defaultExperiment
         lines.append(f"default experiment: start {e.startTime}, stop {e.stopTime}, step {e.stepSize}")
@@ -111,16 +136,21 @@ def _bundled(path: Path) -> list[str]:
                 continue
             text = archive.read(member).decode()
             first = text.splitlines()[0] if text else ""
-            source = first[len(SOURCE_PREFIX):] if first.startswith(SOURCE_PREFIX) else ""
+            source = first[len(SOURCE_PREFIX) :] if first.startswith(SOURCE_PREFIX) else ""
             values = tomllib.loads(text)
             if label == "design":
-                what = (f"{values.get('name', '?')} (z_s {values.get('z_s')}, z_pl "
-                        f"{values.get('z_pl')}, z_p {values.get('z_p')}, rated torque "
-                        f"{values.get('rated_torque_Nm')} N*m)")
+                what = (
+                    f"{values.get('name', '?')} (z_s {values.get('z_s')}, z_pl "
+                    f"{values.get('z_pl')}, z_p {values.get('z_p')}, rated torque "
+                    f"{values.get('rated_torque_Nm')} N*m)"
+                )
             else:
                 nonzero = [k for k, v in values.items() if _any_nonzero(v)]
-                what = (f"{len(nonzero)} nonzero: {', '.join(nonzero)}" if nonzero
-                        else "none: the error-free reducer")
+                what = (
+                    f"{len(nonzero)} nonzero: {', '.join(nonzero)}"
+                    if nonzero
+                    else "none: the error-free reducer"
+                )
             lines.append(f"{label:<8} {what}" + (f"  [from {source}]" if source else ""))
     return lines
 

@@ -33,14 +33,14 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from ..core.design import RVDesign
-from ..core.dynamic import compile_kernels
-from ..core.errors import ErrorSet, error_file_values, toml_text, zero_errors
-from ..core.te_map import build_te_map
+from ..core.reducer.design import RVDesign
+from ..core.reducer.errors import ErrorSet, error_file_values, toml_text, zero_errors
+from ..core.steppers.dynamic_reducer import compile_kernels
+from ..core.steppers.te_map import build_te_map
 from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS, BUNDLED_MAP
 
-PACKAGE = Path(__file__).resolve().parent.parent          # the rvfmu package
-MODULE_NAME = "rvreducer_fmu"                             # the FMU's entry module
+PACKAGE = Path(__file__).resolve().parent.parent  # the rvfmu package
+MODULE_NAME = "rvreducer_fmu"  # the FMU's entry module
 UNITS = {  # unit name -> (base unit exponents, factor)
     "rad": ({"rad": "1"}, None),
     "rad/s": ({"rad": "1", "s": "-1"}, None),
@@ -51,19 +51,35 @@ UNITS = {  # unit name -> (base unit exponents, factor)
     "W": ({"kg": "1", "m": "2", "s": "-3"}, None),
 }
 VARIABLE_UNITS = {
-    "theta_in": "rad", "tau_load": "N.m", "theta_out": "rad", "omega_out": "rad/s", "te": "rad",
-    "te_arcsec": "arcsec", "tau_in": "N.m", "pin_stiffness_scale": "1",
-    "bearing_stiffness_scale": "1", "mesh_stiffness_scale": "1", "error_scale": "1",
-    "dynamic_step": "s", "P_loss": "W", "efficiency": "1",
+    "theta_in": "rad",
+    "tau_load": "N.m",
+    "theta_out": "rad",
+    "omega_out": "rad/s",
+    "te": "rad",
+    "te_arcsec": "arcsec",
+    "tau_in": "N.m",
+    "pin_stiffness_scale": "1",
+    "bearing_stiffness_scale": "1",
+    "mesh_stiffness_scale": "1",
+    "error_scale": "1",
+    "dynamic_step": "s",
+    "P_loss": "W",
+    "efficiency": "1",
 }
 DEFAULT_STOP_TIME = 1.0
 DEFAULT_STEP = 1e-3
 GUARD_SOURCE = PACKAGE / "fmu" / "native" / "pythonfmu_guard.c"
-PYTHONFMU_LIBRARY = "libpythonfmu-export.so"   # pythonfmu's Linux library, beside the guard
+PYTHONFMU_LIBRARY = "libpythonfmu-export.so"  # pythonfmu's Linux library, beside the guard
 
 
-def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Path = "RVReducer.fmu",
-              points: int | None = None, progress=None, sources: dict | None = None) -> Path:
+def build_fmu(
+    design: RVDesign,
+    errors: ErrorSet | None = None,
+    output: str | Path = "RVReducer.fmu",
+    points: int | None = None,
+    progress=None,
+    sources: dict | None = None,
+) -> Path:
     """Write the reducer FMU for `design` and one reducer's `errors` to `output`.
 
     output: a path ending in .fmu (else ValueError); points: TE map points per
@@ -78,24 +94,31 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
     with tempfile.TemporaryDirectory(prefix="rvte_fmu_") as tmp:
         tmp = Path(tmp)
         package = tmp / "rvfmu"
-        shutil.copytree(PACKAGE / "core", package / "core",
-                        ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        shutil.copytree(
+            PACKAGE / "core", package / "core", ignore=shutil.ignore_patterns("__pycache__", "*.pyc")
+        )
         (package / "__init__.py").write_text((PACKAGE / "__init__.py").read_text())
         sources = sources or {}
-        (tmp / BUNDLED_DESIGN).write_text(source_line(sources.get("design"))
-                                          + toml_text(design.file_values()))
-        (tmp / BUNDLED_ERRORS).write_text(source_line(sources.get("errors"))
-                                          + toml_text(error_file_values(errors)))
+        (tmp / BUNDLED_DESIGN).write_text(
+            source_line(sources.get("design")) + toml_text(design.file_values())
+        )
+        (tmp / BUNDLED_ERRORS).write_text(
+            source_line(sources.get("errors")) + toml_text(error_file_values(errors))
+        )
         np.savez(tmp / BUNDLED_MAP, **te_map.to_arrays())
         script = tmp / "src" / f"{MODULE_NAME}.py"
         script.parent.mkdir()
         shutil.copy2(PACKAGE / "fmu" / "slave.py", script)
         output.parent.mkdir(parents=True, exist_ok=True)
         built = FmuBuilder.build_FMU(
-            script, dest=output,
+            script,
+            dest=output,
             project_files=[package, tmp / BUNDLED_DESIGN, tmp / BUNDLED_ERRORS, tmp / BUNDLED_MAP],
-            canGetAndSetFMUstate=True, canSerializeFMUstate=True,
-            canHandleVariableCommunicationStepSize=True, needsExecutionTool=True)
+            canGetAndSetFMUstate=True,
+            canSerializeFMUstate=True,
+            canHandleVariableCommunicationStepSize=True,
+            needsExecutionTool=True,
+        )
     complete_model_description(Path(built))
     guard_linux_binary(Path(built))
     # the compiled dynamic-model kernels (numba's cache files, keyed by the source's content;
@@ -104,7 +127,7 @@ def build_fmu(design: RVDesign, errors: ErrorSet | None = None, output: str | Pa
     # initialisation and step
     with zipfile.ZipFile(built, "a", zipfile.ZIP_DEFLATED) as archive:
         for path in compile_kernels(design, errors):
-            archive.write(path, f"resources/rvfmu/core/__pycache__/{path.name}")
+            archive.write(path, f"resources/rvfmu/{path.resolve().relative_to(PACKAGE).as_posix()}")
     return Path(built)
 
 
@@ -119,21 +142,32 @@ def guard_linux_binary(fmu: Path) -> bool:
         return False
     with zipfile.ZipFile(fmu) as archive:
         entries = {info.filename: archive.read(info.filename) for info in archive.infolist()}
-    binaries = [name for name in entries
-                if name.startswith("binaries/linux64/") and name.endswith(".so")]
+    binaries = [name for name in entries if name.startswith("binaries/linux64/") and name.endswith(".so")]
     if len(binaries) != 1:
         raise RuntimeError(f"{fmu}: expected one library in binaries/linux64/, found {binaries}")
     library = entries[binaries[0]]
     with tempfile.TemporaryDirectory(prefix="rvte_guard_") as tmp:
         guard = Path(tmp) / "guard.so"
         # the guard opens pythonfmu's library by its path at run time (native/pythonfmu_guard.c)
-        command = [compiler, "-std=c99", "-O2", "-shared", "-fPIC",
-                   f"-I{Path(fmpy.__file__).parent / 'c-code'}", str(GUARD_SOURCE), "-o",
-                   str(guard), f'-DPYTHONFMU_LIBRARY="{PYTHONFMU_LIBRARY}"', "-ldl", "-lpthread"]
+        command = [
+            compiler,
+            "-std=c99",
+            "-O2",
+            "-shared",
+            "-fPIC",
+            f"-I{Path(fmpy.__file__).parent / 'c-code'}",
+            str(GUARD_SOURCE),
+            "-o",
+            str(guard),
+            f'-DPYTHONFMU_LIBRARY="{PYTHONFMU_LIBRARY}"',
+            "-ldl",
+            "-lpthread",
+        ]
         done = subprocess.run(command, capture_output=True, text=True)
         if done.returncode != 0:
-            raise RuntimeError(f"compiling the FMU's guard failed: {' '.join(command)}\n"
-                               f"{done.stderr[-3000:]}")
+            raise RuntimeError(
+                f"compiling the FMU's guard failed: {' '.join(command)}\n{done.stderr[-3000:]}"
+            )
         entries[f"binaries/linux64/{PYTHONFMU_LIBRARY}"] = library
         entries[binaries[0]] = guard.read_bytes()
     with zipfile.ZipFile(fmu, "w", zipfile.ZIP_DEFLATED) as archive:
@@ -164,10 +198,14 @@ def complete_model_description(fmu: Path) -> None:
     position = next(i for i, child in enumerate(children) if child.tag == "CoSimulation") + 1
     root.insert(position, units)
     if root.find("DefaultExperiment") is None:
-        experiment = ET.Element("DefaultExperiment", startTime="0.0", stopTime=str(DEFAULT_STOP_TIME),
-                                stepSize=str(DEFAULT_STEP))
-        after = [i for i, child in enumerate(list(root))
-                 if child.tag in ("CoSimulation", "UnitDefinitions", "TypeDefinitions", "LogCategories")]
+        experiment = ET.Element(
+            "DefaultExperiment", startTime="0.0", stopTime=str(DEFAULT_STOP_TIME), stepSize=str(DEFAULT_STEP)
+        )
+        after = [
+            i
+            for i, child in enumerate(list(root))
+            if child.tag in ("CoSimulation", "UnitDefinitions", "TypeDefinitions", "LogCategories")
+        ]
         root.insert(max(after) + 1, experiment)
     for variable in root.iter("ScalarVariable"):
         unit = VARIABLE_UNITS.get(variable.get("name"))

@@ -3,7 +3,7 @@
 A system simulation on a controller test bench, or in a tool without Python,
 wants the reducer's output angle without an interpreter in its process.  The
 quasi-static model needs none at run time: a step is one interpolation in the
-TE map (`rvfmu.core.te_map`), which is plain data.  So the map is solved here,
+TE map (`rvfmu.core.steppers.te_map`), which is plain data.  So the map is solved here,
 written as a binary table into the FMU's resources, and a small C library
 (rvfmu/fmu/native/: model.c, the physics, knows nothing of FMI;
 fmi2Functions.c, the FMI 2.0 co-simulation plumbing, over instance.c, what it
@@ -63,7 +63,7 @@ and carries the same layout in a comment):
     176 + 8T + 48TA + 8K + 8M + 8MK        end of file: the length is checked against A, T, K, M
 
 The load classes and the speed limit travel in the table rather than in the C
-code so that `rvfmu.core.limits` and the design stay their only source (the
+code so that `rvfmu.core.reducer.limits` and the design stay their only source (the
 design's name only goes into the messages).  Version 3 added the speed limit, version 4
 the temperatures and the breakaway; a table of any other version is refused.  A table that fails a check
 (magic, version, sizes against the file length, finite values, ascending
@@ -87,19 +87,19 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from ..core.design import RVDesign
-from ..core.errors import ErrorSet, error_file_values, toml_text
-from ..core.limits import EMERGENCY_FACTOR, MOMENTARY_FACTOR, SPEED_FACTOR
-from ..core.reducer_model import FRICTION_SPEED_SCALE, STRIBECK_SPEED
-from ..core.te_map import TEMap
+from ..core.reducer.design import RVDesign
+from ..core.reducer.errors import ErrorSet, error_file_values, toml_text
+from ..core.reducer.limits import EMERGENCY_FACTOR, MOMENTARY_FACTOR, SPEED_FACTOR
+from ..core.steppers.reducer_model import FRICTION_SPEED_SCALE, STRIBECK_SPEED
+from ..core.steppers.te_map import TEMap
 from .build import complete_model_description, prepare, source_line
 from .fmi3 import FMI3_SOURCE_FILES, PLATFORM_TUPLES, build_description, model_description_3
 from .slave import BUNDLED_DESIGN, BUNDLED_ERRORS
 
 NATIVE_SOURCES = Path(__file__).resolve().parent / "native"
-SOURCE_FILES = ("model.c", "instance.c", "fmi2Functions.c")   # compiled; the headers beside them
+SOURCE_FILES = ("model.c", "instance.c", "fmi2Functions.c")  # compiled; the headers beside them
 HEADER_FILES = ("model.h", "instance.h")
-FMI_VERSIONS = (2, 3)                              # the standards a native FMU is built for
+FMI_VERSIONS = (2, 3)  # the standards a native FMU is built for
 MODEL_IDENTIFIER = "RVReducer"
 TABLE_NAME = "te_map.bin"
 TABLE_MAGIC = b"RVTEMAP\0"
@@ -107,25 +107,40 @@ TABLE_VERSION = 4
 # magic, version, A, T, K, ratio, rated, load classes, speed scale, allowable speed, speed
 # factor, design name, M, padding, seals' torque, static friction factor, Stribeck speed
 TABLE_HEADER = struct.Struct("<8s4I7d64s2I3d")
-NAME_BYTES = 63                           # of the design's name: a NUL always ends it
+NAME_BYTES = 63  # of the design's name: a NUL always ends it
 # The inputs and outputs in the order of their value references in fmi2Functions.c.
-VARIABLES = ("theta_in", "tau_load", "theta_out", "omega_out", "te", "te_arcsec", "tau_in",
-             "P_loss", "efficiency")
+VARIABLES = (
+    "theta_in",
+    "tau_load",
+    "theta_out",
+    "omega_out",
+    "te",
+    "te_arcsec",
+    "tau_in",
+    "P_loss",
+    "efficiency",
+)
 # The parameters and their value references (instance.h: TEMPERATURE_C), the slave's.
 PARAMETERS = {"temperature_C": 18}
-LOG_CATEGORIES = {"logEvents": "the table read, resets (with debug logging on)",
-                  "logStatusWarning": "loads above the momentary maximum class, input speeds "
-                                      "above the allowable one",
-                  "logStatusError": "inputs refused (the simulation ends), tables that cannot "
-                                    "be read"}
+LOG_CATEGORIES = {
+    "logEvents": "the table read, resets (with debug logging on)",
+    "logStatusWarning": "loads above the momentary maximum class, input speeds above the allowable one",
+    "logStatusError": "inputs refused (the simulation ends), tables that cannot be read",
+}
 # Bit-for-bit agreement with the Python interpolation wants no fused multiply-adds.
 C_FLAGS = "-O2 -ffp-contract=off"
-WIN64_COMPILER = "x86_64-w64-mingw32-gcc"          # Debian's mingw-w64
+WIN64_COMPILER = "x86_64-w64-mingw32-gcc"  # Debian's mingw-w64
 
 
-def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
-                     output: str | Path = "RVReducer.fmu", points: int | None = None,
-                     progress=None, sources: dict | None = None, fmi_version: int = 2) -> Path:
+def build_native_fmu(
+    design: RVDesign,
+    errors: ErrorSet | None = None,
+    output: str | Path = "RVReducer.fmu",
+    points: int | None = None,
+    progress=None,
+    sources: dict | None = None,
+    fmi_version: int = 2,
+) -> Path:
     """Write the native reducer FMU for `design` and one reducer's `errors` to `output`.
 
     The arguments are `build.build_fmu`'s; fmi_version: 2 or 3, the standard of
@@ -144,10 +159,12 @@ def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
         source_dir.mkdir()
         write_table(te_map, design, resources / TABLE_NAME)
         sources = sources or {}
-        (resources / BUNDLED_DESIGN).write_text(source_line(sources.get("design"))
-                                                + toml_text(design.file_values()))
-        (resources / BUNDLED_ERRORS).write_text(source_line(sources.get("errors"))
-                                                + toml_text(error_file_values(errors)))
+        (resources / BUNDLED_DESIGN).write_text(
+            source_line(sources.get("design")) + toml_text(design.file_values())
+        )
+        (resources / BUNDLED_ERRORS).write_text(
+            source_line(sources.get("errors")) + toml_text(error_file_values(errors))
+        )
         for name in (*source_files(fmi_version), *HEADER_FILES):
             shutil.copy2(NATIVE_SOURCES / name, source_dir / name)
         (unzipped / "modelDescription.xml").write_bytes(model_description(fmi_version))
@@ -160,7 +177,7 @@ def build_native_fmu(design: RVDesign, errors: ErrorSet | None = None,
                 if path.is_file():
                     archive.write(path, path.relative_to(unzipped).as_posix())
     if fmi_version == 2:
-        complete_model_description(output)     # units, default experiment, initial unknowns
+        complete_model_description(output)  # units, default experiment, initial unknowns
     return output
 
 
@@ -180,15 +197,38 @@ def write_table(te_map: TEMap, design: RVDesign, path: Path) -> None:
     its allowable output speed [rad/s]) as the table (module doc)."""
     points, levels = te_map.theta_in.size, te_map.torque_magnitude.size
     name = design.name.encode("utf-8")[:NAME_BYTES].decode("utf-8", "ignore").encode("utf-8")
-    header = TABLE_HEADER.pack(TABLE_MAGIC, TABLE_VERSION, points, levels, te_map.drag_speed.size,
-                               te_map.ratio, design.rated_torque, MOMENTARY_FACTOR,
-                               EMERGENCY_FACTOR, FRICTION_SPEED_SCALE,
-                               design.allowable_output_speed, SPEED_FACTOR, name,
-                               te_map.drag_temperature.size, 0, te_map.seal,
-                               te_map.static_friction_factor, STRIBECK_SPEED)
-    body = [np.ascontiguousarray(a, dtype="<f8").tobytes()
-            for a in (te_map.torque_magnitude, te_map.te, te_map.tau_in, te_map.friction,
-                      te_map.drag_speed, te_map.drag_temperature, te_map.drag)]
+    header = TABLE_HEADER.pack(
+        TABLE_MAGIC,
+        TABLE_VERSION,
+        points,
+        levels,
+        te_map.drag_speed.size,
+        te_map.ratio,
+        design.rated_torque,
+        MOMENTARY_FACTOR,
+        EMERGENCY_FACTOR,
+        FRICTION_SPEED_SCALE,
+        design.allowable_output_speed,
+        SPEED_FACTOR,
+        name,
+        te_map.drag_temperature.size,
+        0,
+        te_map.seal,
+        te_map.static_friction_factor,
+        STRIBECK_SPEED,
+    )
+    body = [
+        np.ascontiguousarray(a, dtype="<f8").tobytes()
+        for a in (
+            te_map.torque_magnitude,
+            te_map.te,
+            te_map.tau_in,
+            te_map.friction,
+            te_map.drag_speed,
+            te_map.drag_temperature,
+            te_map.drag,
+        )
+    ]
     path.write_bytes(header + b"".join(body))
 
 
@@ -207,19 +247,36 @@ def read_table(path: str | Path) -> tuple[TEMap, float]:
     values = np.frombuffer(data, "<f8", offset=TABLE_HEADER.size).astype(float)
     cells = 2 * levels * points
     magnitude, te, tau_in, friction, drag_speed, drag_temperature, drag = np.split(
-        values, np.cumsum([levels, cells, cells, cells, speeds, temperatures]))
+        values, np.cumsum([levels, cells, cells, cells, speeds, temperatures])
+    )
     angles = np.arange(points) * (2.0 * np.pi * ratio / points)
     shape = (2, levels, points)
-    return (TEMap(ratio, angles, magnitude, te.reshape(shape), tau_in.reshape(shape),
-                  friction.reshape(shape), drag_speed, drag.reshape(temperatures, speeds),
-                  drag_temperature, seal, static), rated)
+    return (
+        TEMap(
+            ratio,
+            angles,
+            magnitude,
+            te.reshape(shape),
+            tau_in.reshape(shape),
+            friction.reshape(shape),
+            drag_speed,
+            drag.reshape(temperatures, speeds),
+            drag_temperature,
+            seal,
+            static,
+        ),
+        rated,
+    )
 
 
 def table_limits(path: str | Path) -> dict:
     """The limits a table carries: allowable_output_speed [rad/s], speed_factor, design name."""
     fields = TABLE_HEADER.unpack_from(Path(path).read_bytes())
-    return {"allowable_output_speed": fields[10], "speed_factor": fields[11],
-            "design": fields[12].rstrip(b"\0").decode("utf-8")}
+    return {
+        "allowable_output_speed": fields[10],
+        "speed_factor": fields[11],
+        "design": fields[12].rstrip(b"\0").decode("utf-8"),
+    }
 
 
 def declared_variables() -> list[ET.Element]:
@@ -229,12 +286,17 @@ def declared_variables() -> list[ET.Element]:
     from .slave import RVReducer
 
     slave = RVReducer(instance_name="native")
-    declared = [v for v in slave.to_xml().find("ModelVariables")
-                if v.get("causality") in ("input", "output") or v.get("name") in PARAMETERS]
+    declared = [
+        v
+        for v in slave.to_xml().find("ModelVariables")
+        if v.get("causality") in ("input", "output") or v.get("name") in PARAMETERS
+    ]
     names = [(v.get("name"), int(v.get("valueReference"))) for v in declared]
     if names != [(name, vr) for vr, name in enumerate(VARIABLES)] + list(PARAMETERS.items()):
-        raise RuntimeError(f"the slave's inputs and outputs {names} are not those of "
-                           f"instance.h {VARIABLES}: update the C code")
+        raise RuntimeError(
+            f"the slave's inputs and outputs {names} are not those of "
+            f"instance.h {VARIABLES}: update the C code"
+        )
     return declared
 
 
@@ -242,9 +304,12 @@ def about_model() -> dict[str, str]:
     """The attributes that say what the model is, the same in both standards' descriptions."""
     from .slave import RVReducer
 
-    return {"modelName": MODEL_IDENTIFIER,
-            "description": f"{RVReducer.description}; native code, the TE map only",
-            "author": RVReducer.author, "generationTool": "rvte (native FMU)"}
+    return {
+        "modelName": MODEL_IDENTIFIER,
+        "description": f"{RVReducer.description}; native code, the TE map only",
+        "author": RVReducer.author,
+        "generationTool": "rvte (native FMU)",
+    }
 
 
 def model_description(fmi_version: int = 2) -> bytes:
@@ -254,15 +319,25 @@ def model_description(fmi_version: int = 2) -> bytes:
     declared = declared_variables()
     if fmi_version == 3:
         return model_description_3(declared, about_model(), MODEL_IDENTIFIER, LOG_CATEGORIES)
-    root = ET.Element("fmiModelDescription", fmiVersion="2.0", **about_model(),
-                      guid=f"{{{uuid.uuid4()}}}",
-                      generationDateAndTime=datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-                      variableNamingConvention="structured", numberOfEventIndicators="0")
-    cosim = ET.SubElement(root, "CoSimulation", modelIdentifier=MODEL_IDENTIFIER,
-                          canHandleVariableCommunicationStepSize="true",
-                          canBeInstantiatedOnlyOncePerProcess="false",
-                          canNotUseMemoryManagementFunctions="true",
-                          canGetAndSetFMUstate="true", canSerializeFMUstate="true")
+    root = ET.Element(
+        "fmiModelDescription",
+        fmiVersion="2.0",
+        **about_model(),
+        guid=f"{{{uuid.uuid4()}}}",
+        generationDateAndTime=datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        variableNamingConvention="structured",
+        numberOfEventIndicators="0",
+    )
+    cosim = ET.SubElement(
+        root,
+        "CoSimulation",
+        modelIdentifier=MODEL_IDENTIFIER,
+        canHandleVariableCommunicationStepSize="true",
+        canBeInstantiatedOnlyOncePerProcess="false",
+        canNotUseMemoryManagementFunctions="true",
+        canGetAndSetFMUstate="true",
+        canSerializeFMUstate="true",
+    )
     files = ET.SubElement(cosim, "SourceFiles")
     for name in SOURCE_FILES:
         ET.SubElement(files, "File", name=name)
@@ -292,28 +367,39 @@ def compile_binaries(unzipped: Path, build_dir: Path, fmi_version: int = 2) -> l
     import fmpy
     from fmpy.build import build_platform_binary
 
-    headers = Path(fmpy.__file__).parent / "c-code"     # the FMI 2.0 and 3.0 headers fmpy ships
-    unzipped, build_dir = Path(unzipped).resolve(), Path(build_dir).resolve()   # cmake wants both
+    headers = Path(fmpy.__file__).parent / "c-code"  # the FMI 2.0 and 3.0 headers fmpy ships
+    unzipped, build_dir = Path(unzipped).resolve(), Path(build_dir).resolve()  # cmake wants both
     built = [fmpy.platform]
     if shutil.which("cmake"):
         build_dir.mkdir(parents=True, exist_ok=True)
         with _output_to(build_dir / "build.log") as log:
             try:
-                build_platform_binary(unzipped, build_dir,
-                                      cmake_options={"CMAKE_C_FLAGS:STRING": C_FLAGS})
+                build_platform_binary(unzipped, build_dir, cmake_options={"CMAKE_C_FLAGS:STRING": C_FLAGS})
             except subprocess.CalledProcessError as exc:
-                raise RuntimeError(f"compiling the native FMU failed ({exc}):\n"
-                                   f"{log.read_text()[-3000:]}") from None
+                raise RuntimeError(
+                    f"compiling the native FMU failed ({exc}):\n{log.read_text()[-3000:]}"
+                ) from None
     else:
         library = ".dll" if os.name == "nt" else (".dylib" if sys.platform == "darwin" else ".so")
         folder = binary_folder(fmpy.platform, fmi_version)
-        _compile(os.environ.get("CC", "cc"), ["-fPIC"], unzipped, headers,
-                 f"binaries/{folder}/{MODEL_IDENTIFIER}{library}", fmi_version)
+        _compile(
+            os.environ.get("CC", "cc"),
+            ["-fPIC"],
+            unzipped,
+            headers,
+            f"binaries/{folder}/{MODEL_IDENTIFIER}{library}",
+            fmi_version,
+        )
     if fmpy.platform != "win64" and shutil.which(WIN64_COMPILER):
         # libgcc linked in: the DLL then needs only what every Windows has (kernel32, msvcrt)
-        _compile(WIN64_COMPILER, ["-static-libgcc"], unzipped, headers,
-                 f"binaries/{binary_folder('win64', fmi_version)}/{MODEL_IDENTIFIER}.dll",
-                 fmi_version)
+        _compile(
+            WIN64_COMPILER,
+            ["-static-libgcc"],
+            unzipped,
+            headers,
+            f"binaries/{binary_folder('win64', fmi_version)}/{MODEL_IDENTIFIER}.dll",
+            fmi_version,
+        )
         built.append("win64")
     return built
 
@@ -331,24 +417,31 @@ def binaries_note(fmu: str | Path) -> str:
     note = f"binaries: {', '.join(platforms) or 'none'}"
     windows = {"win64", PLATFORM_TUPLES["win64"]}
     if not windows & set(platforms):
-        note += (f"; no win64: {WIN64_COMPILER} was not found (Debian: apt-get install "
-                 "mingw-w64), or a tool can compile sources/ for it")
+        note += (
+            f"; no win64: {WIN64_COMPILER} was not found (Debian: apt-get install "
+            "mingw-w64), or a tool can compile sources/ for it"
+        )
     return note
 
 
-def _compile(compiler, flags, unzipped: Path, headers: Path, target: str,
-             fmi_version: int = 2) -> None:
+def _compile(compiler, flags, unzipped: Path, headers: Path, target: str, fmi_version: int = 2) -> None:
     """Compile sources/ into the shared library `target` (relative to `unzipped`)."""
     target = unzipped / target
     target.parent.mkdir(parents=True, exist_ok=True)
-    command = [compiler, "-shared", *C_FLAGS.split(), *flags, f"-I{headers}",
-               f"-I{unzipped / 'sources'}",
-               *(str(unzipped / "sources" / f) for f in source_files(fmi_version)),
-               "-o", str(target)]
+    command = [
+        compiler,
+        "-shared",
+        *C_FLAGS.split(),
+        *flags,
+        f"-I{headers}",
+        f"-I{unzipped / 'sources'}",
+        *(str(unzipped / "sources" / f) for f in source_files(fmi_version)),
+        "-o",
+        str(target),
+    ]
     done = subprocess.run(command, capture_output=True, text=True)
     if done.returncode != 0:
-        raise RuntimeError(f"compiling the native FMU failed: {' '.join(command)}\n"
-                           f"{done.stderr[-3000:]}")
+        raise RuntimeError(f"compiling the native FMU failed: {' '.join(command)}\n{done.stderr[-3000:]}")
 
 
 @contextlib.contextmanager

@@ -1,16 +1,16 @@
 """The RV reducer FMU slave (pythonfmu): input angle and load torque in, output angle out.
 
 A thin adapter: it maps FMI variables onto a reducer model of
-`rvfmu.core.reducer_model`, and nothing here raises: pythonfmu reports any
+`rvfmu.core.steppers.reducer_model`, and nothing here raises: pythonfmu reports any
 Python exception as fmi2Fatal, after which the instance is unusable.  Every
 problem is instead logged with status fmi2Error.  A failed initialisation is
 logged (fmi2ExitInitializationMode itself returns fmi2OK) and every step
 after it returns fmi2Discard (do_step returns False) with the reason logged
 again; a step with a bad input (not finite, a step size that is not > 0, or tau_load
-beyond the emergency-stop class, 5x the rated torque, `rvfmu.core.limits`)
+beyond the emergency-stop class, 5x the rated torque, `rvfmu.core.reducer.limits`)
 returns fmi2Discard the same way, and so does a step whose input angle moved
 faster than SPEED_FACTOR x the design's allowable output speed allows
-(`rvfmu.core.limits.check_speed`, on (theta_in - the last step's theta_in) /
+(`rvfmu.core.reducer.limits.check_speed`, on (theta_in - the last step's theta_in) /
 step size / ratio).  After a discarded step pythonfmu (0.7.0) answers
 fmi2GetBooleanStatus(fmi2Terminated) with true.  pythonfmu offers a Python
 slave nothing between fmi2Discard and fmi2Fatal (any exception, after which its
@@ -47,15 +47,15 @@ import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
-from rvfmu.core.checks import InputError
-from rvfmu.core.design import load_design
-from rvfmu.core.errors import load_errors, zero_errors
-from rvfmu.core.limits import MOMENTARY_FACTOR, check_load, check_speed
-from rvfmu.core.dynamic_reducer import DEFAULT_INTERNAL_STEP
-from rvfmu.core.reducers import MODELS
-from rvfmu.core.lubricant import REFERENCE_TEMPERATURE_C
-from rvfmu.core.te_map import DRAG_TEMPERATURES, TEMap, build_te_map
-from rvfmu.core.units import ARCSEC
+from rvfmu.core.base.checks import InputError
+from rvfmu.core.base.units import ARCSEC
+from rvfmu.core.laws.lubricant import REFERENCE_TEMPERATURE_C
+from rvfmu.core.reducer.design import load_design
+from rvfmu.core.reducer.errors import load_errors, zero_errors
+from rvfmu.core.reducer.limits import MOMENTARY_FACTOR, check_load, check_speed
+from rvfmu.core.steppers.dynamic_reducer import DEFAULT_INTERNAL_STEP
+from rvfmu.core.steppers.reducers import MODELS
+from rvfmu.core.steppers.te_map import DRAG_TEMPERATURES, TEMap, build_te_map
 
 BUNDLED_DESIGN = "design.toml"
 BUNDLED_ERRORS = "errors.toml"
@@ -73,8 +73,10 @@ class RVReducer(Fmi2Slave):
     and statuses of docs/model.md section 8."""
 
     author = "rvte"
-    description = ("RV reducer: transmission error, lost motion and torsional windup of a "
-                   "two-stage planetary + cycloid reducer (quasi-static equivalent error model)")
+    description = (
+        "RV reducer: transmission error, lost motion and torsional windup of a "
+        "two-stage planetary + cycloid reducer (quasi-static equivalent error model)"
+    )
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -103,56 +105,99 @@ class RVReducer(Fmi2Slave):
         self._reducer = None
         self._failed = None
         self._rated_torque = self._momentary_torque = math.inf
-        self._warned = set()          # the inputs whose limit warning was logged
+        self._warned = set()  # the inputs whose limit warning was logged
         self._design = None
-        self._last_theta_in = 0.0    # theta_in of the last step taken [rad]
-        self._allowed_angle_rate = math.inf   # input speed [rad/s] without a speed warning
+        self._last_theta_in = 0.0  # theta_in of the last step taken [rad]
+        self._allowed_angle_rate = math.inf  # input speed [rad/s] without a speed warning
 
         cont, par = Fmi2Variability.continuous, Fmi2Variability.fixed
-        for name, text in (("theta_in", "input shaft (sun) angle [rad]"),
-                           ("tau_load", "torque of the load on the output flange [N.m], "
-                                        "positive in the direction of rotation")):
-            self.register_variable(Real(name, causality=Fmi2Causality.input, variability=cont,
-                                        description=text))
-        for name, text in (("theta_out", "output flange (carrier) angle [rad]"),
-                           ("omega_out", "output speed over the last step [rad/s]"),
-                           ("te", "transmission error theta_out - theta_in/i [rad]"),
-                           ("te_arcsec", "transmission error [arcsec]"),
-                           ("tau_in", "torque of the reducer on the input shaft [N.m], its "
-                                      "friction included"),
-                           ("P_loss", "power lost to friction over the last step [W] "
-                                      "(model dynamic: with its damping's, the mean)"),
-                           ("efficiency", "efficiency over the last step [1]: forward the "
-                                          "transmitted power over it plus the loss, backdriving "
-                                          "what is left after the loss; 0 at standstill")):
-            self.register_variable(Real(name, causality=Fmi2Causality.output, variability=cont,
-                                        initial=Fmi2Initial.calculated, description=text))
-        for name, text in (("design_file", "a preset name or a design TOML path; empty: the design "
-                                           "bundled at build"),
-                           ("errors_file", "an error TOML path; empty: the errors bundled at build"),
-                           ("model", "reducer model: quasistatic (the TE map, default) or "
-                                     "dynamic (masses, springs and dampers in time)")):
-            self.register_variable(String(name, causality=Fmi2Causality.parameter, variability=par,
-                                          description=text))
-        for name, text in (("pin_stiffness_scale", "factor on the pin-disc contact stiffness [1]"),
-                           ("bearing_stiffness_scale", "factor on every bearing stiffness [1]"),
-                           ("mesh_stiffness_scale", "factor on the sun-planet mesh and sun support [1]"),
-                           ("error_scale", "factor on every manufacturing error and clearance "
-                                           "[1]; 0: the error-free reducer")):
-            self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=par,
-                                        description=text))
-        self.register_variable(Real("dynamic_step", causality=Fmi2Causality.parameter,
-                                    variability=par, description="largest internal time step of "
-                                    "the dynamic model [s]"))
-        self.register_variable(Integer("map_points", causality=Fmi2Causality.parameter,
-                                       variability=par,
-                                       description="TE map points per output revolution; "
-                                                   "0: as bundled"))
+        for name, text in (
+            ("theta_in", "input shaft (sun) angle [rad]"),
+            (
+                "tau_load",
+                "torque of the load on the output flange [N.m], positive in the direction of rotation",
+            ),
+        ):
+            self.register_variable(
+                Real(name, causality=Fmi2Causality.input, variability=cont, description=text)
+            )
+        for name, text in (
+            ("theta_out", "output flange (carrier) angle [rad]"),
+            ("omega_out", "output speed over the last step [rad/s]"),
+            ("te", "transmission error theta_out - theta_in/i [rad]"),
+            ("te_arcsec", "transmission error [arcsec]"),
+            ("tau_in", "torque of the reducer on the input shaft [N.m], its friction included"),
+            (
+                "P_loss",
+                "power lost to friction over the last step [W] (model dynamic: with its damping's, the mean)",
+            ),
+            (
+                "efficiency",
+                "efficiency over the last step [1]: forward the "
+                "transmitted power over it plus the loss, backdriving "
+                "what is left after the loss; 0 at standstill",
+            ),
+        ):
+            self.register_variable(
+                Real(
+                    name,
+                    causality=Fmi2Causality.output,
+                    variability=cont,
+                    initial=Fmi2Initial.calculated,
+                    description=text,
+                )
+            )
+        for name, text in (
+            ("design_file", "a preset name or a design TOML path; empty: the design bundled at build"),
+            ("errors_file", "an error TOML path; empty: the errors bundled at build"),
+            (
+                "model",
+                "reducer model: quasistatic (the TE map, default) or "
+                "dynamic (masses, springs and dampers in time)",
+            ),
+        ):
+            self.register_variable(
+                String(name, causality=Fmi2Causality.parameter, variability=par, description=text)
+            )
+        for name, text in (
+            ("pin_stiffness_scale", "factor on the pin-disc contact stiffness [1]"),
+            ("bearing_stiffness_scale", "factor on every bearing stiffness [1]"),
+            ("mesh_stiffness_scale", "factor on the sun-planet mesh and sun support [1]"),
+            (
+                "error_scale",
+                "factor on every manufacturing error and clearance [1]; 0: the error-free reducer",
+            ),
+        ):
+            self.register_variable(
+                Real(name, causality=Fmi2Causality.parameter, variability=par, description=text)
+            )
+        self.register_variable(
+            Real(
+                "dynamic_step",
+                causality=Fmi2Causality.parameter,
+                variability=par,
+                description="largest internal time step of the dynamic model [s]",
+            )
+        )
+        self.register_variable(
+            Integer(
+                "map_points",
+                causality=Fmi2Causality.parameter,
+                variability=par,
+                description="TE map points per output revolution; 0: as bundled",
+            )
+        )
         # after every other parameter: the native FMU declares it with this value reference
-        self.register_variable(Real("temperature_C", causality=Fmi2Causality.parameter,
-                                    variability=par, description="lubricant temperature [C] of "
-                                    "the load-free friction (model quasistatic; the TE map's "
-                                    f"table: {DRAG_TEMPERATURES[0]} to {DRAG_TEMPERATURES[-1]} C)"))
+        self.register_variable(
+            Real(
+                "temperature_C",
+                causality=Fmi2Causality.parameter,
+                variability=par,
+                description="lubricant temperature [C] of "
+                "the load-free friction (model quasistatic; the TE map's "
+                f"table: {DRAG_TEMPERATURES[0]} to {DRAG_TEMPERATURES[-1]} C)",
+            )
+        )
 
         # Direct access for the calls a master makes every step.
         reals = [v for v in self.vars.values() if isinstance(v, Real)]
@@ -200,12 +245,18 @@ class RVReducer(Fmi2Slave):
             self._fail(self._failed or "do_step before the end of initialisation")
             return False
         theta_in, tau_load = self.theta_in, self.tau_load
-        if not (isfinite(theta_in) and step_size > 0.0
-                and abs(tau_load) <= self._momentary_torque
-                and abs(theta_in - self._last_theta_in) <= self._allowed_angle_rate * step_size):
+        if not (
+            isfinite(theta_in)
+            and step_size > 0.0
+            and abs(tau_load) <= self._momentary_torque
+            and abs(theta_in - self._last_theta_in) <= self._allowed_angle_rate * step_size
+        ):
             # False for NaN: checked in full
-            message = (self._bad_inputs(theta_in, tau_load) if step_size > 0.0
-                       else f"communication step size = {step_size}: must be a number > 0")
+            message = (
+                self._bad_inputs(theta_in, tau_load)
+                if step_size > 0.0
+                else f"communication step size = {step_size}: must be a number > 0"
+            )
             if not message:
                 message = self._bad_speed(theta_in, step_size)
             if message:
@@ -240,24 +291,22 @@ class RVReducer(Fmi2Slave):
         """The message for the first input the model cannot take, or None.
 
         tau_load beyond the emergency-stop class is refused; beyond the momentary
-        maximum class a warning is logged once per instance (rvfmu.core.limits).
+        maximum class a warning is logged once per instance (rvfmu.core.reducer.limits).
         """
         for name, value in (("theta_in", theta_in), ("tau_load", tau_load)):
             if not isfinite(value):
                 return f"input {name} = {value}: must be finite"
-        return self._limited("tau_load", lambda: check_load("tau_load", tau_load,
-                                                             self._rated_torque))
+        return self._limited("tau_load", lambda: check_load("tau_load", tau_load, self._rated_torque))
 
     def _bad_speed(self, theta_in, step_size):
         """The message if the output speed the step implies is beyond the design's limit, or
         None (a warning is logged once per instance above the allowable speed)."""
         design = self._design
         output_speed = (theta_in - self._last_theta_in) / step_size / design.ratio
-        return self._limited("theta_in", lambda: check_speed("theta_in", theta_in, output_speed,
-                                                              design))
+        return self._limited("theta_in", lambda: check_speed("theta_in", theta_in, output_speed, design))
 
     def _limited(self, name, check):
-        """The message if `check()` (a rvfmu.core.limits check of input `name`) refuses the
+        """The message if `check()` (a rvfmu.core.reducer.limits check of input `name`) refuses the
         input, or None; the warning it returns is logged once per instance and input."""
         try:
             warning = check()
@@ -291,8 +340,13 @@ class RVReducer(Fmi2Slave):
                 raise FmuInputError(f"{name} = {value}: must be a finite number {allowed}")
         if self.map_points < 0:
             raise FmuInputError(f"map_points = {self.map_points}: must be >= 0")
-        bundled = (not self.design_file and not self.errors_file and self.map_points == 0
-                   and all(v == 1.0 for v in scales.values()) and (resources / BUNDLED_MAP).is_file())
+        bundled = (
+            not self.design_file
+            and not self.errors_file
+            and self.map_points == 0
+            and all(v == 1.0 for v in scales.values())
+            and (resources / BUNDLED_MAP).is_file()
+        )
         self._rated_torque = design.rated_torque
         self._momentary_torque = MOMENTARY_FACTOR * design.rated_torque
         self._design = design
@@ -301,8 +355,12 @@ class RVReducer(Fmi2Slave):
         # the scaled errors are checked again: error_scale may carry them past the model's limits
         scaled_errors = errors.scaled(scales["error_scale"]).check(scaled_design)
         if self.model == "dynamic":
-            return MODELS["dynamic"](scaled_design, scaled_errors, internal_step=self.dynamic_step,
-                                     temperature_C=self.temperature_C)
+            return MODELS["dynamic"](
+                scaled_design,
+                scaled_errors,
+                internal_step=self.dynamic_step,
+                temperature_C=self.temperature_C,
+            )
         if bundled:
             with np.load(resources / BUNDLED_MAP) as arrays:
                 te_map = TEMap.from_arrays(arrays)
@@ -351,7 +409,8 @@ def _scaled(design, scales):
         crank_carrier_bearing_stiffness=design.crank_carrier_bearing_stiffness * bearing,
         main_bearing_stiffness=design.main_bearing_stiffness * bearing,
         mesh_stiffness=design.mesh_stiffness * mesh,
-        sun_support_stiffness=design.sun_support_stiffness * mesh)
+        sun_support_stiffness=design.sun_support_stiffness * mesh,
+    )
 
 
 def _describe(exc):

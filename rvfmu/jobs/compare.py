@@ -7,17 +7,20 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.limits import check_load
+from ..core.reducer.limits import check_load
 from ..outputs import figure_file, output_file
+from .common import _design_ratio, _json_safe, columns_frame, resolve_design, resolve_errors, write_frame
 from .measure import measure
-from .common import (_design_ratio, _json_safe, columns_frame, resolve_design, resolve_errors,
-                     write_frame)
-
 
 BY_ORDER_SHOWN = 8
 # The columns of the comparison's CSV and `CompareReport.to_df`, with their number formats.
-FORMATS = {"theta_in_rad": ".12g", "te_measured_arcsec": ".6f", "te_model_arcsec": ".6f",
-           "difference_arcsec": ".6f"}
+FORMATS = {
+    "theta_in_rad": ".12g",
+    "te_measured_arcsec": ".6f",
+    "te_model_arcsec": ".6f",
+    "difference_arcsec": ".6f",
+}
+
 
 @dataclass(frozen=True)
 class CompareReport:
@@ -42,8 +45,11 @@ class CompareReport:
             f"{'s' if m.revolutions > 1 else ''}, {m.rows} rows, "
             f"{'positive' if m.sense > 0 else 'negative'} sense",
             f"model             on a grid of {c.points} points per output revolution, "
-            + ("one revolution (the TE repeats every output revolution: whole ratio)"
-               if c.periodic else "over the record's input angles")
+            + (
+                "one revolution (the TE repeats every output revolution: whole ratio)"
+                if c.periodic
+                else "over the record's input angles"
+            )
             + ", linearly interpolated to the record's input angles (the input encoder read as "
             "the model's theta_in)",
             f"bench processing  the mean and the runout orders removed from both curves alike "
@@ -57,14 +63,18 @@ class CompareReport:
             f"{c.shift_correlation:.4f} there; the figures above are at zero shift",
             f"by order          {'order':>8} {'measured':>9} {'model':>9} {'|diff|':>9}  [arcsec]",
         ]
-        lines += [f"                  {o:>8g} {a:>9.3f} {b:>9.3f} {x:>9.3f}"
-                  for o, a, b, x in c.by_order(BY_ORDER_SHOWN)]
+        lines += [
+            f"                  {o:>8g} {a:>9.3f} {b:>9.3f} {x:>9.3f}"
+            for o, a, b, x in c.by_order(BY_ORDER_SHOWN)
+        ]
         if not c.converged:
             lines.append("warning           the model's equilibrium did not converge at some angles")
         nyquist = c.points // 2
         if nyquist <= d.z_p * d.z_c:
-            lines.append(f"note              {c.points} model points per revolution do not resolve "
-                         f"the pin-passing order {d.z_p * d.z_c}")
+            lines.append(
+                f"note              {c.points} model points per revolution do not resolve "
+                f"the pin-passing order {d.z_p * d.z_c}"
+            )
         lines += [f"warning           {text}" for text in m.warnings]
         return "\n".join(lines)
 
@@ -74,19 +84,32 @@ class CompareReport:
         floats that are not finite as text ("inf", "nan")."""
         c = self.comparison
         pp, rms = c.te_pp_arcsec, c.rms_arcsec
-        return _json_safe({"design": c.design.name, "data": self.data, "errors": self.errors,
-                "load_Nm": c.load_Nm, "model_points_per_revolution": c.points,
+        return _json_safe(
+            {
+                "design": c.design.name,
+                "data": self.data,
+                "errors": self.errors,
+                "load_Nm": c.load_Nm,
+                "model_points_per_revolution": c.points,
                 "model_grid": "one periodic output revolution" if c.periodic else "record range",
                 "model_at_rows": "linear interpolation from the grid",
-                "revolutions": c.measured.revolutions, "rows": c.measured.rows,
+                "revolutions": c.measured.revolutions,
+                "rows": c.measured.rows,
                 "removed": [{"shaft": x.shaft, "order": x.order} for x in c.measured.components],
                 "te_pp_arcsec": {"measured": float(pp[0]), "model": float(pp[1])},
                 "rms_arcsec": {"measured": float(rms[0]), "model": float(rms[1])},
-                "correlation": c.correlation, "rms_difference_arcsec": c.rms_difference_arcsec,
-                "best_shift_deg": c.shift_deg, "best_shift_correlation": c.shift_correlation,
-                "by_order": [{"order": o, "measured_arcsec": a, "model_arcsec": b,
-                              "difference_arcsec": x} for o, a, b, x in c.by_order(BY_ORDER_SHOWN)],
-                "converged": c.converged, "warnings": list(c.measured.warnings)})
+                "correlation": c.correlation,
+                "rms_difference_arcsec": c.rms_difference_arcsec,
+                "best_shift_deg": c.shift_deg,
+                "best_shift_correlation": c.shift_correlation,
+                "by_order": [
+                    {"order": o, "measured_arcsec": a, "model_arcsec": b, "difference_arcsec": x}
+                    for o, a, b, x in c.by_order(BY_ORDER_SHOWN)
+                ],
+                "converged": c.converged,
+                "warnings": list(c.measured.warnings),
+            }
+        )
 
     def to_df(self):
         """The record beside the model as a pandas DataFrame (one row per record row used), the
@@ -94,16 +117,32 @@ class CompareReport:
         without the runout), te_model_arcsec (the model as the bench sees it),
         difference_arcsec (measured - model)."""
         c = self.comparison
-        return columns_frame({"theta_in_rad": c.measured.theta_in,
-                              "te_measured_arcsec": c.measured_arcsec,
-                              "te_model_arcsec": c.model_arcsec,
-                              "difference_arcsec": c.difference_arcsec})
+        return columns_frame(
+            {
+                "theta_in_rad": c.measured.theta_in,
+                "te_measured_arcsec": c.measured_arcsec,
+                "te_model_arcsec": c.model_arcsec,
+                "difference_arcsec": c.difference_arcsec,
+            }
+        )
 
-def compare(design, data, errors=None, load: float = 0.0, ratio: float | None = None,
-            columns=None, units: str | None = None, counts_per_rev=None, remove_orders=(1,),
-            remove_input_orders=(), keep_orders=(), points: int | None = None,
-            csv_path: str | Path | None = None,
-            plot_path: str | Path | None = None) -> CompareReport:
+
+def compare(
+    design,
+    data,
+    errors=None,
+    load: float = 0.0,
+    ratio: float | None = None,
+    columns=None,
+    units: str | None = None,
+    counts_per_rev=None,
+    remove_orders=(1,),
+    remove_input_orders=(),
+    keep_orders=(),
+    points: int | None = None,
+    csv_path: str | Path | None = None,
+    plot_path: str | Path | None = None,
+) -> CompareReport:
     """A bench record (read and processed as `measure` does, the ratio the design's) beside the
     model of `design` with `errors` at the resisting `load` [N*m] the bench ran at: te_pp,
     RMS, correlation and the difference, by angle and by order (`rvfmu.bench.compare`).
@@ -115,7 +154,7 @@ def compare(design, data, errors=None, load: float = 0.0, ratio: float | None = 
     the data are read.
     """
     from ..bench.compare import compare_te
-    from ..core.checks import integer
+    from ..core.base.checks import integer
 
     csv_path = None if csv_path is None else output_file("csv", csv_path)
     plot_path = None if plot_path is None else figure_file("plot", plot_path)
@@ -124,9 +163,16 @@ def compare(design, data, errors=None, load: float = 0.0, ratio: float | None = 
     check_load("load", load, design.rated_torque)
     points = None if points is None else integer("points", points, 8)
     ratio = _design_ratio(design, ratio)
-    record = measure(data, ratio, columns=columns, units=units, counts_per_rev=counts_per_rev,
-                     remove_orders=remove_orders, remove_input_orders=remove_input_orders,
-                     keep_orders=keep_orders).measured
+    record = measure(
+        data,
+        ratio,
+        columns=columns,
+        units=units,
+        counts_per_rev=counts_per_rev,
+        remove_orders=remove_orders,
+        remove_input_orders=remove_input_orders,
+        keep_orders=keep_orders,
+    ).measured
     result = compare_te(record, design, error_set, load, points)
     report = CompareReport(result, str(data), None if errors is None else str(errors))
     if csv_path is not None:
@@ -134,6 +180,5 @@ def compare(design, data, errors=None, load: float = 0.0, ratio: float | None = 
     if plot_path is not None:
         from ..plots import plot_comparison
 
-        plot_comparison(result, plot_path, title=f"{Path(data).name} against {design.name} at "
-                                                 f"{load:g} N·m")
+        plot_comparison(result, plot_path, title=f"{Path(data).name} against {design.name} at {load:g} N·m")
     return report

@@ -1,6 +1,6 @@
 """`rvte hysteresis`: the catalogue's hysteresis loop of a reducer, with its contacts' friction.
 
-The job over `rvfmu.core.hysteresis`: the windup test swept to +-max load and back with the
+The job over `rvfmu.core.losses.hysteresis`: the windup test swept to +-max load and back with the
 input locked, the lost motion, torsional rigidity and hysteresis loss read off the loop,
 the friction work of a cycle by contact; a table for people, JSON for scripts and the
 loop as a figure.
@@ -21,11 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.checks import InputError
-from ..core.friction import LOSS_NAMES
-from ..core.hysteresis import HysteresisLoop, hysteresis as hysteresis_loop, sweep_torques
-from ..core.quasistatic import WINDUP_POSITIONS
-from ..core.units import ARCMIN
+from ..core.base.checks import InputError
+from ..core.base.units import ARCMIN
+from ..core.losses.friction import LOSS_NAMES
+from ..core.losses.hysteresis import HysteresisLoop, sweep_torques
+from ..core.losses.hysteresis import hysteresis as hysteresis_loop
+from ..core.statics.quasistatic import WINDUP_POSITIONS
 from ..outputs import figure_file
 from ..progress import counter as progress_counter
 
@@ -161,8 +162,10 @@ def width_reach(loop: np.ndarray) -> tuple[float, float]:
     """The torques [N*m] both branches of a loop (2 N, 2) reach: from the loading branch's
     start to the unloading branch's start (a loop swept to +-max: -max + T_f to max - T_f)."""
     up, down = _branches(loop)
-    return (max(float(up[0, 0]), float(np.minimum.accumulate(down[::-1, 0])[-1])),
-            min(float(np.maximum.accumulate(up[:, 0])[-1]), float(down[-1, 0])))
+    return (
+        max(float(up[0, 0]), float(np.minimum.accumulate(down[::-1, 0])[-1])),
+        min(float(np.maximum.accumulate(up[:, 0])[-1]), float(down[-1, 0])),
+    )
 
 
 def width_torques(loop: np.ndarray) -> np.ndarray:
@@ -172,8 +175,7 @@ def width_torques(loop: np.ndarray) -> np.ndarray:
     largest width over them is the largest the loop has, steps aside."""
     lo, hi = width_reach(loop)
     up, down = _branches(loop)
-    corners = np.concatenate([_loading_envelope(up)[0],
-                              -_loading_envelope(-down[::-1])[0], [0.0, lo, hi]])
+    corners = np.concatenate([_loading_envelope(up)[0], -_loading_envelope(-down[::-1])[0], [0.0, lo, hi]])
     return np.unique(corners[(corners >= lo) & (corners <= hi)])
 
 
@@ -190,8 +192,11 @@ def loop_width(loop: np.ndarray, torques) -> np.ndarray:
     lo, hi = width_reach(loop)
     outside = values[(values < lo) | (values > hi)]
     if outside.size:
-        raise InputError("torques", float(outside[0]), f"must be within {lo:.6g} to {hi:.6g} "
-                         "N*m, the torques both branches of the loop reach")
+        raise InputError(
+            "torques",
+            float(outside[0]),
+            f"must be within {lo:.6g} to {hi:.6g} N*m, the torques both branches of the loop reach",
+        )
     up, down = _branches(loop)
     return branch_angle(down, values, False) - branch_angle(up, values, True)
 
@@ -205,8 +210,9 @@ def _number(value: float) -> float | None:
     return None if math.isnan(value) else value
 
 
-def hysteresis(design, errors=None, max_load: float | None = None,
-               plot_path: str | Path | None = None, progress=None) -> HysteresisReport:
+def hysteresis(
+    design, errors=None, max_load: float | None = None, plot_path: str | Path | None = None, progress=None
+) -> HysteresisReport:
     """The windup test's hysteresis loop of one reducer.
 
     design: preset name, design file or RVDesign; errors: error file or ErrorSet (default
@@ -214,7 +220,7 @@ def hysteresis(design, errors=None, max_load: float | None = None,
     the catalogue's lost-motion test torque); plot_path: the loop as a figure (checked before
     any work); progress(total, done): optional, called as the equilibria are solved.  A loop
     that did not converge, or whose friction torque exceeds the sweep or whose area is not
-    its friction work, raises InputError (`rvfmu.core.hysteresis.check_loop`).
+    its friction work, raises InputError (`rvfmu.core.losses.hysteresis.check_loop`).
     """
     from .common import resolve_design, resolve_errors
 
@@ -222,10 +228,14 @@ def hysteresis(design, errors=None, max_load: float | None = None,
     design = resolve_design(design)
     errors = resolve_errors(design, errors)
     top = design.rated_torque if max_load is None else max_load
-    total = (sweep_torques(design, top).size * WINDUP_POSITIONS
-             if isinstance(top, (int, float)) and math.isfinite(top) and top > 0 else 0)
-    report = HysteresisReport(hysteresis_loop(design, errors, max_load,
-                                              progress=progress_counter(total, progress)))
+    total = (
+        sweep_torques(design, top).size * WINDUP_POSITIONS
+        if isinstance(top, (int, float)) and math.isfinite(top) and top > 0
+        else 0
+    )
+    report = HysteresisReport(
+        hysteresis_loop(design, errors, max_load, progress=progress_counter(total, progress))
+    )
     if plot_path is not None:
         from ..plots import plot_hysteresis
 

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
 from ..outputs import output_file
 from .common import NothingToWrite, resolve_design
 
 
-def profile(design, csv_path: str | Path | None = None, dxf_path: str | Path | None = None,
-            points: int | None = None):
+def profile(
+    design, csv_path: str | Path | None = None, dxf_path: str | Path | None = None, points: int | None = None
+):
     """The disc profile of a design; writes CSV (mm) and/or DXF (mm)."""
-    from ..core import profile as prof
+    from ..core.reducer import profile as prof
 
     if csv_path is None and dxf_path is None:
         raise NothingToWrite("nothing to write: give --csv FILE and/or --dxf FILE")

@@ -1,6 +1,6 @@
 """`rvte stiffness`: the torsional rigidity and lost motion of a reducer with its compliance budget.
 
-The job over `rvfmu.core.budget`: the catalogue figures from the windup test
+The job over `rvfmu.core.statics.budget`: the catalogue figures from the windup test
 (`quasistatic.windup`), every elastic element of the model with its stiffness,
 count and share of the windup between 50 % and 100 % of the rated torque (or of
 `load`), a table for people, JSON for scripts and a figure.
@@ -12,8 +12,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..core.budget import WEAK_SHARE_VISIBLE, ComplianceBudget, compliance_budget
-from ..core.quasistatic import Windup, windup
+from ..core.statics.budget import WEAK_SHARE_VISIBLE, ComplianceBudget, compliance_budget
+from ..core.statics.quasistatic import Windup, windup
 from ..outputs import figure_file
 
 
@@ -49,8 +49,10 @@ class StiffnessReport:
             lines.append("warning            the equilibrium did not converge at some positions")
         weak = b.elements[-1].share
         if abs(weak) > WEAK_SHARE_VISIBLE:
-            lines.append(f"warning            the solver's weak springs carry {100 * weak:.1f} % of "
-                         "the windup: these figures are the solver's, not the reducer's")
+            lines.append(
+                f"warning            the solver's weak springs carry {100 * weak:.1f} % of "
+                "the windup: these figures are the solver's, not the reducer's"
+            )
         return "\n".join(lines)
 
     def to_json(self) -> dict:
@@ -63,15 +65,23 @@ class StiffnessReport:
             "torsional_rigidity_Nm_per_arcmin": self.torsional_rigidity_Nm_per_arcmin,
             "lost_motion_arcmin": self.lost_motion_arcmin,
             "budget_torque_Nm": [b.torque_low, b.torque_high],
-            "elements": [{"name": e.name, "count": e.count,
-                          "stiffness": None if math.isinf(e.stiffness) else e.stiffness,
-                          "unit": e.unit, "share": e.share} for e in b.elements],
+            "elements": [
+                {
+                    "name": e.name,
+                    "count": e.count,
+                    "stiffness": None if math.isinf(e.stiffness) else e.stiffness,
+                    "unit": e.unit,
+                    "share": e.share,
+                }
+                for e in b.elements
+            ],
             "converged": bool(b.converged and self.windup.converged.all()),
         }
 
 
-def stiffness(design, errors=None, load: float | None = None,
-              plot_path: str | Path | None = None) -> StiffnessReport:
+def stiffness(
+    design, errors=None, load: float | None = None, plot_path: str | Path | None = None
+) -> StiffnessReport:
     """Torsional rigidity, lost motion and the compliance budget of one reducer.
 
     design: preset name, design file or RVDesign; errors: error file or ErrorSet (default
@@ -86,8 +96,9 @@ def stiffness(design, errors=None, load: float | None = None,
     errors = resolve_errors(design, errors)
     budget = compliance_budget(design, errors, torque=load)
     wind = windup(design, errors)
-    report = StiffnessReport(budget, wind, float(wind.torsional_rigidity_Nm_per_arcmin()[0]),
-                             float(wind.lost_motion_arcmin()[0]))
+    report = StiffnessReport(
+        budget, wind, float(wind.torsional_rigidity_Nm_per_arcmin()[0]), float(wind.lost_motion_arcmin()[0])
+    )
     if plot_path is not None:
         from ..plots import plot_budget
 

@@ -57,15 +57,14 @@ from tolerance.allocation import study_model  # noqa: E402
 from tolerance.least_cost import judge  # noqa: E402
 
 STUDY = Path(__file__).resolve().parents[1] / "rv40e_121_full_rated.toml"
-TARGET_S = 600.0           # the full study's allocation on this 2-core machine
-TARGET_RATIO = 10.0        # at least this many times fewer evaluations than the plain loop
+TARGET_S = 600.0  # the full study's allocation on this 2-core machine
+TARGET_RATIO = 10.0  # at least this many times fewer evaluations than the plain loop
 
 
 def study_at(points: int, folder: Path, name: str) -> Path:
     """The study file at `points` per output revolution, its output in `folder`/name."""
     text = STUDY.read_text()
-    for key, value in (("name", f'"{name}"'), ("points", points),
-                       ("output", f'"{folder / name}"')):
+    for key, value in (("name", f'"{name}"'), ("points", points), ("output", f'"{folder / name}"')):
         text, count = re.subn(rf"(?m)^{key}\s*=.*$", f"{key} = {value}", text)
         assert count == 1, key
     path = folder / f"{name}.toml"
@@ -84,8 +83,8 @@ class PlainLoop:
         self.model, self.target, self.n = model, target, n
         self.budget, self.good_cost = budget, good_cost
         self.evaluations = 0
-        self.best = None                          # (cost, Verified) of the cheapest feasible
-        self.matched = None                       # (evaluations, cost, Verified) when first as cheap
+        self.best = None  # (cost, Verified) of the cheapest feasible
+        self.matched = None  # (evaluations, cost, Verified) when first as cheap
         self.cache = {}
 
     def low(self, scales) -> float:
@@ -95,7 +94,7 @@ class PlainLoop:
                 raise Stop("budget")
             Y = self.model.verify(np.asarray(scales), self.n)
             self.evaluations += self.n
-            verified = judge(self.model, scales, Y)      # the search's own criterion
+            verified = judge(self.model, scales, Y)  # the search's own criterion
             cost = float(self.model.cost(scales).sum())
             if verified.meets(self.target) and (self.best is None or cost < self.best[0]):
                 self.best = (cost, verified)
@@ -117,9 +116,14 @@ class PlainLoop:
             return self.low(np.exp(v)) - self.target
 
         try:
-            minimize(cost, np.zeros(lo.size), method="COBYLA", bounds=list(zip(lo, hi)),
-                     constraints=[{"type": "ineq", "fun": margin}],
-                     options={"rhobeg": 0.3, "maxiter": 10_000, "tol": 1e-3})
+            minimize(
+                cost,
+                np.zeros(lo.size),
+                method="COBYLA",
+                bounds=list(zip(lo, hi)),
+                constraints=[{"type": "ineq", "fun": margin}],
+                options={"rhobeg": 0.3, "maxiter": 10_000, "tol": 1e-3},
+            )
         except Stop as stop:
             return str(stop)
         return "COBYLA converged"
@@ -127,8 +131,9 @@ class PlainLoop:
 
 def row(what, size, seconds, evaluations, cost, yield_text, ratio):
     rate = evaluations / seconds if seconds > 0 else float("nan")
-    return (f"| {what} | {size} | {seconds:.0f} | {evaluations} | {rate:.1f} | {cost} | "
-            f"{yield_text} | {ratio} |")
+    return (
+        f"| {what} | {size} | {seconds:.0f} | {evaluations} | {rate:.1f} | {cost} | {yield_text} | {ratio} |"
+    )
 
 
 def main(argv=None) -> int:
@@ -140,23 +145,36 @@ def main(argv=None) -> int:
     parser.add_argument("--full", action="store_true", help="also allocate at the study's 720 points")
     args = parser.parse_args(argv)
     folder = Path(tempfile.mkdtemp(prefix="bench_allocate_"))
-    print(f"# bench_allocate: {STUDY.name}, yield >= {args.target}, {args.processes} processes, "
-          f"load average {os.getloadavg()[0]:.2f}; work in {folder}")
-    lines = ["| what | size | wall [s] | model evaluations | evaluations/s | total cost | "
-             "verified yield (95 % interval) | evaluations / surrogate search's |",
-             "|---|---|---|---|---|---|---|---|"]
+    print(
+        f"# bench_allocate: {STUDY.name}, yield >= {args.target}, {args.processes} processes, "
+        f"load average {os.getloadavg()[0]:.2f}; work in {folder}"
+    )
+    lines = [
+        "| what | size | wall [s] | model evaluations | evaluations/s | total cost | "
+        "verified yield (95 % interval) | evaluations / surrogate search's |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
 
     path = study_at(args.points, folder, f"surrogate_{args.points}")
     clock = time.perf_counter()
-    result = tolerance.allocate(path, args.target, progress=None, processes=args.processes,
-                                log=lambda text: print(text, flush=True))
+    result = tolerance.allocate(
+        path, args.target, progress=None, processes=args.processes, log=lambda text: print(text, flush=True)
+    )
     seconds = time.perf_counter() - clock
     y = result.yield_allocated
     base_evaluations = result.model_evaluations
     size = f"15 factors, {args.points} points"
-    lines.append(row("surrogate search (`rvte allocate`)", size, seconds, base_evaluations,
-                     f"{result.total_cost_current:.3f} -> {result.total_cost_allocated:.3f}",
-                     f"{y.estimate:.4f} ({y.low:.4f}-{y.high:.4f}) of {y.n}", "1.0 (baseline)"))
+    lines.append(
+        row(
+            "surrogate search (`rvte allocate`)",
+            size,
+            seconds,
+            base_evaluations,
+            f"{result.total_cost_current:.3f} -> {result.total_cost_allocated:.3f}",
+            f"{y.estimate:.4f} ({y.low:.4f}-{y.high:.4f}) of {y.n}",
+            "1.0 (baseline)",
+        )
+    )
     print(result.table(), flush=True)
 
     plain_path = study_at(args.points, folder, f"plain_{args.points}")
@@ -168,19 +186,30 @@ def main(argv=None) -> int:
     seconds = time.perf_counter() - clock
 
     def outcome(cost, verified):
-        return (f"{result.total_cost_current:.3f} -> {cost:.3f}",
-                f"{verified.estimate:.4f} ({verified.low:.4f}-{verified.high:.4f}) of {verified.n}")
+        return (
+            f"{result.total_cost_current:.3f} -> {cost:.3f}",
+            f"{verified.estimate:.4f} ({verified.low:.4f}-{verified.high:.4f}) of {verified.n}",
+        )
 
     if loop.matched is None:
-        lines.append(f"| plain loop, until as cheap as the surrogate search | {size} | - | - | - | "
-                     f"never as cheap | - | >= {loop.evaluations / base_evaluations:.1f} |")
+        lines.append(
+            f"| plain loop, until as cheap as the surrogate search | {size} | - | - | - | "
+            f"never as cheap | - | >= {loop.evaluations / base_evaluations:.1f} |"
+        )
         matched_ratio = loop.evaluations / base_evaluations
     else:
         used, cost, verified = loop.matched
         matched_ratio = used / base_evaluations
-        lines.append(row("plain loop, until as cheap as the surrogate search", size,
-                         seconds * used / loop.evaluations, used, *outcome(cost, verified),
-                         f"{matched_ratio:.1f}"))
+        lines.append(
+            row(
+                "plain loop, until as cheap as the surrogate search",
+                size,
+                seconds * used / loop.evaluations,
+                used,
+                *outcome(cost, verified),
+                f"{matched_ratio:.1f}",
+            )
+        )
     ratio = loop.evaluations / base_evaluations
     cost_text, yield_text = ("none met the target", "-") if loop.best is None else outcome(*loop.best)
     if loop.best is not None:
@@ -188,12 +217,21 @@ def main(argv=None) -> int:
         # target on them: its yield on fresh reducers (draws the allocation never uses, not counted)
         Y = model.verify(loop.best[1].scales, y.n, 1000)
         fresh = judge(model, loop.best[1].scales, Y)
-        yield_text += (f"; fresh draws {fresh.estimate:.4f} ({fresh.low:.4f}-{fresh.high:.4f})"
-                       + ("" if fresh.meets(args.target) else ", below the target"))
-    ratio_text = (f">= {ratio:.1f} (stopped at the cap)" if why == "budget" else
-                  f"{ratio:.1f} ({why})")
-    lines.append(row("plain loop, its whole run (COBYLA)", size, seconds, loop.evaluations, cost_text,
-                     yield_text, ratio_text))
+        yield_text += f"; fresh draws {fresh.estimate:.4f} ({fresh.low:.4f}-{fresh.high:.4f})" + (
+            "" if fresh.meets(args.target) else ", below the target"
+        )
+    ratio_text = f">= {ratio:.1f} (stopped at the cap)" if why == "budget" else f"{ratio:.1f} ({why})"
+    lines.append(
+        row(
+            "plain loop, its whole run (COBYLA)",
+            size,
+            seconds,
+            loop.evaluations,
+            cost_text,
+            yield_text,
+            ratio_text,
+        )
+    )
 
     if args.full:
         full = study_at(720, folder, "surrogate_720")
@@ -201,23 +239,37 @@ def main(argv=None) -> int:
         result = tolerance.allocate(full, args.target, progress=None, processes=args.processes)
         seconds = time.perf_counter() - clock
         y = result.yield_allocated
-        lines.append(row("surrogate search, the study's own points", "15 factors, 720 points",
-                         seconds, result.model_evaluations,
-                         f"{result.total_cost_current:.3f} -> {result.total_cost_allocated:.3f}",
-                         f"{y.estimate:.4f} ({y.low:.4f}-{y.high:.4f}) of {y.n}",
-                         f"{result.model_evaluations / base_evaluations:.1f}"))
+        lines.append(
+            row(
+                "surrogate search, the study's own points",
+                "15 factors, 720 points",
+                seconds,
+                result.model_evaluations,
+                f"{result.total_cost_current:.3f} -> {result.total_cost_allocated:.3f}",
+                f"{y.estimate:.4f} ({y.low:.4f}-{y.high:.4f}) of {y.n}",
+                f"{result.model_evaluations / base_evaluations:.1f}",
+            )
+        )
         verdict = "met" if seconds <= TARGET_S else "NOT met"
         lines.append("")
-        lines.append(f"target: the full study's allocation in under {TARGET_S / 60:.0f} min on "
-                     f"2 cores: {verdict} ({seconds / 60:.1f} min)")
+        lines.append(
+            f"target: the full study's allocation in under {TARGET_S / 60:.0f} min on "
+            f"2 cores: {verdict} ({seconds / 60:.1f} min)"
+        )
     print("\n".join(lines))
     print("(the wall time of the first plain-loop row is its share of the whole run's, by evaluations)")
     # the ratio that counts: what the plain loop spends to find an allocation as cheap
     met = loop.matched is None or matched_ratio >= TARGET_RATIO
-    print(f"target: at least {TARGET_RATIO:g}x fewer model evaluations than the plain loop: "
-          f"{'met' if met else 'NOT met'} (" +
-          (f"the plain loop never found an allocation as cheap in {ratio:.1f}x the evaluations"
-           if loop.matched is None else f"{matched_ratio:.1f}x until as cheap") + ")")
+    print(
+        f"target: at least {TARGET_RATIO:g}x fewer model evaluations than the plain loop: "
+        f"{'met' if met else 'NOT met'} ("
+        + (
+            f"the plain loop never found an allocation as cheap in {ratio:.1f}x the evaluations"
+            if loop.matched is None
+            else f"{matched_ratio:.1f}x until as cheap"
+        )
+        + ")"
+    )
     print(f"# load average after: {os.getloadavg()[0]:.2f}")
     return 0
 

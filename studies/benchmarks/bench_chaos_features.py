@@ -79,7 +79,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rvfmu.core.errors import error_shapes
+from rvfmu.core.reducer.errors import error_shapes
 from tolerance import montecarlo
 from tolerance.chaos_sobol import chaos_indices, group_shares
 from tolerance.evaluate import evaluate
@@ -91,20 +91,25 @@ STUDY = Path(__file__).resolve().parents[1] / "rv40e_121_full_rated.toml"
 # studies/rv40e_121_full/README.md, "Rated load (412 N·m), 720 points, N = 1024": ST and
 # its 95 % half-width, in the published order; the other six groups are 0.000 +- 0.000
 PUBLISHED = {
-    "crank_cam_eccentricity": (0.743, 0.064), "disc_crank_hole": (0.337, 0.032),
-    "disc_profile": (0.124, 0.014), "disc_pitch": (0.112, 0.013),
-    "crank_disc_clearance": (0.089, 0.011), "pin_pitch": (0.038, 0.004),
-    "pin_radial": (0.013, 0.002), "planet_eccentricity": (0.008, 0.001),
+    "crank_cam_eccentricity": (0.743, 0.064),
+    "disc_crank_hole": (0.337, 0.032),
+    "disc_profile": (0.124, 0.014),
+    "disc_pitch": (0.112, 0.013),
+    "crank_disc_clearance": (0.089, 0.011),
+    "pin_pitch": (0.038, 0.004),
+    "pin_radial": (0.013, 0.002),
+    "planet_eccentricity": (0.008, 0.001),
     "pin_radius": (0.002, 0.0005),
 }
-ZERO_LIMIT = 0.005          # a group published as 0.000 is matched by any ST below this
-TOP = 7                     # ranks compared
-FOURIER_ORDERS = 2          # Fourier components per tooth sequence (cos, sin each)
-PERMUTATIONS = 20           # pairings of Jansen's estimator on the chaos
-BATCH = 50                  # reducers per evaluation task
+ZERO_LIMIT = 0.005  # a group published as 0.000 is matched by any ST below this
+TOP = 7  # ranks compared
+FOURIER_ORDERS = 2  # Fourier components per tooth sequence (cos, sin each)
+PERMUTATIONS = 20  # pairings of Jansen's estimator on the chaos
+BATCH = 50  # reducers per evaluation task
 
 
 # -- the reducers ---------------------------------------------------------------------------------
+
 
 def _evaluate_rows(args):
     path, start, stop = args
@@ -122,21 +127,23 @@ def reducers(study, n: int, processes: int, cache: Path | None):
     if cache is not None and cache.exists():
         have = np.load(cache)["te_pp"]
     y = np.full(n, np.nan)
-    y[:min(n, have.size)] = have[:n]
+    y[: min(n, have.size)] = have[:n]
     todo = [(str(STUDY), s, min(s + BATCH, n)) for s in range(have.size, n, BATCH)]
     if todo:
         t0 = time.perf_counter()
         with ProcessPoolExecutor(processes) as pool:
             for start, values, _ in pool.map(_evaluate_rows, todo):
-                y[start:start + values.size] = values
-        print(f"evaluated {n - have.size} reducers in {time.perf_counter() - t0:.0f} s "
-              f"on {processes} processes")
+                y[start : start + values.size] = values
+        print(
+            f"evaluated {n - have.size} reducers in {time.perf_counter() - t0:.0f} s on {processes} processes"
+        )
         if cache is not None:
             np.savez(cache, te_pp=y)
     return X, y
 
 
 # -- the features ---------------------------------------------------------------------------------
+
 
 def sequence_features(values: np.ndarray) -> list[np.ndarray]:
     """Features of per-tooth values (S, teeth): cos and sin Fourier components of orders
@@ -168,8 +175,9 @@ def features(study, X: np.ndarray) -> tuple[np.ndarray, list[str], list[str]]:
             for j in range(rows.shape[1]):
                 parts = sequence_features(rows[:, j])
                 columns += parts
-                parts_names = [f"{cs}{k}" for k in range(1, FOURIER_ORDERS + 1)
-                               for cs in ("cos", "sin")] + ["range"]
+                parts_names = [f"{cs}{k}" for k in range(1, FOURIER_ORDERS + 1) for cs in ("cos", "sin")] + [
+                    "range"
+                ]
                 names += [f"{factor.name}[{j}].{p}" for p in parts_names]
         else:
             columns.append(values)
@@ -185,8 +193,7 @@ def standardise(F: np.ndarray) -> np.ndarray:
     return np.clip(2.0 * (F - low) / span - 1.0, -1.0, 1.0)
 
 
-def jansen_total(predict, x: np.ndarray, column_group: np.ndarray, G: int,
-                 seed: int = 0) -> np.ndarray:
+def jansen_total(predict, x: np.ndarray, column_group: np.ndarray, G: int, seed: int = 0) -> np.ndarray:
     """Group ST (G,) of a fitted model `predict` (rows (n, K) -> (n,)) under the empirical
     distribution of each group's features in x (n, K), the groups independent: Jansen's
     estimator on rows A whose every group comes from its own random reducer and rows A with
@@ -223,6 +230,7 @@ def chaos_predict(chaos: Chaos):
 
 # -- the full degree-2 basis by ridge regression ---------------------------------------------
 
+
 def quadratic_exponents(K: int) -> np.ndarray:
     """Exponents (P, K) of every Legendre term of total degree 1 or 2 in K features."""
     eye = np.eye(K, dtype=int)
@@ -233,7 +241,7 @@ def quadratic_exponents(K: int) -> np.ndarray:
 def legendre_terms(x: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     """Orthonormal (under U[-1, 1]) Legendre products (n, P) of rows x (n, K), exponents <= 2."""
     one = np.sqrt(3.0) * x
-    two = np.sqrt(5.0) * (1.5 * x ** 2 - 0.5)
+    two = np.sqrt(5.0) * (1.5 * x**2 - 0.5)
     out = np.ones((x.shape[0], alpha.shape[0]))
     for k in range(x.shape[1]):
         for degree, values in ((1, one[:, k]), (2, two[:, k])):
@@ -262,9 +270,9 @@ class Ridge:
         uy = U.T @ (y - self.mean)
         best = None
         for penalty in self.PENALTIES:
-            shrink = S ** 2 / (S ** 2 + penalty)
+            shrink = S**2 / (S**2 + penalty)
             residual = y - self.mean - U @ (shrink * uy)
-            hat = (U ** 2) @ shrink + 1.0 / y.size
+            hat = (U**2) @ shrink + 1.0 / y.size
             loo = float(np.mean((residual / (1.0 - hat)) ** 2))
             if best is None or loo < best[0]:
                 best = (loo, penalty, Vt.T @ (shrink / S * uy))
@@ -276,6 +284,7 @@ class Ridge:
 
 
 # -- the comparison -------------------------------------------------------------------------------
+
 
 def compare(names, ST) -> tuple[float, int, int, str]:
     """Largest |ST - published|, groups within the published interval, top ranks kept, and
@@ -300,8 +309,10 @@ def row(what, n, K, p, q2, terms, names, ST, seconds, half=None):
     else:
         published = np.array([PUBLISHED.get(name, (0.0, 0.0))[0] for name in names])
         own = f"{int(np.sum(np.abs(ST - published) <= half)):2d}/{len(names)}"
-    print(f"{what:12s} {n:5d} {K:4d} {p:3d} {q2:6.3f} {terms:5d} {error:8.3f} "
-          f"{within:3d}/{len(names)} {own:>6s} {kept:2d}/{TOP} {order:>16s} {seconds:8.1f}")
+    print(
+        f"{what:12s} {n:5d} {K:4d} {p:3d} {q2:6.3f} {terms:5d} {error:8.3f} "
+        f"{within:3d}/{len(names)} {own:>6s} {kept:2d}/{TOP} {order:>16s} {seconds:8.1f}"
+    )
 
 
 def lars_bootstrap(x, y, p, column_group, G, resamples, seed=0, confidence=0.95):
@@ -324,15 +335,22 @@ def main(argv=None):
     parser.add_argument("--degrees", type=int, nargs="+", default=[2])
     parser.add_argument("--raw-rows", type=int, default=500, help="0: no raw-draw chaos")
     parser.add_argument("--processes", type=int, default=2)
-    parser.add_argument("--cache", type=Path, default=None,
-                        help=".npz of te_pp of the study's first rows, read and extended")
+    parser.add_argument(
+        "--cache", type=Path, default=None, help=".npz of te_pp of the study's first rows, read and extended"
+    )
     parser.add_argument("--show", action="store_true", help="print every group's ST")
-    parser.add_argument("--resamples", type=int, default=30,
-                        help="bootstrap refits of the LARS chaos (0: none)")
-    parser.add_argument("--bootstrap-rows", type=int, default=1000,
-                        help="bootstrap only up to this n (at 2000 it ran > 15 min)")
-    parser.add_argument("--no-ridge", dest="ridge", action="store_false",
-                        help="no ridge fit of the full degree-2 basis")
+    parser.add_argument(
+        "--resamples", type=int, default=30, help="bootstrap refits of the LARS chaos (0: none)"
+    )
+    parser.add_argument(
+        "--bootstrap-rows",
+        type=int,
+        default=1000,
+        help="bootstrap only up to this n (at 2000 it ran > 15 min)",
+    )
+    parser.add_argument(
+        "--no-ridge", dest="ridge", action="store_false", help="no ridge fit of the full degree-2 basis"
+    )
     args = parser.parse_args(argv)
     study = load_study(STUDY)
     n_max = max(args.rows + [args.raw_rows])
@@ -345,13 +363,19 @@ def main(argv=None):
     index = {name: g for g, name in enumerate(names)}
     column_group = np.array([index[g] for g in feature_groups])
     G = len(names)
-    print(f"{study.name}: te_pp over {n_max} reducers: median {np.nanmedian(y):.1f}, "
-          f"95 % {np.nanpercentile(y, 95):.1f} arcsec; {F.shape[1]} features over {G} groups")
-    print("ranks: the chaos's top 7 as published ranks (1 = crank_cam_eccentricity, 2 = "
-          "disc_crank_hole, ..., 7 = pin_radial; 8+ other listed groups, - a group published 0)")
-    print(f"{'what':12s} {'n':>5s} {'K':>4s} {'p':>3s} {'Q2':>6s} {'terms':>5s} "
-          f"{'max err':>8s} {'in pub':>6s} {'in own':>6s} {'kept':>5s} {'ranks':>16s} "
-          f"{'time s':>8s}")
+    print(
+        f"{study.name}: te_pp over {n_max} reducers: median {np.nanmedian(y):.1f}, "
+        f"95 % {np.nanpercentile(y, 95):.1f} arcsec; {F.shape[1]} features over {G} groups"
+    )
+    print(
+        "ranks: the chaos's top 7 as published ranks (1 = crank_cam_eccentricity, 2 = "
+        "disc_crank_hole, ..., 7 = pin_radial; 8+ other listed groups, - a group published 0)"
+    )
+    print(
+        f"{'what':12s} {'n':>5s} {'K':>4s} {'p':>3s} {'Q2':>6s} {'terms':>5s} "
+        f"{'max err':>8s} {'in pub':>6s} {'in own':>6s} {'kept':>5s} {'ranks':>16s} "
+        f"{'time s':>8s}"
+    )
     shown = {}
     for n in args.rows:
         keep = np.flatnonzero(~bad[:n])
@@ -364,12 +388,13 @@ def main(argv=None):
             ST_jansen = jansen_total(chaos_predict(chaos), x, column_group, G)
             both = time.perf_counter() - t0
             q2 = 1.0 - chaos.loo_error
-            half = lars_bootstrap(x, y[keep], p, column_group, G, args.resamples) \
-                if args.resamples and n <= args.bootstrap_rows else None
-            row("LARS coef", len(keep), F.shape[1], p, q2, chaos.coefficients.size, names,
-                ST_coef, fit, half)
-            row("LARS jansen", len(keep), F.shape[1], p, q2, chaos.coefficients.size, names,
-                ST_jansen, both)
+            half = (
+                lars_bootstrap(x, y[keep], p, column_group, G, args.resamples)
+                if args.resamples and n <= args.bootstrap_rows
+                else None
+            )
+            row("LARS coef", len(keep), F.shape[1], p, q2, chaos.coefficients.size, names, ST_coef, fit, half)
+            row("LARS jansen", len(keep), F.shape[1], p, q2, chaos.coefficients.size, names, ST_jansen, both)
             shown[(n, f"LARS{p}")] = (ST_coef, ST_jansen)
         if args.ridge:
             t0 = time.perf_counter()
@@ -378,24 +403,45 @@ def main(argv=None):
             fit = time.perf_counter() - t0
             ST_jansen = jansen_total(ridge, x, column_group, G)
             both = time.perf_counter() - t0
-            row("ridge coef", len(keep), F.shape[1], 2, ridge.q2, ridge.coefficients.size, names,
-                ST_coef, fit)
-            row("ridge jansen", len(keep), F.shape[1], 2, ridge.q2, ridge.coefficients.size,
-                names, ST_jansen, both)
+            row(
+                "ridge coef", len(keep), F.shape[1], 2, ridge.q2, ridge.coefficients.size, names, ST_coef, fit
+            )
+            row(
+                "ridge jansen",
+                len(keep),
+                F.shape[1],
+                2,
+                ridge.q2,
+                ridge.coefficients.size,
+                names,
+                ST_jansen,
+                both,
+            )
             shown[(n, "ridge2")] = (ST_coef, ST_jansen)
     if args.raw_rows:
-        keep = np.flatnonzero(~bad[:args.raw_rows])
+        keep = np.flatnonzero(~bad[: args.raw_rows])
         t0 = time.perf_counter()
         (raw,) = chaos_indices(X[keep], y[keep], study.problem(), resamples=0)
-        row("raw draws", len(keep), X.shape[1], raw.degree, raw.q2, raw.terms, list(raw.names),
-            raw.ST, time.perf_counter() - t0)
+        row(
+            "raw draws",
+            len(keep),
+            X.shape[1],
+            raw.degree,
+            raw.q2,
+            raw.terms,
+            list(raw.names),
+            raw.ST,
+            time.perf_counter() - t0,
+        )
         shown[("raw", f"LARS{raw.degree}")] = (raw.ST, raw.ST)
     if args.show:
         heads = [f"{k[0]}/{k[1]}" for k in shown]
         print(f"{'group':26s} {'published':>9s} " + " ".join(f"{h:>13s}" for h in heads))
         for g, name in enumerate(names):
-            print(f"{name:26s} {PUBLISHED.get(name, (0.0,))[0]:9.3f} "
-                  + " ".join(f"{a[g]:6.3f}/{b[g]:6.3f}" for a, b in shown.values()))
+            print(
+                f"{name:26s} {PUBLISHED.get(name, (0.0,))[0]:9.3f} "
+                + " ".join(f"{a[g]:6.3f}/{b[g]:6.3f}" for a, b in shown.values())
+            )
         print("each cell: ST coef / ST jansen (raw: chaos_indices ST twice)")
 
 

@@ -35,21 +35,28 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
-from test_chaos_sobol import (ISHIGAMI, g_function, g_group_indices, ishigami,  # noqa: E402
-                              ishigami_indices)
+from test_chaos_sobol import ISHIGAMI, g_function, g_group_indices, ishigami, ishigami_indices  # noqa: E402
 
 from tolerance import sobol  # noqa: E402
 from tolerance.chaos_sobol import Q2_MIN, chaos_indices  # noqa: E402
 
 G_A = np.array([0.0, 1.0, 4.5, 9.0, 99.0, 99.0])
-G_PROBLEM = {"num_vars": 6, "names": [f"x{i}" for i in range(6)], "bounds": [[0.0, 1.0]] * 6,
-             "groups": ["g1", "g1", "g2", "g2", "g3", "g3"]}
+G_PROBLEM = {
+    "num_vars": 6,
+    "names": [f"x{i}" for i in range(6)],
+    "bounds": [[0.0, 1.0]] * 6,
+    "groups": ["g1", "g1", "g2", "g2", "g3", "g3"],
+}
 CASES = {  # name: (problem, model of unit rows, analytic ST, chaos degrees)
     "Ishigami": (ISHIGAMI, ishigami, ishigami_indices()[1], (6, 8, 10)),
-    "G-function": (G_PROBLEM, lambda U: g_function(U, G_A),
-                   g_group_indices(G_A, [[0, 1], [2, 3], [4, 5]])[1], (3, 4, 5)),
+    "G-function": (
+        G_PROBLEM,
+        lambda U: g_function(U, G_A),
+        g_group_indices(G_A, [[0, 1], [2, 3], [4, 5]])[1],
+        (3, 4, 5),
+    ),
 }
-BASE_SAMPLES = tuple(2 ** k for k in range(5, 15))
+BASE_SAMPLES = tuple(2**k for k in range(5, 15))
 ROWS = (40, 60, 80, 100, 130, 160, 200, 250, 300, 400, 500, 700, 1000)
 
 
@@ -71,8 +78,9 @@ def main(argv=None):
     parser.add_argument("--resamples", type=int, default=100)
     args = parser.parse_args(argv)
     seeds = range(args.seeds)
-    print(f"{'what':34s} {'evaluations':>11s} {'time s':>8s} {'max |ST err|':>13s} "
-          f"{'Q2 min':>7s} {'ratio':>6s}")
+    print(
+        f"{'what':34s} {'evaluations':>11s} {'time s':>8s} {'max |ST err|':>13s} {'Q2 min':>7s} {'ratio':>6s}"
+    )
     for name, (problem, model, ST, degrees) in CASES.items():
         G = len(sobol.group_names(problem))
         saltelli = None
@@ -84,8 +92,10 @@ def main(argv=None):
                 start = time.perf_counter()
                 sobol.indices(problem, y, resamples=200, seed=0)
                 saltelli = N * (G + 2)
-                print(f"{name + ' Saltelli N=' + str(N):34s} {saltelli:11d} "
-                      f"{time.perf_counter() - start:8.2f} {worst:13.4f} {'':>7s} {1.0:6.1f}")
+                print(
+                    f"{name + ' Saltelli N=' + str(N):34s} {saltelli:11d} "
+                    f"{time.perf_counter() - start:8.2f} {worst:13.4f} {'':>7s} {1.0:6.1f}"
+                )
                 break
         else:
             print(f"{name + ' Saltelli':34s} {'> ' + str(BASE_SAMPLES[-1] * (G + 2)):>11s}")
@@ -99,9 +109,11 @@ def main(argv=None):
                     start = time.perf_counter()
                     chaos_indices(U, y, problem, degree=degree, resamples=args.resamples)
                     ratio = f"{saltelli / n:6.1f}" if saltelli else "     -"
-                    print(f"{name + ' chaos degree ' + str(degree):34s} {n:11d} "
-                          f"{time.perf_counter() - start:8.2f} {worst:13.4f} "
-                          f"{min(q2 for _, q2 in runs):7.4f} {ratio}")
+                    print(
+                        f"{name + ' chaos degree ' + str(degree):34s} {n:11d} "
+                        f"{time.perf_counter() - start:8.2f} {worst:13.4f} "
+                        f"{min(q2 for _, q2 in runs):7.4f} {ratio}"
+                    )
                     break
             else:
                 print(f"{name + ' chaos degree ' + str(degree):34s} {'> ' + str(ROWS[-1]):>11s}")

@@ -50,8 +50,12 @@ def fmu_loop(design, errors, speed, load, steps, comm) -> float:
         path = build_fmu(design, errors, Path(tmp) / "R.fmu", points=624)
         md = read_model_description(str(path))
         vr = {v.name: v.valueReference for v in md.modelVariables}
-        fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
-                        modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
+        fmu = FMU2Slave(
+            guid=md.guid,
+            unzipDirectory=extract(str(path)),
+            modelIdentifier=md.coSimulation.modelIdentifier,
+            instanceName="bench",
+        )
         fmu.instantiate()
         fmu.setString([vr["model"]], ["dynamic"])
         fmu.setReal([vr["tau_load"]], [-load])
@@ -59,7 +63,7 @@ def fmu_loop(design, errors, speed, load, steps, comm) -> float:
         fmu.enterInitializationMode()
         fmu.exitInitializationMode()
         fmu.setReal([vr["theta_in"], vr["tau_load"]], [speed * comm, -load])
-        fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=comm)   # loads the kernels
+        fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=comm)  # loads the kernels
         start = time.perf_counter()
         for k in range(1, steps + 1):
             fmu.setReal([vr["theta_in"], vr["tau_load"]], [speed * (k + 1) * comm, -load])
@@ -79,20 +83,32 @@ def plain_numpy(load, seconds):
 
     script = (
         "import json, sys, time\n"
-        "from rvfmu.core import kernels\n"
-        "from rvfmu.core.design import preset\n"
-        "from rvfmu.core.errors import load_errors\n"
-        "from rvfmu.core.simulation import simulate\n"
+        "from rvfmu.core.dynamics import kernels\n"
+        "from rvfmu.core.reducer.design import preset\n"
+        "from rvfmu.core.reducer.errors import load_errors\n"
+        "from rvfmu.core.dynamics.simulation import simulate\n"
         "assert not kernels.COMPILED\n"
         "d = preset('RV-40E-121'); e = load_errors(sys.argv[1], d)\n"
         "t = time.perf_counter()\n"
         "s = simulate(d, e, speed_rpm=1600.0, load=float(sys.argv[2]), duration=float(sys.argv[3]),"
         " ramp=float(sys.argv[3]))\n"
-        "print(json.dumps([s.time.size - 1, float(s.time[-1]), time.perf_counter() - t]))\n")
+        "print(json.dumps([s.time.size - 1, float(s.time[-1]), time.perf_counter() - t]))\n"
+    )
     env = dict(os.environ, RVTE_NUMBA="0")
-    out = subprocess.run([sys.executable, "-c", script, str(ROOT / "studies" / "seed002_errors.toml"),
-                          str(load), str(seconds)], env=env, capture_output=True, text=True,
-                         check=True).stdout
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            script,
+            str(ROOT / "studies" / "seed002_errors.toml"),
+            str(load),
+            str(seconds),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
     steps, simulated, wall = json.loads(out.strip().splitlines()[-1])
     return ("Newmark, plain numpy (no numba)", steps, simulated, wall)
 
@@ -100,18 +116,19 @@ def plain_numpy(load, seconds):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--revolutions", type=float, default=1.0)
-    parser.add_argument("--reference", type=float, default=0.004,
-                        help="seconds at speed for the solve_ivp comparison")
-    parser.add_argument("--fmu-seconds", type=float, default=0.2,
-                        help="simulated seconds of the FMU rows")
-    parser.add_argument("--plain", type=float, default=0.02,
-                        help="seconds at speed (and of ramp) of the plain-numpy row")
+    parser.add_argument(
+        "--reference", type=float, default=0.004, help="seconds at speed for the solve_ivp comparison"
+    )
+    parser.add_argument("--fmu-seconds", type=float, default=0.2, help="simulated seconds of the FMU rows")
+    parser.add_argument(
+        "--plain", type=float, default=0.02, help="seconds at speed (and of ramp) of the plain-numpy row"
+    )
     args = parser.parse_args()
 
-    from rvfmu.core.design import preset
-    from rvfmu.core.dynamic import DynamicModel
-    from rvfmu.core.errors import load_errors
-    from rvfmu.core.simulation import simulate
+    from rvfmu.core.dynamics.dynamic import DynamicModel
+    from rvfmu.core.dynamics.simulation import simulate
+    from rvfmu.core.reducer.design import preset
+    from rvfmu.core.reducer.errors import load_errors
 
     design = preset("RV-40E-121")
     errors = load_errors(ROOT / "studies" / "seed002_errors.toml", design)
@@ -126,7 +143,7 @@ def main() -> None:
         return sim
 
     short = dict(duration=args.reference, ramp=args.reference)
-    simulate(design, errors, speed_rpm=1600.0, load=load, **short)      # warm-up: compile
+    simulate(design, errors, speed_rpm=1600.0, load=load, **short)  # warm-up: compile
     run("Newmark, short run", **short)
     run("solve_ivp BDF, short run", method="BDF", **short)
     full = run(f"Newmark, {args.revolutions:g} output rev", revolutions=args.revolutions)
@@ -138,28 +155,36 @@ def main() -> None:
     # the FMU's model: 1 ms communication steps, internal steps of at most 0.1 ms; each step one
     # compiled call, then the same steps as the Python calls they are made of, then those with
     # the geometry in numpy
-    from rvfmu.core import dynamic_reducer
-    from rvfmu.core.compiled import COMPILED
-    from rvfmu.core.dynamic_reducer import DynamicReducer
+    from rvfmu.core.base.compiled import COMPILED
+    from rvfmu.core.steppers import dynamic_reducer
+    from rvfmu.core.steppers.dynamic_reducer import DynamicReducer
 
     speed = 1600 * 2 * 3.141592653589793 / 60
     comm, steps = 1e-3, int(args.fmu_seconds / 1e-3)
-    for label, one_call, compiled in (("FMU model, 1 ms comm (one call)", True, True),
-                                      ("  the same, the step in Python", False, True),
-                                      ("  the same, geometry in numpy", False, False)):
+    for label, one_call, compiled in (
+        ("FMU model, 1 ms comm (one call)", True, True),
+        ("  the same, the step in Python", False, True),
+        ("  the same, geometry in numpy", False, False),
+    ):
         DynamicModel.compiled_geometry = compiled
         dynamic_reducer.COMPILED = COMPILED and one_call and compiled
         reducer = DynamicReducer(design, errors)
         reducer.initialize(0.0, 0.0, -load)
-        reducer.step(0.0, comm, speed * comm, -load)    # warm-up: loads this route's kernels
+        reducer.step(0.0, comm, speed * comm, -load)  # warm-up: loads this route's kernels
         start = time.perf_counter()
         for k in range(1, steps + 1):
             reducer.step(k * comm, comm, speed * (k + 1) * comm, -load)
         rows.append((label, steps * 10, steps * comm, time.perf_counter() - start))
     DynamicModel.compiled_geometry = True
     dynamic_reducer.COMPILED = COMPILED
-    rows.append(("FMU, bare fmpy loop, 1 ms comm", steps * 10, steps * comm,
-                 fmu_loop(design, errors, speed, load, steps, comm)))
+    rows.append(
+        (
+            "FMU, bare fmpy loop, 1 ms comm",
+            steps * 10,
+            steps * comm,
+            fmu_loop(design, errors, speed, load, steps, comm),
+        )
+    )
     rows.append(plain_numpy(load, args.plain))
     # where the time goes: the output revolution again, under the profiler (its overhead kept
     # out of the rows above)
@@ -168,15 +193,21 @@ def main() -> None:
     simulate(design, errors, speed_rpm=1600.0, load=load, revolutions=args.revolutions)
     profiler.disable()
 
-    print(f"RV-40E-121, seed 002 errors, 1600 rpm, load {load:g} N*m, step "
-          f"{full.step * 1e6:.1f} us, {full.failed_steps} unconverged steps")
+    print(
+        f"RV-40E-121, seed 002 errors, 1600 rpm, load {load:g} N*m, step "
+        f"{full.step * 1e6:.1f} us, {full.failed_steps} unconverged steps"
+    )
     base = rows[1][3] / rows[1][2]
-    print(f"{'what':<32} {'steps':>7} {'simulated [s]':>14} {'wall [s]':>9} {'steps/s':>9} "
-          f"{'real-time x':>12} {'ratio':>7}")
+    print(
+        f"{'what':<32} {'steps':>7} {'simulated [s]':>14} {'wall [s]':>9} {'steps/s':>9} "
+        f"{'real-time x':>12} {'ratio':>7}"
+    )
     for label, steps, simulated, seconds in rows:
         per = seconds / simulated
-        print(f"{label:<32} {steps:>7} {simulated:>14.4f} {seconds:>9.2f} {steps / seconds:>9.0f} "
-              f"{simulated / seconds:>12.3f} {base / per:>7.1f}")
+        print(
+            f"{label:<32} {steps:>7} {simulated:>14.4f} {seconds:>9.2f} {steps / seconds:>9.0f} "
+            f"{simulated / seconds:>12.3f} {base / per:>7.1f}"
+        )
     print("\nwhere the Newmark time goes (own time, largest five):")
     stats = pstats.Stats(profiler)
     total = sum(v[2] for v in stats.stats.values())

@@ -50,7 +50,7 @@ from collections import defaultdict  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-FEWEST_STEPS = 2          # a solve: one Newton step to the solution, one that finds it there
+FEWEST_STEPS = 2  # a solve: one Newton step to the solution, one that finds it there
 TARGETS = {"no load": 20.0, "rated": 300.0, "Newmark": 30.0, "FMU": 10.0}
 SPEED_RPM = 1600.0
 
@@ -69,8 +69,7 @@ class StageCounter:
         """The stage a group of solves belongs to (docs/model.md section 5)."""
         what = "release round" if release else "solve"
         multiple = abs(loads[0] / probe) if len(loads) and probe else float("inf")
-        where = (f"no load, {what} at {multiple:g} x probe" if multiple <= 10.5
-                 else f"under load, {what}")
+        where = f"no load, {what} at {multiple:g} x probe" if multiple <= 10.5 else f"under load, {what}"
         return where + (" (error-free guess)" if getattr(self.local, "nominal", False) else "")
 
     def installed(self):
@@ -79,11 +78,15 @@ class StageCounter:
 
         import numpy as np
 
-        from rvfmu.core import newton_kernel, solver
+        from rvfmu.core.statics import newton_kernel, solver
 
         counter = self
-        kernel, solve, group, nominal = (newton_kernel.newton_pairs, solver.ReducedSystem.solve,
-                                         solver.ReducedSystem._solve_group, solver._nominal_guess)
+        kernel, solve, group, nominal = (
+            newton_kernel.newton_pairs,
+            solver.ReducedSystem.solve,
+            solver.ReducedSystem._solve_group,
+            solver._nominal_guess,
+        )
 
         def timed_kernel(*args):
             start = time.perf_counter()
@@ -101,11 +104,13 @@ class StageCounter:
             counter.local.probe = probe
             return solve(system, errors, sample, angle, tau_load, half, probe, *args, **kwargs)
 
-        def labelled_group(system, group_, angle, f0, pin_b, brg_off, c_half, loads, *args,
-                           centre=None, **kwargs):
+        def labelled_group(
+            system, group_, angle, f0, pin_b, brg_off, c_half, loads, *args, centre=None, **kwargs
+        ):
             counter.local.stage = counter.stage(loads, counter.local.probe, centre is not None)
-            return group(system, group_, angle, f0, pin_b, brg_off, c_half, loads, *args,
-                         centre=centre, **kwargs)
+            return group(
+                system, group_, angle, f0, pin_b, brg_off, c_half, loads, *args, centre=centre, **kwargs
+            )
 
         def labelled_nominal(*args, **kwargs):
             counter.local.nominal = True
@@ -153,20 +158,27 @@ def print_stages(label, study, reducers, wall, stats):
     """The stage table of one quasi-static route; returns its summary row."""
     pairs = reducers * study.points
     newton = sum(row[2] for row in stats.values())
-    floor = 0.0                 # [s]: every solve at its fewest steps, at its stage's cost per step
-    print(f"\n{label} ({study.points} points, {reducers} reducers, {wall:.2f} s, "
-          f"{reducers / wall:.2f} reducers/s; the compiled iteration {100 * newton / wall:.0f} %)")
-    print(f"{'stage':<56} {'solves/point':>12} {'steps/solve':>11} {'fewest':>7} "
-          f"{'us/step':>8} {'us/point':>9} {'at fewest':>10}")
-    for stage, (solved, steps, seconds, fewest) in sorted(stats.items(),
-                                                          key=lambda item: -item[1][2]):
+    floor = 0.0  # [s]: every solve at its fewest steps, at its stage's cost per step
+    print(
+        f"\n{label} ({study.points} points, {reducers} reducers, {wall:.2f} s, "
+        f"{reducers / wall:.2f} reducers/s; the compiled iteration {100 * newton / wall:.0f} %)"
+    )
+    print(
+        f"{'stage':<56} {'solves/point':>12} {'steps/solve':>11} {'fewest':>7} "
+        f"{'us/step':>8} {'us/point':>9} {'at fewest':>10}"
+    )
+    for stage, (solved, steps, seconds, fewest) in sorted(stats.items(), key=lambda item: -item[1][2]):
         per_step = seconds / max(steps, 1)
         floor += fewest * per_step
-        print(f"{stage:<56} {solved / pairs:>12.3f} {steps / max(solved, 1):>11.2f} "
-              f"{fewest / max(solved, 1):>7.2f} {1e6 * per_step:>8.2f} "
-              f"{1e6 * seconds / pairs:>9.1f} {1e6 * fewest * per_step / pairs:>10.1f}")
-    print(f"{'all':<56} {'':>12} {'':>11} {'':>7} {'':>8} {1e6 * newton / pairs:>9.1f} "
-          f"{1e6 * floor / pairs:>10.1f}")
+        print(
+            f"{stage:<56} {solved / pairs:>12.3f} {steps / max(solved, 1):>11.2f} "
+            f"{fewest / max(solved, 1):>7.2f} {1e6 * per_step:>8.2f} "
+            f"{1e6 * seconds / pairs:>9.1f} {1e6 * fewest * per_step / pairs:>10.1f}"
+        )
+    print(
+        f"{'all':<56} {'':>12} {'':>11} {'':>7} {'':>8} {1e6 * newton / pairs:>9.1f} "
+        f"{1e6 * floor / pairs:>10.1f}"
+    )
     rest = wall - newton
     return (label, reducers / wall, reducers / (floor + rest), reducers / floor)
 
@@ -177,10 +189,10 @@ def dynamic_counts(seconds: float) -> dict:
     script = (
         "import json, os\n"
         "os.environ['RVTE_NUMBA'] = '0'\n"
-        "from rvfmu.core import kernels\n"
-        "from rvfmu.core.design import preset\n"
-        "from rvfmu.core.errors import load_errors\n"
-        "from rvfmu.core.simulation import simulate\n"
+        "from rvfmu.core.dynamics import kernels\n"
+        "from rvfmu.core.reducer.design import preset\n"
+        "from rvfmu.core.reducer.errors import load_errors\n"
+        "from rvfmu.core.dynamics.simulation import simulate\n"
         "count = {'evaluations': 0, 'eliminations': 0}\n"
         "residual, factor = kernels._residual, kernels.factor_step\n"
         "def counted_residual(*a):\n"
@@ -195,10 +207,12 @@ def dynamic_counts(seconds: float) -> dict:
         f"sim = simulate(d, e, speed_rpm={SPEED_RPM}, load=d.rated_torque / 2, "
         f"duration={seconds}, ramp=0.01)\n"
         "count['steps'] = sim.time.size - 1\n"
-        "print(json.dumps(count))\n")
+        "print(json.dumps(count))\n"
+    )
     env = dict(os.environ, RVTE_NUMBA="0")
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env,
-                         cwd=ROOT, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, env=env, cwd=ROOT, check=True
+    )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -208,20 +222,21 @@ def dynamic(seconds: float):
     import numba
     import numpy as np
 
-    from rvfmu.core import dynamic as dynamic_module
-    from rvfmu.core import kernels, newmark
-    from rvfmu.core.design import preset
-    from rvfmu.core.errors import load_errors
-    from rvfmu.core.simulation import simulate
+    from rvfmu.core.dynamics import dynamic as dynamic_module
+    from rvfmu.core.dynamics import kernels, newmark
+    from rvfmu.core.dynamics.simulation import simulate
+    from rvfmu.core.reducer.design import preset
+    from rvfmu.core.reducer.errors import load_errors
 
     design = preset("RV-40E-121")
     errors = load_errors(ROOT / "studies" / "seed002_errors.toml", design)
 
     def run():
-        return simulate(design, errors, speed_rpm=SPEED_RPM, load=design.rated_torque / 2,
-                        duration=seconds, ramp=0.05)
+        return simulate(
+            design, errors, speed_rpm=SPEED_RPM, load=design.rated_torque / 2, duration=seconds, ramp=0.05
+        )
 
-    run()                                                  # numba loads its kernels
+    run()  # numba loads its kernels
     spent = {"steps": 0.0, "geometry": 0.0}
     kept = {}
     steps_kernel, chunk = newmark.newmark_steps, dynamic_module.DynamicModel._chunk
@@ -259,9 +274,26 @@ def dynamic(seconds: float):
         work = kernels.scratch(el, g)
         total = 0.0
         for _ in range(repeat):
-            power = kernels._newmark_residual(el, g, k, q, v, a_new, q_old, v_old, a_old, h,
-                                              newmark.BETA, newmark.GAMMA, mass, f, K, C,
-                                              residual, work)
+            power = kernels._newmark_residual(
+                el,
+                g,
+                k,
+                q,
+                v,
+                a_new,
+                q_old,
+                v_old,
+                a_old,
+                h,
+                newmark.BETA,
+                newmark.GAMMA,
+                mass,
+                f,
+                K,
+                C,
+                residual,
+                work,
+            )
             total += power[0]
         return total, K, C
 
@@ -288,25 +320,43 @@ def dynamic(seconds: float):
     eliminations(repeat, J)
     elimination = (time.perf_counter() - start) / repeat
     steps = sim.time.size - 1
-    return {"wall": wall, "simulated": float(sim.time[-1] - sim.time[0]), "steps": steps,
-            "step": h, "in steps": spent["steps"], "geometry": spent["geometry"],
-            "evaluation": evaluation, "elimination": elimination}
+    return {
+        "wall": wall,
+        "simulated": float(sim.time[-1] - sim.time[0]),
+        "steps": steps,
+        "step": h,
+        "in steps": spent["steps"],
+        "geometry": spent["geometry"],
+        "evaluation": evaluation,
+        "elimination": elimination,
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--reducers", type=int, default=16,
-                        help="reducers of each quasi-static route (default 16)")
-    parser.add_argument("--seconds", type=float, default=0.2,
-                        help="simulated seconds of the dynamic route after its ramp (default 0.2)")
-    parser.add_argument("--count-seconds", type=float, default=0.03,
-                        help="simulated seconds of the counted plain-numpy run (default 0.03)")
+    parser.add_argument(
+        "--reducers", type=int, default=16, help="reducers of each quasi-static route (default 16)"
+    )
+    parser.add_argument(
+        "--seconds",
+        type=float,
+        default=0.2,
+        help="simulated seconds of the dynamic route after its ramp (default 0.2)",
+    )
+    parser.add_argument(
+        "--count-seconds",
+        type=float,
+        default=0.03,
+        help="simulated seconds of the counted plain-numpy run (default 0.03)",
+    )
     args = parser.parse_args()
     if args.reducers < 1 or args.seconds <= 0.0 or args.count_seconds <= 0.0:
         parser.error("--reducers must be >= 1, --seconds and --count-seconds > 0")
 
-    print("one core; a stage's time is that of its compiled Newton calls; 'fewest': Newton "
-          "steps per solve had each taken at most two; 'at fewest': its time then [us]")
+    print(
+        "one core; a stage's time is that of its compiled Newton calls; 'fewest': Newton "
+        "steps per solve had each taken at most two; 'at fewest': its time then [us]"
+    )
     summary = []
     for label, file in (("no load", "rv40e_121_full.toml"), ("rated", "rv40e_121_full_rated.toml")):
         study, wall, stats = quasi_static(file, args.reducers)
@@ -320,32 +370,42 @@ def main() -> None:
     eliminations = counts["eliminations"] / counts["steps"]
     floor = geometry + d["evaluation"] + d["elimination"]
     real = d["simulated"] / d["wall"]
-    print(f"\ndynamic step (Newmark with friction, {d['steps']} steps of {1e6 * d['step']:.1f} us, "
-          f"{d['wall']:.2f} s, {real:.2f} x real time)")
+    print(
+        f"\ndynamic step (Newmark with friction, {d['steps']} steps of {1e6 * d['step']:.1f} us, "
+        f"{d['wall']:.2f} s, {real:.2f} x real time)"
+    )
     print(f"{'what':<58} {'per step':>10} {'us':>8}")
-    print(f"{'the whole run (setup, record and metrics included)':<58} {'':>10} "
-          f"{1e6 * per_step:>8.2f}")
+    print(f"{'the whole run (setup, record and metrics included)':<58} {'':>10} {1e6 * per_step:>8.2f}")
     print(f"{'the compiled steps':<58} {'':>10} {1e6 * d['in steps'] / d['steps']:>8.2f}")
     print(f"{'element geometry of the steps':<58} {'':>10} {1e6 * geometry:>8.2f}")
-    print(f"{'element forces and Newmark residual (counted, plain numpy)':<58} "
-          f"{evaluations:>10.2f} {1e6 * d['evaluation']:>8.2f}")
-    print(f"{'eliminations of the tangent (counted, plain numpy)':<58} "
-          f"{eliminations:>10.2f} {1e6 * d['elimination']:>8.2f}")
+    print(
+        f"{'element forces and Newmark residual (counted, plain numpy)':<58} "
+        f"{evaluations:>10.2f} {1e6 * d['evaluation']:>8.2f}"
+    )
+    print(
+        f"{'eliminations of the tangent (counted, plain numpy)':<58} "
+        f"{eliminations:>10.2f} {1e6 * d['elimination']:>8.2f}"
+    )
     print(f"{'floor: geometry, one evaluation, one elimination':<58} {'':>10} {1e6 * floor:>8.2f}")
 
     print("\nroute: throughput now, with every solve at its fewest steps, and the target")
-    print(f"{'route':<10} {'now':>14} {'floor, rest as now':>20} {'floor, Newton alone':>20} "
-          f"{'target':>10}")
+    print(f"{'route':<10} {'now':>14} {'floor, rest as now':>20} {'floor, Newton alone':>20} {'target':>10}")
     for label, now, floor_rest, floor_alone in summary:
-        print(f"{label:<10} {now:>14.2f} {floor_rest:>20.2f} {floor_alone:>20.2f} "
-              f"{TARGETS[label]:>10.0f}   reducers/s, one core")
-    from rvfmu.core.dynamic_reducer import DEFAULT_INTERNAL_STEP
+        print(
+            f"{label:<10} {now:>14.2f} {floor_rest:>20.2f} {floor_alone:>20.2f} "
+            f"{TARGETS[label]:>10.0f}   reducers/s, one core"
+        )
+    from rvfmu.core.steppers.dynamic_reducer import DEFAULT_INTERNAL_STEP
 
     bare = d["evaluation"] + d["elimination"]
-    for label, step, now in (("Newmark", d["step"], f"{real:.2f}"),
-                             ("FMU", DEFAULT_INTERNAL_STEP, "bench_dynamic")):
-        print(f"{label:<10} {now:>14} {step / floor:>20.2f} {step / bare:>20.2f} "
-              f"{TARGETS[label]:>10.0f}   x real time")
+    for label, step, now in (
+        ("Newmark", d["step"], f"{real:.2f}"),
+        ("FMU", DEFAULT_INTERNAL_STEP, "bench_dynamic"),
+    ):
+        print(
+            f"{label:<10} {now:>14} {step / floor:>20.2f} {step / bare:>20.2f} "
+            f"{TARGETS[label]:>10.0f}   x real time"
+        )
     print("(the dynamic floor alone: one evaluation and one elimination a step, no geometry)")
 
 

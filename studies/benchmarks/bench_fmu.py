@@ -31,10 +31,10 @@ import numpy as np
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave, fmi2Real, fmi2True, fmi2ValueReference
 
-from rvfmu.core.design import preset
-from rvfmu.core.errors import load_errors
-from rvfmu.core.reducer_model import QuasiStaticReducer
-from rvfmu.core.te_map import TEMap
+from rvfmu.core.reducer.design import preset
+from rvfmu.core.reducer.errors import load_errors
+from rvfmu.core.steppers.reducer_model import QuasiStaticReducer
+from rvfmu.core.steppers.te_map import TEMap
 from rvfmu.fmu.build import build_fmu
 from rvfmu.fmu.native import build_native_fmu
 
@@ -42,7 +42,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SPEED = 1600 * 2 * np.pi / 60
 STEP = 1e-3
 
-PASS_THROUGH = '''
+PASS_THROUGH = """
 from pythonfmu import Fmi2Causality, Fmi2Slave, Real
 
 
@@ -59,7 +59,7 @@ class PassThrough(Fmi2Slave):
     def do_step(self, current_time, step_size):
         self.theta_out = self.theta_in / 121.0
         return True
-'''
+"""
 
 
 # The bare loop of `bare_loop` in C: instantiate, then `repeats` runs over the inputs (theta_in,
@@ -112,7 +112,7 @@ int main(int argc, char **argv) {   /* library, resources URI, GUID, inputs file
     return 0;
 }
 """
-C_RUNS = 200    # runs of the C loop: one takes a fraction of a millisecond
+C_RUNS = 200  # runs of the C loop: one takes a fraction of a millisecond
 
 
 def load_profile(design, t):
@@ -126,8 +126,12 @@ def bare_loop(path, times, theta, tau, outputs, arrays_once=False):
     md = read_model_description(str(path))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     start = time.perf_counter()
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
-                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
+    fmu = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=extract(str(path)),
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="bench",
+    )
     fmu.instantiate()
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
@@ -167,12 +171,25 @@ def c_host_loop(path, times, theta, tau, work):
     (work / "loop.c").write_text(C_LOOP)
     np.column_stack([theta, tau]).astype("<f8").tofile(work / "inputs.bin")
     headers = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run([compiler, "-O2", "-std=c99", f"-I{headers}", str(work / "loop.c"), "-o",
-                    str(work / "loop"), "-ldl"], check=True)
+    subprocess.run(
+        [compiler, "-O2", "-std=c99", f"-I{headers}", str(work / "loop.c"), "-o", str(work / "loop"), "-ldl"],
+        check=True,
+    )
     library = unzipped / "binaries" / fmpy.platform / f"{md.coSimulation.modelIdentifier}.so"
-    done = subprocess.run([str(work / "loop"), str(library), (unzipped / "resources").as_uri(),
-                           md.guid, str(work / "inputs.bin"), str(times.size), str(C_RUNS)],
-                          capture_output=True, text=True, check=True)
+    done = subprocess.run(
+        [
+            str(work / "loop"),
+            str(library),
+            (unzipped / "resources").as_uri(),
+            md.guid,
+            str(work / "inputs.bin"),
+            str(times.size),
+            str(C_RUNS),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     seconds, last = done.stdout.split()
     return float(seconds), float.fromhex(last)
 
@@ -185,13 +202,25 @@ def simulate_rows(label, path, revolution, sig, outputs):
     rows.append((f"{label}, fmpy simulate_fmu (with unzip, instantiation)", time.perf_counter() - t0))
     md = read_model_description(str(path))
     unzipped = extract(str(path))
-    instance = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
-                         modelIdentifier=md.coSimulation.modelIdentifier, instanceName="sim")
+    instance = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=unzipped,
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="sim",
+    )
     instance.instantiate()
     t0 = time.perf_counter()
-    simulate_fmu(unzipped, stop_time=revolution, output_interval=STEP, input=sig, output=outputs,
-                 model_description=md, fmu_instance=instance, terminate=False,
-                 fmi_call_logger=None)
+    simulate_fmu(
+        unzipped,
+        stop_time=revolution,
+        output_interval=STEP,
+        input=sig,
+        output=outputs,
+        model_description=md,
+        fmu_instance=instance,
+        terminate=False,
+        fmi_call_logger=None,
+    )
     rows.append((f"{label}, fmpy simulate_fmu (instance ready)", time.perf_counter() - t0))
     instance.freeInstance()
     return rows
@@ -215,6 +244,7 @@ def main():
         script.parent.mkdir()
         script.write_text(PASS_THROUGH)
         from pythonfmu import FmuBuilder
+
         passthrough = FmuBuilder.build_FMU(script, dest=tmp / "PassThrough.fmu")
 
         revolution = np.ceil(2 * np.pi * design.ratio / SPEED / STEP) * STEP
@@ -232,8 +262,7 @@ def main():
         native_init, native_run, native_last = bare_loop(native, times, theta, tau, outputs)
         rows.append(("native reducer FMU, bare FMI loop", native_run))
         _, lean_run, lean_last = bare_loop(native, times, theta, tau, outputs, arrays_once=True)
-        rows.append(("native reducer FMU, bare loop, fmpy's ctypes calls, arrays made once",
-                     lean_run))
+        rows.append(("native reducer FMU, bare loop, fmpy's ctypes calls, arrays made once", lean_run))
         in_c = c_host_loop(native, times, theta, tau, tmp)
         if in_c:
             rows.append(("native reducer FMU, the same FMI calls from a C host", in_c[0]))
@@ -248,11 +277,14 @@ def main():
         rows.append(("reducer model in Python, no FMI", time.perf_counter() - t0))
 
     baseline = rows[2][1]
-    print(f"RV-40E-121 + seed 002 errors, one output revolution at 1600 rpm: {revolution:.3f} s "
-          f"simulated, {times.size} steps of {STEP * 1e3:g} ms, load 20-100 % rated")
+    print(
+        f"RV-40E-121 + seed 002 errors, one output revolution at 1600 rpm: {revolution:.3f} s "
+        f"simulated, {times.size} steps of {STEP * 1e3:g} ms, load 20-100 % rated"
+    )
     print(f"FMU build: {build_time:.1f} s;  instantiate + initialise: {init:.3f} s (target < 2 s)")
-    print(f"native FMU build: {native_build_time:.1f} s;  instantiate + initialise: "
-          f"{native_init * 1e3:.1f} ms")
+    print(
+        f"native FMU build: {native_build_time:.1f} s;  instantiate + initialise: {native_init * 1e3:.1f} ms"
+    )
     assert lean_last == native_last, (lean_last, native_last)
     if in_c:
         same = "the same" if in_c[1] == native_last[1] else f"NOT the same ({in_c[1]!r})"
@@ -260,11 +292,15 @@ def main():
     else:
         print("C host: no C compiler (cc or gcc) on PATH, its row is left out")
     width = max(len(what) for what, _ in rows)
-    print(f"{'what':<{width}} {'steps':>6} {'time [s]':>9} {'real-time factor':>17} {'steps/s':>9} "
-          f"{'ratio to bare FMU loop':>23}")
+    print(
+        f"{'what':<{width}} {'steps':>6} {'time [s]':>9} {'real-time factor':>17} {'steps/s':>9} "
+        f"{'ratio to bare FMU loop':>23}"
+    )
     for what, seconds in rows:
-        print(f"{what:<{width}} {times.size:>6} {seconds:>9.4g} {revolution / seconds:>16.1f}x "
-              f"{times.size / seconds:>9.0f} {seconds / baseline:>23.3g}")
+        print(
+            f"{what:<{width}} {times.size:>6} {seconds:>9.4g} {revolution / seconds:>16.1f}x "
+            f"{times.size / seconds:>9.0f} {seconds / baseline:>23.3g}"
+        )
     print("ratio: time / that of the first bare FMI loop (the pythonfmu reducer FMU's)")
 
 

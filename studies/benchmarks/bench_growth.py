@@ -51,12 +51,12 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 STUDY = ROOT / "studies" / "rv40e_121_full.toml"
-FULL_REDUCERS = 17_408          # N = 1024, 15 groups: N (G + 2)
+FULL_REDUCERS = 17_408  # N = 1024, 15 groups: N (G + 2)
 WORKERS = (16, 64, 256)
 
 
 def timed(work):
-    work()                          # untimed: the kernels load, the batch's first arrays
+    work()  # untimed: the kernels load, the batch's first arrays
     start = time.perf_counter()
     work()
     return time.perf_counter() - start
@@ -79,12 +79,12 @@ def backend_rate(study, X, backend):
         store = JobStore(open_output(study, Path(tmp)), study, "bench")
         t0 = time.perf_counter()
         with backend:
-            warm = spans[:backend.workers]
-            for (s, e), Xb, Y, ok in backend.map(study, ((b, X[b[0]:b[1]]) for b in warm)):
+            warm = spans[: backend.workers]
+            for (s, e), Xb, Y, ok in backend.map(study, ((b, X[b[0] : b[1]]) for b in warm)):
                 store.write(s, e, Xb, Y, ok)
             t1 = time.perf_counter()
-            rest = spans[backend.workers:]
-            for (s, e), Xb, Y, ok in backend.map(study, ((b, X[b[0]:b[1]]) for b in rest)):
+            rest = spans[backend.workers :]
+            for (s, e), Xb, Y, ok in backend.map(study, ((b, X[b[0] : b[1]]) for b in rest)):
                 store.write(s, e, Xb, Y, ok)
             t2 = time.perf_counter()
     return t1 - t0, sum(e - s for s, e in rest) / (t2 - t1)
@@ -97,15 +97,19 @@ def _echo(X):
 def scheduler_round_trip(batch_rows, columns, tasks=200):
     """Seconds per task of a Dask LocalCluster of two workers for tasks that carry a batch's
     rows and results and compute nothing, submitted as the study's backend submits them."""
+    import dask
     from dask.distributed import Client, LocalCluster, wait
 
-    import dask
     from tolerance.backends import DASK_LOCAL_CONFIG
 
     X = np.random.default_rng(0).random((batch_rows, columns))
     with dask.config.set(DASK_LOCAL_CONFIG):
-        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
+        with (
+            LocalCluster(
+                n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+            ) as cluster,
+            Client(cluster) as client,
+        ):
             wait([client.submit(_echo, X, pure=False) for _ in range(10)])
             start = time.perf_counter()
             futures = [client.submit(_echo, X, pure=False) for _ in range(tasks)]
@@ -126,12 +130,13 @@ def main() -> None:
 
     study = load_study(STUDY)
     os.environ["RVTE_THREADS"] = "1"
-    print(f"study {STUDY.name}: {study.design.name}, {len(study.columns)} columns, "
-          f"{study.points} points, batches of {study.batch_size}; load average "
-          f"{os.getloadavg()[0]:.2f}")
+    print(
+        f"study {STUDY.name}: {study.design.name}, {len(study.columns)} columns, "
+        f"{study.points} points, batches of {study.batch_size}; load average "
+        f"{os.getloadavg()[0]:.2f}"
+    )
 
-    print("\n1. points per output revolution (one core, "
-          f"{args.reducers} reducers, TE curve and windup test)")
+    print(f"\n1. points per output revolution (one core, {args.reducers} reducers, TE curve and windup test)")
     print(f"{'points':>8}{'s/reducer':>11}{'reducers/s':>12}{'us/point':>10}{'ratio':>8}")
     X = montecarlo.rows(study, 0, args.reducers)
     base = None
@@ -151,34 +156,43 @@ def main() -> None:
     count = 8 if args.quick else 16
     small = replace(study, batch_size=count // 2)
     X = montecarlo.rows(study, 0, count * 2)
-    print(f"\n3. cores ({X.shape[0]} reducers in batches of {small.batch_size}, "
-          f"{study.points} points; a warm-up batch per worker is not timed)")
+    print(
+        f"\n3. cores ({X.shape[0]} reducers in batches of {small.batch_size}, "
+        f"{study.points} points; a warm-up batch per worker is not timed)"
+    )
     print(f"{'how':<30}{'cores':>6}{'start-up s':>12}{'reducers/s':>12}{'per core':>10}{'ratio':>8}")
     runs = []
-    for label, cores, threads, make in (("one process, one thread", 1, "1", InProcess),
-                                        ("one process, two threads", 2, "2", InProcess),
-                                        ("two processes", 2, "1", lambda: Processes(2)),
-                                        ("Dask LocalCluster, 2 workers", 2, "1",
-                                         lambda: DaskBackend(workers=2))):
+    for label, cores, threads, make in (
+        ("one process, one thread", 1, "1", InProcess),
+        ("one process, two threads", 2, "2", InProcess),
+        ("two processes", 2, "1", lambda: Processes(2)),
+        ("Dask LocalCluster, 2 workers", 2, "1", lambda: DaskBackend(workers=2)),
+    ):
         os.environ["RVTE_THREADS"] = threads
         start, rate = backend_rate(small, X, make())
         runs.append((label, cores, start, rate))
     os.environ["RVTE_THREADS"] = "1"
     base = runs[0][3]
     for label, cores, start, rate in runs:
-        print(f"{label:<30}{cores:>6}{start:>12.1f}{rate:>12.2f}{rate / cores:>10.2f}"
-              f"{rate / cores / base:>8.2f}")
+        print(
+            f"{label:<30}{cores:>6}{start:>12.1f}{rate:>12.2f}{rate / cores:>10.2f}"
+            f"{rate / cores / base:>8.2f}"
+        )
 
     trip = scheduler_round_trip(study.batch_size, len(study.columns))
-    print(f"\n4. Dask scheduler round trip per batch (LocalCluster, 2 workers, empty tasks with "
-          f"a batch's {study.batch_size} rows): {trip * 1e3:.2f} ms")
+    print(
+        f"\n4. Dask scheduler round trip per batch (LocalCluster, 2 workers, empty tasks with "
+        f"a batch's {study.batch_size} rows): {trip * 1e3:.2f} ms"
+    )
 
     dask_start, dask_rate = runs[3][2], runs[3][3] / 2
     batches = math.ceil(FULL_REDUCERS / study.batch_size)
     batch_s = study.batch_size / dask_rate
-    print(f"\n5. projected complete study (N = 1024: {FULL_REDUCERS} reducers, {batches} batches "
-          f"of {study.batch_size}): r = {dask_rate:.2f} reducers/s per worker, a batch "
-          f"{batch_s:.1f} s + {trip * 1e3:.1f} ms, start-up {dask_start:.1f} s")
+    print(
+        f"\n5. projected complete study (N = 1024: {FULL_REDUCERS} reducers, {batches} batches "
+        f"of {study.batch_size}): r = {dask_rate:.2f} reducers/s per worker, a batch "
+        f"{batch_s:.1f} s + {trip * 1e3:.1f} ms, start-up {dask_start:.1f} s"
+    )
     print(f"{'workers':>8}{'rounds':>8}{'wall':>12}")
     for workers in (1, 2) + WORKERS:
         rounds = math.ceil(batches / workers)

@@ -34,8 +34,10 @@ def machine() -> str:
                 break
     except OSError:
         pass
-    return f"{os.cpu_count()} cores, {model or platform.processor() or 'unknown CPU'}, " \
-           f"Python {platform.python_version()}"
+    return (
+        f"{os.cpu_count()} cores, {model or platform.processor() or 'unknown CPU'}, "
+        f"Python {platform.python_version()}"
+    )
 
 
 def timed(job):
@@ -55,19 +57,36 @@ def main() -> None:
         tmp = Path(tmp)
         seconds, report = timed(lambda: api.te("RV-40E-121", ERRORS, plot_path=tmp / "te.png"))
         points = report.curve.points
-        rows.append(("rvte te RV-40E-121 --errors seed002 --plot", f"{points} points",
-                     seconds, f"{points / seconds:.0f} points/s"))
-        seconds, result = timed(lambda: run_mc(ROOT / "studies" / "quick_mc.toml",
-                                               output=tmp / "quick_mc"))
+        rows.append(
+            (
+                "rvte te RV-40E-121 --errors seed002 --plot",
+                f"{points} points",
+                seconds,
+                f"{points / seconds:.0f} points/s",
+            )
+        )
+        seconds, result = timed(lambda: run_mc(ROOT / "studies" / "quick_mc.toml", output=tmp / "quick_mc"))
         reducers = result.computed.Y.shape[0]
-        rows.append(("rvte mc studies/quick_mc.toml", f"{reducers} reducers", seconds,
-                     f"{reducers / seconds:.0f} reducers/s"))
+        rows.append(
+            (
+                "rvte mc studies/quick_mc.toml",
+                f"{reducers} reducers",
+                seconds,
+                f"{reducers / seconds:.0f} reducers/s",
+            )
+        )
         seconds, _ = timed(lambda: fmu_build("RV-40E-121", ERRORS, tmp / "RVReducer.fmu"))
-        from rvfmu.core.te_map import TORQUE_FRACTIONS
+        from rvfmu.core.steppers.te_map import TORQUE_FRACTIONS
 
         poses = 2 * len(TORQUE_FRACTIONS) * points
-        rows.append(("rvte fmu build RV-40E-121 --errors seed002", f"{poses} poses", seconds,
-                     f"{poses / seconds:.0f} poses/s"))
+        rows.append(
+            (
+                "rvte fmu build RV-40E-121 --errors seed002",
+                f"{poses} poses",
+                seconds,
+                f"{poses / seconds:.0f} poses/s",
+            )
+        )
     baseline = rows[0][2]
     print(f"{'what':<46} {'size':>16} {'time [s]':>9} {'throughput':>18} {'ratio':>7}")
     for what, size, seconds, rate in rows:

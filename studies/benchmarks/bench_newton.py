@@ -1,7 +1,7 @@
 """Benchmark: the compiled quasi-static Newton iteration against the numpy one, same reducers.
 
 The quasi-static solver's Newton iteration runs compiled, pair by pair
-(rvfmu/core/newton_kernel.py), where numba is installed; the numpy iteration of
+(rvfmu/core/statics/newton_kernel.py), where numba is installed; the numpy iteration of
 whole chunks (`newton.newton_batched`) is the baseline, timed in the same
 process on the same reducers.  Cases:
 - reducers of the complete RV-40E-121 study (studies/rv40e_121_full.toml: 15
@@ -33,10 +33,10 @@ from unittest import mock  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from rvfmu.core import kernels  # noqa: E402
-from rvfmu.core.design import preset  # noqa: E402
-from rvfmu.core.errors import load_errors, stack  # noqa: E402
-from rvfmu.core.quasistatic import te_curve  # noqa: E402
+from rvfmu.core.reducer.design import preset  # noqa: E402
+from rvfmu.core.reducer.errors import load_errors, stack  # noqa: E402
+from rvfmu.core.statics import newton_kernel  # noqa: E402
+from rvfmu.core.statics.quasistatic import te_curve  # noqa: E402
 from tolerance.sampling import errors_from_unit  # noqa: E402
 from tolerance.study import load_study  # noqa: E402
 
@@ -53,7 +53,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller batches")
     args = parser.parse_args(argv)
-    if not kernels.COMPILED:
+    if not newton_kernel.COMPILED:
         sys.exit("numba is not installed (or RVTE_NUMBA=0): there is no compiled iteration to time")
     n_study, n_copies = (4, 8) if args.quick else (16, 32)
 
@@ -70,21 +70,26 @@ def main(argv=None):
     ]
 
     start = time.perf_counter()
-    for _, design, errors, tau, _ in cases:     # compile or load the kernels of every case
+    for _, design, errors, tau, _ in cases:  # compile or load the kernels of every case
         te_curve(design, errors.take([0]), tau_load=tau, points=16)
     warm = time.perf_counter() - start
 
     rows, worst = [], []
     for what, design, errors, tau, points in cases:
-        run = lambda: te_curve(design, errors, tau_load=tau, points=points)   # noqa: E731
-        with mock.patch.object(kernels, "COMPILED", False):
+        run = lambda: te_curve(design, errors, tau_load=tau, points=points)  # noqa: E731
+        with mock.patch.object(newton_kernel, "COMPILED", False):
             t_plain, plain = timed(run)
         t_fast, fast = timed(run)
         n = errors.samples
         rows.append((f"{what}, numpy iteration (baseline)", n, points, t_plain, n / t_plain, 1.0))
         rows.append((f"{what}, compiled iteration", n, points, t_fast, n / t_fast, t_plain / t_fast))
-        worst.append((what, np.max(np.abs(fast.te_arcsec - plain.te_arcsec)),
-                      bool(fast.converged.all() and plain.converged.all())))
+        worst.append(
+            (
+                what,
+                np.max(np.abs(fast.te_arcsec - plain.te_arcsec)),
+                bool(fast.converged.all() and plain.converged.all()),
+            )
+        )
 
     print(f"\nRV-40E-121, 1 BLAS thread; kernel warm-up (compile or cache load) {warm:.1f} s, not counted")
     print("| what | reducers | points | time [s] | throughput [reducers/s] | speed-up |")

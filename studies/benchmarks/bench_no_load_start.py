@@ -40,10 +40,11 @@ def main() -> None:
     args = parser.parse_args()
 
     from bench_jobs import machine
-    from rvfmu.core import newton_kernel, solver
-    from rvfmu.core.equivalent import EquivalentModel
-    from rvfmu.core.quasistatic import NO_LOAD_PROBE, input_angles
-    from rvfmu.core.units import ARCSEC
+
+    from rvfmu.core.base.units import ARCSEC
+    from rvfmu.core.statics import newton_kernel, solver
+    from rvfmu.core.statics.equivalent import EquivalentModel
+    from rvfmu.core.statics.quasistatic import NO_LOAD_PROBE, input_angles
     from tolerance.montecarlo import sample
     from tolerance.sampling import errors_from_unit
     from tolerance.study import load_study
@@ -52,8 +53,7 @@ def main() -> None:
     design = study.design
     errors = errors_from_unit(study, sample(study, args.reducers))
     model = EquivalentModel(design, input_angles(design, POINTS), flank=1)
-    s, a = (g.ravel() for g in np.meshgrid(np.arange(errors.samples), np.arange(POINTS),
-                                           indexing="ij"))
+    s, a = (g.ravel() for g in np.meshgrid(np.arange(errors.samples), np.arange(POINTS), indexing="ij"))
     zero = np.zeros(s.size)
     probe = NO_LOAD_PROBE * design.rated_torque
 
@@ -62,41 +62,50 @@ def main() -> None:
 
     def counted(*arguments):
         solve_pairs_kernel(*arguments)
-        steps.append(int(arguments[-1].sum()))      # the kernel's iterations (B,), filled in
+        steps.append(int(arguments[-1].sum()))  # the kernel's iterations (B,), filled in
 
     def run(route):
         steps.clear()
         began = time.perf_counter()
-        eq = solver.solve_pairs(model, errors, s, a, zero, no_load_probe=probe, law_start=route[0],
-                                law_release=route[1])
+        eq = solver.solve_pairs(
+            model, errors, s, a, zero, no_load_probe=probe, law_start=route[0], law_release=route[1]
+        )
         return time.perf_counter() - began, eq, sum(steps)
 
-    routes = ((("elastic", "solve"), "elastic start, release solved (reference)"),
-              (("kinematic", "solve"), "kinematic start, release solved"),
-              (("kinematic", "step"), "kinematic start, release by one step"))
+    routes = (
+        (("elastic", "solve"), "elastic start, release solved (reference)"),
+        (("kinematic", "solve"), "kinematic start, release solved"),
+        (("kinematic", "step"), "kinematic start, release by one step"),
+    )
     newton_kernel.newton_pairs = counted
     try:
         results = {}
-        for route, _ in routes:                              # the reference first
+        for route, _ in routes:  # the reference first
             run(route)
             results[route] = min((run(route) for _ in range(args.repeats)), key=lambda r: r[0])
     finally:
         newton_kernel.newton_pairs = solve_pairs_kernel
 
-    te = {k: (model.output_angle(eq.q, zero) / ARCSEC).reshape(args.reducers, POINTS)
-          for k, (_, eq, _) in results.items()}
+    te = {
+        k: (model.output_angle(eq.q, zero) / ARCSEC).reshape(args.reducers, POINTS)
+        for k, (_, eq, _) in results.items()
+    }
     reference = routes[0][0]
     print(f"machine: {machine()}")
-    print(f"{'route':<44} {'size':>16} {'time [s]':>9} {'throughput':>16} {'Newton steps':>13} "
-          f"{'ratio':>6} {'max |dTE| [arcsec]':>19} {'max |d te_pp|':>14}")
+    print(
+        f"{'route':<44} {'size':>16} {'time [s]':>9} {'throughput':>16} {'Newton steps':>13} "
+        f"{'ratio':>6} {'max |dTE| [arcsec]':>19} {'max |d te_pp|':>14}"
+    )
     for route, label in routes:
         seconds, eq, count = results[route]
         assert eq.converged.all(), f"{label}: not every pair converged"
         d_te = np.max(np.abs(te[route] - te[reference]))
         d_pp = np.max(np.abs(np.ptp(te[route], axis=1) - np.ptp(te[reference], axis=1)))
-        print(f"{label:<44} {f'{args.reducers} x {POINTS} pts':>16} {seconds:>9.3f} "
-              f"{args.reducers / seconds:>9.1f} red./s {count:>13d} "
-              f"{seconds / results[reference][0]:>6.2f} {d_te:>19.2e} {d_pp:>14.2e}")
+        print(
+            f"{label:<44} {f'{args.reducers} x {POINTS} pts':>16} {seconds:>9.3f} "
+            f"{args.reducers / seconds:>9.1f} red./s {count:>13d} "
+            f"{seconds / results[reference][0]:>6.2f} {d_te:>19.2e} {d_pp:>14.2e}"
+        )
     print(f"(the reference's TE spans {np.ptp(te[reference]):.2f} arcsec)")
 
 

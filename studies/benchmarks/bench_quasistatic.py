@@ -1,9 +1,9 @@
 """Benchmark: quasi-static TE curves per second per core, beside a plain scipy solve.
 
-Measures `rvfmu.core.quasistatic.te_curve` for the RV-40E-121 with the seed 002
+Measures `rvfmu.core.statics.quasistatic.te_curve` for the RV-40E-121 with the seed 002
 errors (studies/seed002_errors.toml), 720 points per output revolution, at no
 load (tau_load = 0) and at rated load (tau_load = -rated_torque), for batches of
-1, 64 and 1024 copies of that reducer.  The baseline is `rvfmu.core.reference.
+1, 64 and 1024 copies of that reducer.  The baseline is `rvfmu.core.statics.reference.
 te_reference`, one L-BFGS-B solve of all unknowns per angle (two at no load),
 timed on 36 of the 720 angles and scaled to curves/s; the table says so.  The
 script also checks that both give the same TE on those angles, reports the
@@ -36,18 +36,18 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from rvfmu.core.design import preset  # noqa: E402
-from rvfmu.core.errors import load_errors, stack  # noqa: E402
-from rvfmu.core.quasistatic import input_angles, te_curve  # noqa: E402
-from rvfmu.core.reference import te_reference  # noqa: E402
-from rvfmu.core.units import rad_to_arcsec  # noqa: E402
+from rvfmu.core.base.units import rad_to_arcsec  # noqa: E402
+from rvfmu.core.reducer.design import preset  # noqa: E402
+from rvfmu.core.reducer.errors import load_errors, stack  # noqa: E402
+from rvfmu.core.statics.quasistatic import input_angles, te_curve  # noqa: E402
+from rvfmu.core.statics.reference import te_reference  # noqa: E402
 
 ERRORS_FILE = Path(__file__).resolve().parents[1] / "seed002_errors.toml"
-POINTS = 720             # per output revolution, as asked of the benchmark
-BASELINE_STRIDE = 20     # scipy on every 20th angle: 36 angles, ~5 ms to 50 ms each
+POINTS = 720  # per output revolution, as asked of the benchmark
+BASELINE_STRIDE = 20  # scipy on every 20th angle: 36 angles, ~5 ms to 50 ms each
 TARGET_LOADED_PER_S = 100.0
 TARGET_PEAK_BYTES = 4e9
-BIG_BATCH = 1024         # from this size on: best of 1, and the memory is traced
+BIG_BATCH = 1024  # from this size on: best of 1, and the memory is traced
 AGREEMENT_ARCSEC = 0.01  # solver against reference: the tests' tolerance
 
 
@@ -88,13 +88,24 @@ def main(argv=None):
     for label, tau in loads.items():
         t, reference[label], _ = best_of(lambda: te_reference(design, errors, theta_sub, tau), repeats)
         baseline[label] = fraction / t
-        rows.append((f"scipy per angle, {label} ({subset.size} of {POINTS} angles, scaled)",
-                     1, f"{subset.size}/{POINTS}", t, baseline[label], 1.0))
+        rows.append(
+            (
+                f"scipy per angle, {label} ({subset.size} of {POINTS} angles, scaled)",
+                1,
+                f"{subset.size}/{POINTS}",
+                t,
+                baseline[label],
+                1.0,
+            )
+        )
     for n in batches:
         batch = stack([errors] * n)
         for label, tau in loads.items():
-            t, curve, peak = best_of(lambda: te_curve(design, batch, tau_load=tau, points=POINTS),
-                                     1 if n >= BIG_BATCH else repeats, trace=n >= BIG_BATCH)
+            t, curve, peak = best_of(
+                lambda: te_curve(design, batch, tau_load=tau, points=POINTS),
+                1 if n >= BIG_BATCH else repeats,
+                trace=n >= BIG_BATCH,
+            )
             if not curve.converged.all():
                 print(f"warning: {label}, batch {n}: {np.sum(~curve.converged)} curves not converged")
             if n == 1:
@@ -103,8 +114,10 @@ def main(argv=None):
                 peaks[(label, n)] = peak
             rows.append((f"te_curve, {label}", n, str(POINTS), t, n / t, n / t / baseline[label]))
 
-    print(f"\nRV-40E-121, seed 002 errors, {POINTS} points/rev, 1 BLAS thread; best of "
-          f"{repeats} after a warm-up (best of 1 at batch >= {BIG_BATCH})")
+    print(
+        f"\nRV-40E-121, seed 002 errors, {POINTS} points/rev, 1 BLAS thread; best of "
+        f"{repeats} after a warm-up (best of 1 at batch >= {BIG_BATCH})"
+    )
     header = ("what", "batch size", "points", "time [s]", "throughput [curves/s]", "ratio to scipy")
     widths = (max(len(r[0]) for r in rows), 10, 8, 9, 21, 14)
     print("  ".join(h.ljust(w) if i == 0 else h.rjust(w) for i, (h, w) in enumerate(zip(header, widths))))
@@ -122,12 +135,16 @@ def main(argv=None):
 
     loaded = max((r[4], r[1]) for r in rows if r[0] == "te_curve, rated load")
     verdict = "meets" if loaded[0] >= TARGET_LOADED_PER_S else "misses"
-    print(f"\ntarget >= {TARGET_LOADED_PER_S:.0f} loaded curves/s/core: best {loaded[0]:.1f} "
-          f"(batch {loaded[1]}), {verdict} it")
+    print(
+        f"\ntarget >= {TARGET_LOADED_PER_S:.0f} loaded curves/s/core: best {loaded[0]:.1f} "
+        f"(batch {loaded[1]}), {verdict} it"
+    )
     for (label, n), peak in peaks.items():
         verdict = "meets" if peak < TARGET_PEAK_BYTES else "misses"
-        print(f"peak memory, {label}, batch {n} (tracemalloc peak of the warm-up run, numpy and "
-              f"Python allocations): {peak / 1e6:.0f} MB; target < 4 GB: {verdict} it")
+        print(
+            f"peak memory, {label}, batch {n} (tracemalloc peak of the warm-up run, numpy and "
+            f"Python allocations): {peak / 1e6:.0f} MB; target < 4 GB: {verdict} it"
+        )
 
     print("\nwhere the time goes: cProfile of one batch-64 rated-load run, top 8 by tottime")
     profile = cProfile.Profile()
@@ -140,8 +157,11 @@ def main(argv=None):
         where = f"{Path(func[0]).name}:{func[1]}({func[2]})" if func[1] else func[2]
         print(f"  {tottime:>11.3f}  {tottime / stats.total_tt:>6.1%}  {calls:>7}  {where}")
     if disagree:
-        print(f"\nFAILED: the solver and the reference disagree by more than {AGREEMENT_ARCSEC} "
-              f"arcsec ({'; '.join(disagree)})", file=sys.stderr)
+        print(
+            f"\nFAILED: the solver and the reference disagree by more than {AGREEMENT_ARCSEC} "
+            f"arcsec ({'; '.join(disagree)})",
+            file=sys.stderr,
+        )
         return 1
     return 0
 

@@ -39,8 +39,9 @@ def main() -> None:
     args = parser.parse_args()
 
     from bench_jobs import machine
-    from rvfmu.core.design import preset_file
-    from rvfmu.core.quasistatic import equilibria, input_angles, windup
+
+    from rvfmu.core.reducer.design import preset_file
+    from rvfmu.core.statics.quasistatic import equilibria, input_angles, windup
     from tolerance.montecarlo import sample
     from tolerance.sampling import errors_from_unit
     from tolerance.study import load_study
@@ -55,27 +56,34 @@ def main() -> None:
         needle_roller_length=given["needle_roller_length_mm"] * 1e-3,
         tapered_rollers=given["tapered_rollers"],
         tapered_roller_length=given["tapered_roller_length_mm"] * 1e-3,
-        tapered_contact_angle=math.radians(given["tapered_contact_angle_deg"]))
-    hertz = law.with_fields(pin_groove_clearance=preset_file("RV-40E-121")["pin_groove_clearance_mm"]
-                            * 1e-3)
+        tapered_contact_angle=math.radians(given["tapered_contact_angle_deg"]),
+    )
+    hertz = law.with_fields(pin_groove_clearance=preset_file("RV-40E-121")["pin_groove_clearance_mm"] * 1e-3)
     theta_in = input_angles(linear, POINTS)
     rated = -linear.rated_torque
-    jobs = (("no-load TE curve", f"{REDUCERS} x {POINTS} points",
-             lambda d: equilibria(d, errors, theta_in, [0.0])),
-            ("TE curve at rated torque", f"{REDUCERS} x {POINTS} points",
-             lambda d: equilibria(d, errors, theta_in, [rated])),
-            ("windup test (8 positions)", f"{REDUCERS} reducers",
-             lambda d: windup(d, errors)))
+    jobs = (
+        (
+            "no-load TE curve",
+            f"{REDUCERS} x {POINTS} points",
+            lambda d: equilibria(d, errors, theta_in, [0.0]),
+        ),
+        (
+            "TE curve at rated torque",
+            f"{REDUCERS} x {POINTS} points",
+            lambda d: equilibria(d, errors, theta_in, [rated]),
+        ),
+        ("windup test (8 positions)", f"{REDUCERS} reducers", lambda d: windup(d, errors)),
+    )
     print(f"machine: {machine()}")
-    print(f"{'what':<28} {'laws':<22} {'size':>18} {'time [s]':>9} {'throughput':>16} "
-          f"{'ratio':>6}")
+    print(f"{'what':<28} {'laws':<22} {'size':>18} {'time [s]':>9} {'throughput':>16} {'ratio':>6}")
     for what, size, job in jobs:
         base = best_of(lambda: job(linear), args.repeats)
-        for name, design in (("linear", linear), ("roller law", law),
-                             ("roller law, Hertz pins", hertz)):
+        for name, design in (("linear", linear), ("roller law", law), ("roller law, Hertz pins", hertz)):
             seconds = base if design is linear else best_of(lambda: job(design), args.repeats)
-            print(f"{what:<28} {name:<22} {size:>18} {seconds:>9.3f} "
-                  f"{REDUCERS / seconds:>9.1f} red./s {seconds / base:>6.2f}")
+            print(
+                f"{what:<28} {name:<22} {size:>18} {seconds:>9.3f} "
+                f"{REDUCERS / seconds:>9.1f} red./s {seconds / base:>6.2f}"
+            )
 
 
 if __name__ == "__main__":

@@ -34,37 +34,51 @@ def main() -> None:
     args = parser.parse_args()
 
     from bench_jobs import machine
+
     from tolerance.run import run_sobol
 
     runs = {}
     with tempfile.TemporaryDirectory() as folder:
         for method in ("saltelli", "linearized"):
             start = time.perf_counter()
-            result = run_sobol(args.study, args.n, output=Path(folder) / method, method=method,
-                               processes=args.processes, plots=False)
+            result = run_sobol(
+                args.study,
+                args.n,
+                output=Path(folder) / method,
+                method=method,
+                processes=args.processes,
+                plots=False,
+            )
             runs[method] = (result, time.perf_counter() - start)
     reference, base = runs["saltelli"]
     print(f"machine: {machine()}")
-    print(f"study: {Path(args.study).name}, N = {args.n}, {len(reference.study.groups)} factors, "
-          f"{args.processes} worker processes")
+    print(
+        f"study: {Path(args.study).name}, N = {args.n}, {len(reference.study.groups)} factors, "
+        f"{args.processes} worker processes"
+    )
     print(f"{'method':<12} {'reducers solved':>16} {'time [s]':>9} {'throughput':>18} {'ratio':>6}")
     for method, (result, seconds) in runs.items():
         solved = result.computed.computed_rows
-        print(f"{method:<12} {solved:>16} {seconds:>9.1f} {solved / seconds:>11.1f} red./s "
-              f"{seconds / base:>6.3f}")
+        print(
+            f"{method:<12} {solved:>16} {seconds:>9.1f} {solved / seconds:>11.1f} red./s "
+            f"{seconds / base:>6.3f}"
+        )
     linear = runs["linearized"][0]
     for line in linear.check.lines():
         print(line)
     for column, analysis in linear.analyses.items():
         a, b = analysis.indices, reference.analyses[column].indices
-        print(f"\n{column} ({analysis.method}): order groups {a.order_groups()}, reference "
-              f"{b.order_groups()}")
+        print(
+            f"\n{column} ({analysis.method}): order groups {a.order_groups()}, reference {b.order_groups()}"
+        )
         print(f"  {'factor':<26} {'ST':>15} {'ST reference':>15} {'|diff|':>7} in reference CI")
         for g in b.ranking():
             diff = abs(a.ST[g] - b.ST[g])
-            print(f"  {a.names[g]:<26} {a.ST[g]:>7.4f} ± {a.ST_conf[g]:.4f} "
-                  f"{b.ST[g]:>7.4f} ± {b.ST_conf[g]:.4f} {diff:>7.4f} "
-                  f"{'yes' if diff <= b.ST_conf[g] else 'no'}")
+            print(
+                f"  {a.names[g]:<26} {a.ST[g]:>7.4f} ± {a.ST_conf[g]:.4f} "
+                f"{b.ST[g]:>7.4f} ± {b.ST_conf[g]:.4f} {diff:>7.4f} "
+                f"{'yes' if diff <= b.ST_conf[g] else 'no'}"
+            )
         print(f"  largest |ST - ST reference| {np.max(np.abs(a.ST - b.ST)):.4f}")
 
 

@@ -50,8 +50,8 @@ from tolerance.store import JobStore, open_output  # noqa: E402
 from tolerance.study import load_study  # noqa: E402
 
 STUDY = Path(__file__).resolve().parents[1] / "rv40e_121_sobol.toml"
-FULL_TARGET_S = 600.0      # the full Sobol study on this 2-core machine
-OVERHEAD_TARGET = 0.90     # per-core throughput of Dask against in-process
+FULL_TARGET_S = 600.0  # the full Sobol study on this 2-core machine
+OVERHEAD_TARGET = 0.90  # per-core throughput of Dask against in-process
 
 
 def measure(study, X, backend, folder, batches):
@@ -62,10 +62,10 @@ def measure(study, X, backend, folder, batches):
     spans = [(s, s + B) for s in range(0, (warm + batches) * B, B)]
     t0 = time.perf_counter()
     with backend:
-        for (s, e), Xb, Y, conv in backend.map(study, ((b, X[b[0]:b[1]]) for b in spans[:warm])):
+        for (s, e), Xb, Y, conv in backend.map(study, ((b, X[b[0] : b[1]]) for b in spans[:warm])):
             store.write(s, e, Xb, Y, conv)
         t1 = time.perf_counter()
-        for (s, e), Xb, Y, conv in backend.map(study, ((b, X[b[0]:b[1]]) for b in spans[warm:])):
+        for (s, e), Xb, Y, conv in backend.map(study, ((b, X[b[0] : b[1]]) for b in spans[warm:])):
             store.write(s, e, Xb, Y, conv)
         t2 = time.perf_counter()
     return t1 - t0, batches * B / (t2 - t1)
@@ -96,16 +96,21 @@ def main(argv=None):
 
     study = load_study(STUDY)
     X = sobol.sample(study.problem(), study.sobol_n, study.second_order, seed=study.seed)
-    print(f"study {STUDY.name}: {study.design.name}, {len(study.groups)} factors, "
-          f"{len(study.columns)} columns, {study.points} points/rev, load {study.load_Nm:g} N*m, "
-          f"batches of {study.batch_size}; {batches} timed batches per backend, best of "
-          f"{args.repeats}; load average before: {os.getloadavg()[0]:.2f}")
-    backends = [("in-process", InProcess), ("2 processes", lambda: Processes(2)),
-                ("Dask, 1 worker", lambda: DaskBackend(workers=1)),
-                ("Dask, 2 workers", lambda: DaskBackend(workers=2))]
+    print(
+        f"study {STUDY.name}: {study.design.name}, {len(study.groups)} factors, "
+        f"{len(study.columns)} columns, {study.points} points/rev, load {study.load_Nm:g} N*m, "
+        f"batches of {study.batch_size}; {batches} timed batches per backend, best of "
+        f"{args.repeats}; load average before: {os.getloadavg()[0]:.2f}"
+    )
+    backends = [
+        ("in-process", InProcess),
+        ("2 processes", lambda: Processes(2)),
+        ("Dask, 1 worker", lambda: DaskBackend(workers=1)),
+        ("Dask, 2 workers", lambda: DaskBackend(workers=2)),
+    ]
     best = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for repeat in range(args.repeats):       # interleaved, best of: other load on the machine
+        for repeat in range(args.repeats):  # interleaved, best of: other load on the machine
             for k, (label, make) in enumerate(backends):
                 backend = make()
                 start, rate = measure(study, X, backend, Path(tmp) / f"b{repeat}-{k}", batches)
@@ -116,23 +121,30 @@ def main(argv=None):
     rows = [(label, *best[label]) for label, _ in backends]
     base = rows[0][3]
     print()
-    print(f"{'backend':<17}{'workers':>8}{'start-up s':>12}{'curves/s':>10}{'per core':>10}"
-          f"{'ratio':>8}")
+    print(f"{'backend':<17}{'workers':>8}{'start-up s':>12}{'curves/s':>10}{'per core':>10}{'ratio':>8}")
     for label, workers, start, rate in rows:
-        print(f"{label:<17}{workers:>8}{start:>12.1f}{rate:>10.1f}{rate / workers:>10.1f}"
-              f"{rate / workers / base:>8.2f}")
+        print(
+            f"{label:<17}{workers:>8}{start:>12.1f}{rate:>10.1f}{rate / workers:>10.1f}"
+            f"{rate / workers / base:>8.2f}"
+        )
     total = X.shape[0]
     fastest = max(rows, key=lambda r: r[3])
     projected = fastest[2] + total / fastest[3]
-    print(f"\nfull study N = {study.sobol_n}: {total} curves; projected on {fastest[0]}: "
-          f"{projected:.0f} s (target <= {FULL_TARGET_S:.0f} s)")
-    print(f"{'2 in-process runs at once (no framework)':<41}{best['pair']:>10.1f}"
-          f"{best['pair'] / 2:>10.1f}{best['pair'] / 2 / base:>8.2f}   <- what 2 cores give here")
+    print(
+        f"\nfull study N = {study.sobol_n}: {total} curves; projected on {fastest[0]}: "
+        f"{projected:.0f} s (target <= {FULL_TARGET_S:.0f} s)"
+    )
+    print(
+        f"{'2 in-process runs at once (no framework)':<41}{best['pair']:>10.1f}"
+        f"{best['pair'] / 2:>10.1f}{best['pair'] / 2 / base:>8.2f}   <- what 2 cores give here"
+    )
     one = next(r for r in rows if r[0] == "Dask, 1 worker")
     two = next(r for r in rows if r[0] == "Dask, 2 workers")
-    print(f"Dask overhead per core: 1 worker against in-process {1 - one[3] / base:+.0%}; 2 workers "
-          f"against 2 in-process runs at once {1 - two[3] / best['pair']:+.0%} "
-          f"(target <= {1 - OVERHEAD_TARGET:.0%})")
+    print(
+        f"Dask overhead per core: 1 worker against in-process {1 - one[3] / base:+.0%}; 2 workers "
+        f"against 2 in-process runs at once {1 - two[3] / best['pair']:+.0%} "
+        f"(target <= {1 - OVERHEAD_TARGET:.0%})"
+    )
     print(f"load average after: {os.getloadavg()[0]:.2f} (2 cores; above ~0.3 other work shares them)")
     if not args.quick:
         with tempfile.TemporaryDirectory() as tmp:
@@ -140,9 +152,12 @@ def main(argv=None):
             result = run_sobol(STUDY, output=Path(tmp) / "full", workers=2, plots=True)
             seconds = time.perf_counter() - t
         ind = result.analyses["te_pp_arcsec"].indices
-        print(f"full study run by run_sobol on 2 Dask workers: {seconds:.0f} s end to end "
-              f"(target <= {FULL_TARGET_S:.0f} s); te_pp ranking: "
-              + ", ".join(ind.names[g] for g in ind.ranking()[:3]) + ", ...")
+        print(
+            f"full study run by run_sobol on 2 Dask workers: {seconds:.0f} s end to end "
+            f"(target <= {FULL_TARGET_S:.0f} s); te_pp ranking: "
+            + ", ".join(ind.names[g] for g in ind.ranking()[:3])
+            + ", ..."
+        )
     return 0
 
 

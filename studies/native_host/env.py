@@ -14,8 +14,7 @@ def fmu_host_environment() -> dict:
     libdir = Path(sysconfig.get_config_var("LIBDIR"))
     library = sysconfig.get_config_var("LDLIBRARY")
     paths = [p for p in sys.path if p.endswith("site-packages")]
-    return {"LD_PRELOAD": str(libdir / library), "PYTHONHOME": sys.base_prefix,
-            "PYTHONPATH": ":".join(paths)}
+    return {"LD_PRELOAD": str(libdir / library), "PYTHONHOME": sys.base_prefix, "PYTHONPATH": ":".join(paths)}
 
 
 if __name__ == "__main__":

@@ -30,12 +30,12 @@ from libcosimpy.CosimManipulator import CosimManipulator
 from libcosimpy.CosimObserver import CosimObserver
 from libcosimpy.CosimSlave import CosimLocalSlave
 
+MODELS = ("quasistatic", "dynamic")  # the values of the FMU's `model` parameter
 
-MODELS = ("quasistatic", "dynamic")   # the values of the FMU's `model` parameter
 
-
-def run(fmu, out, speed=1600 * 2 * 3.141592653589793 / 60, load=0.0, step=1e-3, duration=0.2,
-        model="quasistatic"):
+def run(
+    fmu, out, speed=1600 * 2 * 3.141592653589793 / 60, load=0.0, step=1e-3, duration=0.2, model="quasistatic"
+):
     execution = CosimExecution.from_step_size(step_size=int(step * 1e9))
     index = execution.add_local_slave(CosimLocalSlave(fmu_path=str(fmu), instance_name="reducer"))
     variables = {v.name.decode(): v.reference for v in execution.slave_variables(index)}
@@ -55,8 +55,9 @@ def run(fmu, out, speed=1600 * 2 * 3.141592653589793 / 60, load=0.0, step=1e-3, 
     steps = int(round(duration / step))
     for k in range(steps + 1):
         t = k * step
-        manipulator.slave_real_values(index, [variables["theta_in"], variables["tau_load"]],
-                                      [speed * t, -load])
+        manipulator.slave_real_values(
+            index, [variables["theta_in"], variables["tau_load"]], [speed * t, -load]
+        )
         if not execution.step():
             raise RuntimeError(f"libcosim step {k} failed")
         rows.append([t + step] + list(observer.last_real_values(index, refs)))
@@ -74,8 +75,12 @@ def main(argv=None):
     parser.add_argument("--speed", type=float, default=1600 * 2 * 3.141592653589793 / 60)
     parser.add_argument("--load", type=float, default=0.0, help="resisting output torque [N*m]")
     parser.add_argument("--duration", type=float, default=0.2)
-    parser.add_argument("--model", choices=MODELS, default="quasistatic",
-                        help="the FMU's reducer model (default: quasistatic)")
+    parser.add_argument(
+        "--model",
+        choices=MODELS,
+        default="quasistatic",
+        help="the FMU's reducer model (default: quasistatic)",
+    )
     args = parser.parse_args(argv)
     rows = run(args.fmu, args.out, args.speed, args.load, duration=args.duration, model=args.model)
     print(f"{len(rows)} steps, last te_arcsec {rows[-1][2]:.4f}")

@@ -57,15 +57,15 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 # Defaults: an 18 kg forearm-and-payload on an RV-40E joint (see README.md).
 DEFAULTS = {
-    "inertia": 1.5,              # kg m^2 about the joint axis (m * l^2 = 1.1 plus the link's own 0.4)
-    "mass": 18.0,                # kg
-    "com_distance": 0.25,        # m: gravity torque m g l = 44 N m, 11 % of the rated 412 N m
-    "g": 9.81,                   # m/s^2
-    "link_stiffness": 1.0e5,     # N m/rad: link root and bolted flange, ~1/3 of the reducer's
-                                 # windup stiffness; joint resonance ~35 Hz with both in series
+    "inertia": 1.5,  # kg m^2 about the joint axis (m * l^2 = 1.1 plus the link's own 0.4)
+    "mass": 18.0,  # kg
+    "com_distance": 0.25,  # m: gravity torque m g l = 44 N m, 11 % of the rated 412 N m
+    "g": 9.81,  # m/s^2
+    "link_stiffness": 1.0e5,  # N m/rad: link root and bolted flange, ~1/3 of the reducer's
+    # windup stiffness; joint resonance ~35 Hz with both in series
     "link_damping_ratio": 0.05,  # structural damping of the arm on its link [1]
 }
-DEFAULT_SUBSTEPS = 20            # sub-steps per communication step: 50 us at 1 ms, 1/500 of a period
+DEFAULT_SUBSTEPS = 20  # sub-steps per communication step: 50 us at 1 ms, 1/500 of a period
 
 
 class ArmModel:
@@ -85,9 +85,11 @@ class ArmModel:
                 raise ValueError(f"{name} = {value}: must be a finite number > 0")
         if not (math.isfinite(link_damping_ratio) and 0 < link_damping_ratio <= 0.25):
             raise ValueError(f"link_damping_ratio = {link_damping_ratio}: must be in (0, 0.25]")
-        if inertia < mass * com_distance ** 2:
-            raise ValueError(f"inertia = {inertia}: must be >= mass * com_distance^2 = "
-                             f"{mass * com_distance ** 2} (the centre of mass alone)")
+        if inertia < mass * com_distance**2:
+            raise ValueError(
+                f"inertia = {inertia}: must be >= mass * com_distance^2 = "
+                f"{mass * com_distance**2} (the centre of mass alone)"
+            )
         if not (isinstance(substeps, int) and 1 <= substeps <= 10000):
             raise ValueError(f"substeps = {substeps}: must be an integer in [1, 10000]")
         self.J, self.k = inertia, link_stiffness
@@ -103,11 +105,19 @@ class ArmModel:
     def initialize(self, time, theta):
         """Start at rest in static equilibrium: the link spring k carries the gravity torque."""
         theta_arm = theta
-        for _ in range(50):  # fixed point of k (theta - theta_arm) = m g l cos(theta_arm); contracts by m g l / k
+        for _ in range(
+            50
+        ):  # fixed point of k (theta - theta_arm) = m g l cos(theta_arm); contracts by m g l / k
             theta_arm = theta - self.gravity_moment * math.cos(theta_arm) / self.k
         # relaxed damper: its deflection equals the twist, so the spring k2 carries nothing
-        self.state = {"time": time, "theta": theta, "theta_arm": theta_arm, "omega_arm": 0.0,
-                      "damper": theta - theta_arm, "tau_load": -self.k * (theta - theta_arm)}
+        self.state = {
+            "time": time,
+            "theta": theta,
+            "theta_arm": theta_arm,
+            "omega_arm": 0.0,
+            "damper": theta - theta_arm,
+            "tau_load": -self.k * (theta - theta_arm),
+        }
         return self.outputs()
 
     def step(self, time, step_size, theta):
@@ -116,20 +126,26 @@ class ArmModel:
         J, k, k2, mgl = self.J, self.k, self.k2, self.gravity_moment
         dt = step_size / self.substeps
         relax = dt / self.relaxation_time
-        omega = (theta - s["theta"]) / step_size          # flange speed over the step
+        omega = (theta - s["theta"]) / step_size  # flange speed over the step
         flange, arm, omega_arm, damper = s["theta"], s["theta_arm"], s["omega_arm"], s["damper"]
         for _ in range(self.substeps):
             twist = flange - arm
-            link = k * twist + k2 * (twist - damper)      # torque of the flange on the arm
+            link = k * twist + k2 * (twist - damper)  # torque of the flange on the arm
             omega_arm += dt * (link - mgl * math.cos(arm)) / J
             arm += dt * omega_arm
             flange += dt * omega
             # damper c * dq/dt = k2 * (twist - q), implicit Euler (unconditionally stable)
             damper = (damper + relax * (flange - arm)) / (1.0 + relax)
         twist = theta - arm
-        link = k * twist + k2 * (twist - damper)          # at the end of the step
-        s.update(time=time + step_size, theta=theta, theta_arm=arm, omega_arm=omega_arm,
-                 damper=damper, tau_load=-link)
+        link = k * twist + k2 * (twist - damper)  # at the end of the step
+        s.update(
+            time=time + step_size,
+            theta=theta,
+            theta_arm=arm,
+            omega_arm=omega_arm,
+            damper=damper,
+            tau_load=-link,
+        )
         return self.outputs()
 
     def outputs(self):
@@ -138,10 +154,11 @@ class ArmModel:
 
 
 class Arm(Fmi2Slave):
-
     author = "rvte"
-    description = ("Robot arm on a horizontal joint axis: inertia and gravity on a damped link "
-                   "spring; flange angle in, torque on the flange out")
+    description = (
+        "Robot arm on a horizontal joint axis: inertia and gravity on a damped link "
+        "spring; flange angle in, torque on the flange out"
+    )
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -156,29 +173,54 @@ class Arm(Fmi2Slave):
         self._failed = None
 
         cont, par = Fmi2Variability.continuous, Fmi2Variability.fixed
-        self.register_variable(Real("theta", causality=Fmi2Causality.input, variability=cont,
-                                    description="output flange angle [rad], 0: centre of mass level"))
-        for name, text in (("tau_load", "torque of the arm on the output flange [N.m], "
-                                        "negative when it resists positive rotation"),
-                           ("theta_arm", "arm angle [rad]"),
-                           ("omega_arm", "arm speed [rad/s]")):
-            self.register_variable(Real(name, causality=Fmi2Causality.output, variability=cont,
-                                        initial=Fmi2Initial.calculated, description=text))
-        for name, text in (("inertia", "arm inertia about the joint axis [kg.m2]"),
-                           ("mass", "arm mass [kg]"),
-                           ("com_distance", "distance of the centre of mass from the axis [m]"),
-                           ("g", "gravitational acceleration [m/s2]"),
-                           ("link_stiffness", "static torsional stiffness of the link root [N.m/rad]"),
-                           ("link_damping_ratio", "damping ratio of the arm on its link [1]")):
-            self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=par,
-                                        description=text))
-        self.register_variable(Integer("substeps", causality=Fmi2Causality.parameter, variability=par,
-                                       description="integration sub-steps per communication step"))
+        self.register_variable(
+            Real(
+                "theta",
+                causality=Fmi2Causality.input,
+                variability=cont,
+                description="output flange angle [rad], 0: centre of mass level",
+            )
+        )
+        for name, text in (
+            (
+                "tau_load",
+                "torque of the arm on the output flange [N.m], negative when it resists positive rotation",
+            ),
+            ("theta_arm", "arm angle [rad]"),
+            ("omega_arm", "arm speed [rad/s]"),
+        ):
+            self.register_variable(
+                Real(
+                    name,
+                    causality=Fmi2Causality.output,
+                    variability=cont,
+                    initial=Fmi2Initial.calculated,
+                    description=text,
+                )
+            )
+        for name, text in (
+            ("inertia", "arm inertia about the joint axis [kg.m2]"),
+            ("mass", "arm mass [kg]"),
+            ("com_distance", "distance of the centre of mass from the axis [m]"),
+            ("g", "gravitational acceleration [m/s2]"),
+            ("link_stiffness", "static torsional stiffness of the link root [N.m/rad]"),
+            ("link_damping_ratio", "damping ratio of the arm on its link [1]"),
+        ):
+            self.register_variable(
+                Real(name, causality=Fmi2Causality.parameter, variability=par, description=text)
+            )
+        self.register_variable(
+            Integer(
+                "substeps",
+                causality=Fmi2Causality.parameter,
+                variability=par,
+                description="integration sub-steps per communication step",
+            )
+        )
 
     def exit_initialization_mode(self):
         try:
-            self._model = ArmModel(*(float(getattr(self, n)) for n in DEFAULTS),
-                                   substeps=int(self.substeps))
+            self._model = ArmModel(*(float(getattr(self, n)) for n in DEFAULTS), substeps=int(self.substeps))
             self._check_input()
             self._show(self._model.initialize(0.0, self.theta))
         except Exception as exc:  # noqa: BLE001 -- never raise into pythonfmu (fmi2Fatal)

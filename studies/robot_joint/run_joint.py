@@ -75,7 +75,7 @@ sys.path.insert(0, str(HERE))
 import arm as arm_module  # noqa: E402  (the Arm FMU's source: its default parameters)
 import servo_drive as servo_module  # noqa: E402
 
-from rvfmu.core.units import ARCSEC  # noqa: E402
+from rvfmu.core.base.units import ARCSEC  # noqa: E402
 
 # The reducer before its calibration to the catalogue (rvfmu/bench/catalogue.py): every figure of
 # README.md was measured on it.  The calibrated preset is softer in torsion (a series output
@@ -84,18 +84,17 @@ from rvfmu.core.units import ARCSEC  # noqa: E402
 DESIGN = "RV-40E-121-estimate"
 ERRORS_FILE = ROOT / "studies" / "seed002_errors.toml"
 OUTPUT = HERE / "output"
-POINTS = 3120            # TE map points per output revolution: 2 per pin-passing period (z_p * z_c = 1560)
-STEP = 1e-3              # s, communication step
-MOVE_DEG = 60.0          # arm move [deg]
-MOVE_TIME = 1.5          # s
-STOP_TIME = 2.0          # s: the move and a 0.5 s hold
-NO_ERRORS = 0.0          # error_scale of the reference run: the error-free reducer
+POINTS = 3120  # TE map points per output revolution: 2 per pin-passing period (z_p * z_c = 1560)
+STEP = 1e-3  # s, communication step
+MOVE_DEG = 60.0  # arm move [deg]
+MOVE_TIME = 1.5  # s
+STOP_TIME = 2.0  # s: the move and a 0.5 s hold
+NO_ERRORS = 0.0  # error_scale of the reference run: the error-free reducer
 # The runs: name -> (the reducer's error_scale, its model).
-RUNS = {"errors": (1.0, "quasistatic"), "no-errors": (NO_ERRORS, "quasistatic"),
-        "dynamic": (1.0, "dynamic")}
-REDUCER_MODELS = ("quasistatic", "dynamic")   # the reducer FMU's `model` values
+RUNS = {"errors": (1.0, "quasistatic"), "no-errors": (NO_ERRORS, "quasistatic"), "dynamic": (1.0, "dynamic")}
+REDUCER_MODELS = ("quasistatic", "dynamic")  # the reducer FMU's `model` values
 COUPLINGS = ("explicit", "iterated")
-DRIVE_TORQUES = ("reducer", "load")   # the drive's tau_in: the reducer's, or tau_load / i
+DRIVE_TORQUES = ("reducer", "load")  # the drive's tau_in: the reducer's, or tau_load / i
 # Iterated coupling: the tau_load residual [N m] at which a step is accepted.  1e-4 N m winds
 # the reducer up by 3e-10 rad (6e-5 arcsec) at its softest, K ~ 3e5 N m/rad.
 COUPLING_TOLERANCE = 1e-4
@@ -110,7 +109,7 @@ ARM = dict(arm_module.DEFAULTS, substeps=arm_module.DEFAULT_SUBSTEPS)
 def reference(t, move=math.radians(MOVE_DEG), duration=MOVE_TIME):  # noqa: B008 - a float, immutable
     """Arm reference [rad] at times t [s]: quintic 0 -> move over `duration`, then held."""
     s = np.clip(np.asarray(t, float) / duration, 0.0, 1.0)
-    return move * s ** 3 * (10.0 - 15.0 * s + 6.0 * s ** 2)
+    return move * s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
 
 
 # -- FMUs -------------------------------------------------------------------------------------
@@ -128,21 +127,26 @@ def build_fmus(output=OUTPUT, points=POINTS, log=print) -> dict:
     output.mkdir(parents=True, exist_ok=True)
     fmus = {}
     # the arm saves and restores its state: the iterated coupling steps it again from a saved point
-    for name, script, options in (("ServoDrive", HERE / "servo_drive.py", {}),
-                                  ("Arm", HERE / "arm.py", {"canGetAndSetFMUstate": True})):
+    for name, script, options in (
+        ("ServoDrive", HERE / "servo_drive.py", {}),
+        ("Arm", HERE / "arm.py", {"canGetAndSetFMUstate": True}),
+    ):
         fmu = output / f"{name}.fmu"
         if not fmu.is_file() or fmu.stat().st_mtime < script.stat().st_mtime:
             log(f"building {fmu.name}")
             FmuBuilder.build_FMU(script, dest=output, **options)
-            complete_model_description(fmu)   # initial unknowns, units, default experiment
+            complete_model_description(fmu)  # initial unknowns, units, default experiment
         fmus[name] = fmu
     reducer = output / f"RVReducer_{points}.fmu"
     package = ROOT / "rvfmu"
-    sources = ([ERRORS_FILE, package / "fmu" / "slave.py", package / "fmu" / "build.py"]
-               + list((package / "core").rglob("*.py")) + list((package / "core").rglob("*.toml")))
+    sources = (
+        [ERRORS_FILE, package / "fmu" / "slave.py", package / "fmu" / "build.py"]
+        + list((package / "core").rglob("*.py"))
+        + list((package / "core").rglob("*.toml"))
+    )
     if not reducer.is_file() or reducer.stat().st_mtime < _newest(sources):
-        from rvfmu.core.design import preset
-        from rvfmu.core.errors import load_errors
+        from rvfmu.core.reducer.design import preset
+        from rvfmu.core.reducer.errors import load_errors
         from rvfmu.fmu.build import build_fmu
 
         log(f"building {reducer.name} (TE map: {points} points per output revolution)")
@@ -163,8 +167,12 @@ class Slave:
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.types = {v.name: v.type for v in md.modelVariables}
         self.unzipped = extract(str(path))
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=self.unzipped,
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        self.fmu = FMU2Slave(
+            guid=md.guid,
+            unzipDirectory=self.unzipped,
+            modelIdentifier=md.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
         self.fmu.instantiate()
         for key, value in (parameters or {}).items():
             if self.types[key] == "Integer":
@@ -271,8 +279,10 @@ def step_iterated(reducer, arm, time, step, theta_in, guess, slope=None):
         evaluations = 1
         while abs(r0) > COUPLING_TOLERANCE:
             if evaluations >= COUPLING_EVALUATIONS:
-                raise RuntimeError(f"the reducer-arm coupling did not converge at t = {time:.4f} s: "
-                                   f"tau_load residual {r0:.3g} N m after {evaluations} reducer steps")
+                raise RuntimeError(
+                    f"the reducer-arm coupling did not converge at t = {time:.4f} s: "
+                    f"tau_load residual {r0:.3g} N m after {evaluations} reducer steps"
+                )
             # secant step; the fixed point x + r while no usable slope is known (the residual's
             # slope is the loop gain - 1, about -1 to -1.6 here: gain 0 to -0.6, so a fixed point
             # alone would converge too, more slowly)
@@ -288,9 +298,18 @@ def step_iterated(reducer, arm, time, step, theta_in, guess, slope=None):
             slave.free(state)
 
 
-def simulate(fmus, error_scale=1.0, points=POINTS, stop_time=STOP_TIME, step=STEP,
-             model="quasistatic", coupling="iterated", name=None, drive_torque="reducer",
-             dynamic_step=None) -> JointRun:
+def simulate(
+    fmus,
+    error_scale=1.0,
+    points=POINTS,
+    stop_time=STOP_TIME,
+    step=STEP,
+    model="quasistatic",
+    coupling="iterated",
+    name=None,
+    drive_torque="reducer",
+    dynamic_step=None,
+) -> JointRun:
     """Co-simulate servo -> reducer -> arm (Gauss-Seidel, fixed step) over [0, stop_time].
 
     model: the reducer FMU's `model`, "quasistatic" or "dynamic"; coupling of the
@@ -308,8 +327,7 @@ def simulate(fmus, error_scale=1.0, points=POINTS, stop_time=STOP_TIME, step=STE
     if coupling not in COUPLINGS:
         raise ValueError(f"coupling = {coupling!r}: must be one of {', '.join(COUPLINGS)}")
     if drive_torque not in DRIVE_TORQUES:
-        raise ValueError(f"drive_torque = {drive_torque!r}: must be one of "
-                         f"{', '.join(DRIVE_TORQUES)}")
+        raise ValueError(f"drive_torque = {drive_torque!r}: must be one of {', '.join(DRIVE_TORQUES)}")
     started = clock.perf_counter()
     ratio = SERVO["ratio"]
     reducer_parameters = {}
@@ -340,8 +358,14 @@ def simulate(fmus, error_scale=1.0, points=POINTS, stop_time=STOP_TIME, step=STE
         steps = int(round(stop_time / step))
         names = ("theta_motor", "tau_motor", "theta_out", "te_arcsec", "tau_load", "theta_arm")
         record = np.empty((steps + 1, len(names)))
-        record[0] = (servo.get("theta_motor"), servo.get("tau_motor"), reducer.get("theta_out"),
-                     reducer.get("te_arcsec"), arm.get("tau_load"), arm.get("theta_arm"))
+        record[0] = (
+            servo.get("theta_motor"),
+            servo.get("tau_motor"),
+            reducer.get("theta_out"),
+            reducer.get("te_arcsec"),
+            arm.get("tau_load"),
+            arm.get("theta_arm"),
+        )
         evaluations = np.ones(steps, dtype=int)
         times = step * np.arange(steps + 1)
         refs = reference(times)
@@ -360,20 +384,37 @@ def simulate(fmus, error_scale=1.0, points=POINTS, stop_time=STOP_TIME, step=STE
                 else:
                     # first guess: tau_load extrapolated linearly from the last two points
                     guess = 2.0 * record[k, 4] - record[max(k - 1, 0), 4]
-                    _, slope, evaluations[k] = step_iterated(reducer, arm, t, step,
-                                                             servo.get("theta_motor"), guess, slope)
+                    _, slope, evaluations[k] = step_iterated(
+                        reducer, arm, t, step, servo.get("theta_motor"), guess, slope
+                    )
             except Exception as exc:  # an FMU refused its step (fmpy raises on fmi2Discard)
-                raise RuntimeError(f"{name or model} run ({model} reducer, {coupling} coupling) "
-                                   f"failed in the step from t = {t:.4f} s; last tau_load "
-                                   f"{record[k, 4]:.1f} N m: {exc}") from exc
-            record[k + 1] = (servo.get("theta_motor"), servo.get("tau_motor"),
-                             reducer.get("theta_out"), reducer.get("te_arcsec"),
-                             arm.get("tau_load"), arm.get("theta_arm"))
+                raise RuntimeError(
+                    f"{name or model} run ({model} reducer, {coupling} coupling) "
+                    f"failed in the step from t = {t:.4f} s; last tau_load "
+                    f"{record[k, 4]:.1f} N m: {exc}"
+                ) from exc
+            record[k + 1] = (
+                servo.get("theta_motor"),
+                servo.get("tau_motor"),
+                reducer.get("theta_out"),
+                reducer.get("te_arcsec"),
+                arm.get("tau_load"),
+                arm.get("theta_arm"),
+            )
     finally:
         for slave in (servo, reducer, arm):
             slave.close()
-    return JointRun(name or model, error_scale, model, coupling, times, refs, *record.T, evaluations,
-                    clock.perf_counter() - started)
+    return JointRun(
+        name or model,
+        error_scale,
+        model,
+        coupling,
+        times,
+        refs,
+        *record.T,
+        evaluations,
+        clock.perf_counter() - started,
+    )
 
 
 # -- report ------------------------------------------------------------------------------------
@@ -391,7 +432,8 @@ def summary(runs: dict) -> dict:
     peak and rms over the move, t <= MOVE_TIME) when both runs are there; the
     peaks of the servo error and the motor torque over all runs.
     """
-    def during(run):   # the samples of the move, t <= MOVE_TIME
+
+    def during(run):  # the samples of the move, t <= MOVE_TIME
         return run.time <= MOVE_TIME + 1e-9
 
     out = {"runs": {}}
@@ -409,8 +451,7 @@ def summary(runs: dict) -> dict:
         }
     if "errors" in runs and "no-errors" in runs:
         caused = runs["errors"].arm_error_arcsec - runs["no-errors"].arm_error_arcsec
-        out["te_caused"] = {"peak_arcsec": float(np.max(np.abs(caused))),
-                            "pp_arcsec": float(np.ptp(caused))}
+        out["te_caused"] = {"peak_arcsec": float(np.max(np.abs(caused))), "pp_arcsec": float(np.ptp(caused))}
     if "errors" in runs and "dynamic" in runs:
         quasi, dynamic = runs["errors"], runs["dynamic"]
         caused = dynamic.arm_error_arcsec - quasi.arm_error_arcsec
@@ -431,9 +472,11 @@ def summary(runs: dict) -> dict:
     return out
 
 
-STYLES = {"errors": dict(color="C3", label="quasi-static, seed 002 errors"),
-          "no-errors": dict(color="C0", label="quasi-static, without errors (error_scale 0)"),
-          "dynamic": dict(color="C1", label="dynamic, seed 002 errors")}
+STYLES = {
+    "errors": dict(color="C3", label="quasi-static, seed 002 errors"),
+    "no-errors": dict(color="C0", label="quasi-static, without errors (error_scale 0)"),
+    "dynamic": dict(color="C1", label="dynamic, seed 002 errors"),
+}
 
 
 def plot(runs: dict, path, points=POINTS) -> Path:
@@ -449,37 +492,73 @@ def plot(runs: dict, path, points=POINTS) -> Path:
     for name, run in runs.items():
         ax.plot(run.time, run.arm_error_arcsec, lw=1, **STYLES[name])
     first = next(iter(runs.values()))
-    ax.plot(first.time, first.servo_error_arcsec, color="0.4", lw=0.8, ls="--",
-            label=f"servo error (motor angle / i - reference), {first.name}")
+    ax.plot(
+        first.time,
+        first.servo_error_arcsec,
+        color="0.4",
+        lw=0.8,
+        ls="--",
+        label=f"servo error (motor angle / i - reference), {first.name}",
+    )
     ax.set_ylabel("arm angle - reference [arcsec]")
-    ax.set_title(f"{DESIGN} robot joint: arm 0 -> {MOVE_DEG:g} deg in {MOVE_TIME:g} s (quintic), "
-                 f"then hold", fontsize=10)
+    ax.set_title(
+        f"{DESIGN} robot joint: arm 0 -> {MOVE_DEG:g} deg in {MOVE_TIME:g} s (quintic), then hold",
+        fontsize=10,
+    )
     ax.legend(fontsize=8, loc="lower right")
     ax = axes[1]
     if "errors" in runs and "no-errors" in runs:
         a, b = runs["errors"], runs["no-errors"]
-        ax.plot(a.time, a.arm_error_arcsec - b.arm_error_arcsec, color="C2", lw=1,
-                label="caused by TE: errors - no-errors (quasi-static)")
-        ax.plot(a.time, a.te_arcsec - b.te_arcsec, color="k", lw=0.8, ls=":",
-                label="difference of the reducer TE (quasi-static, at the flange)")
+        ax.plot(
+            a.time,
+            a.arm_error_arcsec - b.arm_error_arcsec,
+            color="C2",
+            lw=1,
+            label="caused by TE: errors - no-errors (quasi-static)",
+        )
+        ax.plot(
+            a.time,
+            a.te_arcsec - b.te_arcsec,
+            color="k",
+            lw=0.8,
+            ls=":",
+            label="difference of the reducer TE (quasi-static, at the flange)",
+        )
     if "errors" in runs and "dynamic" in runs:
         a, b = runs["dynamic"], runs["errors"]
-        ax.plot(a.time, a.arm_error_arcsec - b.arm_error_arcsec, color="C1", lw=1,
-                label="from the reducer's dynamics: dynamic - quasi-static (both with errors)")
+        ax.plot(
+            a.time,
+            a.arm_error_arcsec - b.arm_error_arcsec,
+            color="C1",
+            lw=1,
+            label="from the reducer's dynamics: dynamic - quasi-static (both with errors)",
+        )
     ax.set_ylabel("arm error difference [arcsec]")
     ax.legend(fontsize=8, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, frameon=False)
     ax = axes[2]
-    for name, run in runs.items():   # the dynamic TE carries kHz ringing: thinner, drawn first
-        ax.plot(run.time, run.te_arcsec, lw=0.6 if run.model == "dynamic" else 1,
-                zorder=1 if run.model == "dynamic" else 2, **STYLES[name])
+    for name, run in runs.items():  # the dynamic TE carries kHz ringing: thinner, drawn first
+        ax.plot(
+            run.time,
+            run.te_arcsec,
+            lw=0.6 if run.model == "dynamic" else 1,
+            zorder=1 if run.model == "dynamic" else 2,
+            **STYLES[name],
+        )
     ax.set_ylabel("reducer TE [arcsec]")
-    ax.set_title(f"TE map: {points} points per output revolution "
-                 f"({points / 1560:g} per pin-passing period)", fontsize=9)
+    ax.set_title(
+        f"TE map: {points} points per output revolution ({points / 1560:g} per pin-passing period)",
+        fontsize=9,
+    )
     ax.legend(fontsize=8, loc="lower right")
     ax = axes[3]
     for name, run in runs.items():
-        ax.plot(run.time, run.tau_motor, lw=0.6 if run.model == "dynamic" else 1,
-                zorder=1 if run.model == "dynamic" else 2, **STYLES[name])
+        ax.plot(
+            run.time,
+            run.tau_motor,
+            lw=0.6 if run.model == "dynamic" else 1,
+            zorder=1 if run.model == "dynamic" else 2,
+            **STYLES[name],
+        )
     ax.set_ylabel("motor torque [N m]")
     ax.set_title(f"motor torque limit \u00b1{SERVO['torque_limit']:g} N m (off this scale)", fontsize=9)
     ax.set_xlabel("time [s]")
@@ -493,8 +572,17 @@ def plot(runs: dict, path, points=POINTS) -> Path:
     return path
 
 
-def run_joint(output=OUTPUT, points=POINTS, stop_time=STOP_TIME, step=STEP, runs=tuple(RUNS),
-              coupling="iterated", drive_torque="reducer", dynamic_step=None, log=print):
+def run_joint(
+    output=OUTPUT,
+    points=POINTS,
+    stop_time=STOP_TIME,
+    step=STEP,
+    runs=tuple(RUNS),
+    coupling="iterated",
+    drive_torque="reducer",
+    dynamic_step=None,
+    log=print,
+):
     """Build (or reuse) the FMUs, do the runs named (keys of RUNS, done in RUNS' order), plot;
     returns (runs: name -> JointRun, summary, png).  coupling, drive_torque, dynamic_step:
     as `simulate` takes them, the same for every run."""
@@ -506,16 +594,27 @@ def run_joint(output=OUTPUT, points=POINTS, stop_time=STOP_TIME, step=STEP, runs
     done = {}
     for name in (name for name in RUNS if name in runs):
         scale, model = RUNS[name]
-        log(f"co-simulating {stop_time:g} s at {step * 1e3:g} ms: {name} (model {model}, "
+        log(
+            f"co-simulating {stop_time:g} s at {step * 1e3:g} ms: {name} (model {model}, "
             f"error_scale {scale:g}, {coupling} coupling)"
-            + (" (the reducer solves its TE map again at initialisation)"
-               if scale != 1.0 and model == "quasistatic" else ""))
-        done[name] = simulate(fmus, scale, points, stop_time, step, model, coupling, name,
-                              drive_torque, dynamic_step)
+            + (
+                " (the reducer solves its TE map again at initialisation)"
+                if scale != 1.0 and model == "quasistatic"
+                else ""
+            )
+        )
+        done[name] = simulate(
+            fmus, scale, points, stop_time, step, model, coupling, name, drive_torque, dynamic_step
+        )
     png = plot(done, Path(output) / "robot_joint.png", points)
     result = summary(done)
-    result["options"] = {"points": points, "step_s": step, "coupling": coupling,
-                         "drive_torque": drive_torque, "dynamic_step_s": dynamic_step}
+    result["options"] = {
+        "points": points,
+        "step_s": step,
+        "coupling": coupling,
+        "drive_torque": drive_torque,
+        "dynamic_step_s": dynamic_step,
+    }
     result["wall_time_s"] = clock.perf_counter() - started
     return done, result, png
 
@@ -524,61 +623,95 @@ def report(s) -> str:
     """The summary of `run_joint` as printed: a table of the runs, then the differences."""
     o = s["options"]
     drive = "reducer.tau_in" if o["drive_torque"] == "reducer" else "arm.tau_load / i"
-    lines = [f"{DESIGN} joint, {MOVE_DEG:g} deg move in {MOVE_TIME:g} s, "
-             f"{o['step_s'] * 1e3:g} ms steps, TE map {o['points']} points/rev",
-             f"reducer and arm coupled {o['coupling']}; drive torque input {drive}"
-             + ("" if o["dynamic_step_s"] is None else f"; dynamic_step {o['dynamic_step_s']:g} s"),
-             "  run        reducer       arm error [arcsec]   TE p-p    servo error  motor torque"
-             "  motor work  reducer steps  wall",
-             f"                           peak  at t = {s['end_time_s']:<4g} s  [arcsec]  peak [arcsec]"
-             "  peak [N m]         [J]     per step    [s]"]
+    lines = [
+        f"{DESIGN} joint, {MOVE_DEG:g} deg move in {MOVE_TIME:g} s, "
+        f"{o['step_s'] * 1e3:g} ms steps, TE map {o['points']} points/rev",
+        f"reducer and arm coupled {o['coupling']}; drive torque input {drive}"
+        + ("" if o["dynamic_step_s"] is None else f"; dynamic_step {o['dynamic_step_s']:g} s"),
+        "  run        reducer       arm error [arcsec]   TE p-p    servo error  motor torque"
+        "  motor work  reducer steps  wall",
+        f"                           peak  at t = {s['end_time_s']:<4g} s  [arcsec]  peak [arcsec]"
+        "  peak [N m]         [J]     per step    [s]",
+    ]
     for name, r in s["runs"].items():
-        lines.append(f"  {name:<10} {r['model']:<12} {r['peak_arm_error_arcsec']:6.1f} "
-                     f"{r['final_arm_error_arcsec']:+11.1f}  {r['te_pp_arcsec']:10.1f} "
-                     f"{r['peak_servo_error_arcsec']:11.1f} {r['peak_motor_torque_Nm']:12.2f} "
-                     f"{r['motor_work_J']:11.2f} {r['reducer_steps_per_step']:12.2f} "
-                     f"{r['wall_time_s']:7.1f}")
+        lines.append(
+            f"  {name:<10} {r['model']:<12} {r['peak_arm_error_arcsec']:6.1f} "
+            f"{r['final_arm_error_arcsec']:+11.1f}  {r['te_pp_arcsec']:10.1f} "
+            f"{r['peak_servo_error_arcsec']:11.1f} {r['peak_motor_torque_Nm']:12.2f} "
+            f"{r['motor_work_J']:11.2f} {r['reducer_steps_per_step']:12.2f} "
+            f"{r['wall_time_s']:7.1f}"
+        )
     if "te_caused" in s:
         c = s["te_caused"]
-        lines.append(f"  arm error caused by TE (errors - no-errors): peak {c['peak_arcsec']:.1f} "
-                     f"arcsec (peak-to-peak {c['pp_arcsec']:.1f})")
+        lines.append(
+            f"  arm error caused by TE (errors - no-errors): peak {c['peak_arcsec']:.1f} "
+            f"arcsec (peak-to-peak {c['pp_arcsec']:.1f})"
+        )
     if "dynamics_caused" in s:
         c = s["dynamics_caused"]
-        lines.append(f"  arm error from the reducer's dynamics (dynamic - errors): peak "
-                     f"{c['peak_arcsec']:.1f} arcsec during the move (rms {c['rms_arcsec']:.1f}), "
-                     f"at t = {s['end_time_s']:g} s {c['final_arcsec']:+.2f}")
-        lines.append(f"  reducer TE, dynamic - quasi-static: peak "
-                     f"{c['peak_te_difference_arcsec']:.1f} arcsec, "
-                     f"at t = {s['end_time_s']:g} s {c['final_te_difference_arcsec']:+.2f}")
-    lines.append(f"  servo error at the end {s['final_servo_error_arcsec']:.2f} arcsec; "
-                 f"motor torque limit {s['torque_limit_Nm']:g} N m")
+        lines.append(
+            f"  arm error from the reducer's dynamics (dynamic - errors): peak "
+            f"{c['peak_arcsec']:.1f} arcsec during the move (rms {c['rms_arcsec']:.1f}), "
+            f"at t = {s['end_time_s']:g} s {c['final_arcsec']:+.2f}"
+        )
+        lines.append(
+            f"  reducer TE, dynamic - quasi-static: peak "
+            f"{c['peak_te_difference_arcsec']:.1f} arcsec, "
+            f"at t = {s['end_time_s']:g} s {c['final_te_difference_arcsec']:+.2f}"
+        )
+    lines.append(
+        f"  servo error at the end {s['final_servo_error_arcsec']:.2f} arcsec; "
+        f"motor torque limit {s['torque_limit_Nm']:g} N m"
+    )
     return "\n".join(lines)
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--points", type=int, default=POINTS,
-                        help="TE map points per output revolution (default %(default)s)")
+    parser.add_argument(
+        "--points", type=int, default=POINTS, help="TE map points per output revolution (default %(default)s)"
+    )
     parser.add_argument("--stop-time", type=float, default=STOP_TIME, help="s (default %(default)s)")
-    parser.add_argument("--step", type=float, default=STEP,
-                        help="communication step [s] (default %(default)s); the drive and the arm "
-                             "keep 20 sub-steps per step")
+    parser.add_argument(
+        "--step",
+        type=float,
+        default=STEP,
+        help="communication step [s] (default %(default)s); the drive and the arm keep 20 sub-steps per step",
+    )
     parser.add_argument("--output", type=Path, default=OUTPUT, help="folder of the FMUs and the figure")
-    parser.add_argument("--runs", nargs="+", choices=tuple(RUNS), default=tuple(RUNS),
-                        help="which runs to do (default: all)")
-    parser.add_argument("--coupling", choices=COUPLINGS, default="iterated",
-                        help="of the reducer and the arm (default %(default)s; explicit diverges "
-                             "with the dynamic reducer, README.md says why)")
-    parser.add_argument("--drive-torque", choices=DRIVE_TORQUES, default="reducer",
-                        help="the drive's input torque: the reducer's tau_in (default) or the arm's "
-                             "tau_load / i")
-    parser.add_argument("--dynamic-step", type=float, default=None,
-                        help="the dynamic reducer's largest internal step [s] "
-                             "(default: the FMU's, 1e-4)")
+    parser.add_argument(
+        "--runs", nargs="+", choices=tuple(RUNS), default=tuple(RUNS), help="which runs to do (default: all)"
+    )
+    parser.add_argument(
+        "--coupling",
+        choices=COUPLINGS,
+        default="iterated",
+        help="of the reducer and the arm (default %(default)s; explicit diverges "
+        "with the dynamic reducer, README.md says why)",
+    )
+    parser.add_argument(
+        "--drive-torque",
+        choices=DRIVE_TORQUES,
+        default="reducer",
+        help="the drive's input torque: the reducer's tau_in (default) or the arm's tau_load / i",
+    )
+    parser.add_argument(
+        "--dynamic-step",
+        type=float,
+        default=None,
+        help="the dynamic reducer's largest internal step [s] (default: the FMU's, 1e-4)",
+    )
     args = parser.parse_args(argv)
-    _, s, png = run_joint(args.output, args.points, args.stop_time, args.step, runs=args.runs,
-                          coupling=args.coupling, drive_torque=args.drive_torque,
-                          dynamic_step=args.dynamic_step)
+    _, s, png = run_joint(
+        args.output,
+        args.points,
+        args.stop_time,
+        args.step,
+        runs=args.runs,
+        coupling=args.coupling,
+        drive_torque=args.drive_torque,
+        dynamic_step=args.dynamic_step,
+    )
     print()
     print(report(s))
     print(f"  wall time {s['wall_time_s']:.1f} s; figure {png}")

@@ -35,17 +35,17 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 # Defaults: a ~1 kW AC servo motor on an RV-40E-121 joint (see README.md).
 DEFAULTS = {
-    "ratio": 121.0,                   # reducer ratio i (RV-40E-121)
-    "motor_inertia": 1.5e-4,          # kg m^2: rotor plus the reducer's input shaft
-    "viscous_friction": 1.0e-4,       # N m s/rad: bearing and seal drag, ~0.03 N m at 3000 rpm
-    "torque_limit": 9.5,              # N m: peak torque of a 1 kW, 3.2 N m rated motor
-    "position_gain": 150.0,           # 1/s: position loop, a quarter of the velocity loop bandwidth
-    "velocity_gain": 0.15,            # N m s/rad: velocity loop crossover kv / (J_m + J_arm / i^2)
-                                      # = 0.15 / 2.5e-4 = 600 rad/s (95 Hz) with the 1.5 kg m^2 arm
+    "ratio": 121.0,  # reducer ratio i (RV-40E-121)
+    "motor_inertia": 1.5e-4,  # kg m^2: rotor plus the reducer's input shaft
+    "viscous_friction": 1.0e-4,  # N m s/rad: bearing and seal drag, ~0.03 N m at 3000 rpm
+    "torque_limit": 9.5,  # N m: peak torque of a 1 kW, 3.2 N m rated motor
+    "position_gain": 150.0,  # 1/s: position loop, a quarter of the velocity loop bandwidth
+    "velocity_gain": 0.15,  # N m s/rad: velocity loop crossover kv / (J_m + J_arm / i^2)
+    # = 0.15 / 2.5e-4 = 600 rad/s (95 Hz) with the 1.5 kg m^2 arm
     "velocity_integral_time": 0.008,  # s: PI zero at 125 rad/s, well below the crossover
-    "velocity_feedforward": 1.0,      # fraction of the setpoint rate fed to the velocity loop
+    "velocity_feedforward": 1.0,  # fraction of the setpoint rate fed to the velocity loop
 }
-DEFAULT_SUBSTEPS = 20                  # sub-steps per communication step: 50 us at a 1 ms step
+DEFAULT_SUBSTEPS = 20  # sub-steps per communication step: 50 us at a 1 ms step
 
 
 class ServoDriveModel:
@@ -55,11 +55,26 @@ class ServoDriveModel:
     is on the arm side (rad) and is multiplied by `ratio` here.
     """
 
-    def __init__(self, ratio, motor_inertia, viscous_friction, torque_limit, position_gain,
-                 velocity_gain, velocity_integral_time, velocity_feedforward, substeps):
-        positive = {"ratio": ratio, "motor_inertia": motor_inertia, "torque_limit": torque_limit,
-                    "position_gain": position_gain, "velocity_gain": velocity_gain,
-                    "velocity_integral_time": velocity_integral_time}
+    def __init__(
+        self,
+        ratio,
+        motor_inertia,
+        viscous_friction,
+        torque_limit,
+        position_gain,
+        velocity_gain,
+        velocity_integral_time,
+        velocity_feedforward,
+        substeps,
+    ):
+        positive = {
+            "ratio": ratio,
+            "motor_inertia": motor_inertia,
+            "torque_limit": torque_limit,
+            "position_gain": position_gain,
+            "velocity_gain": velocity_gain,
+            "velocity_integral_time": velocity_integral_time,
+        }
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} = {value}: must be a finite number > 0")
@@ -70,8 +85,12 @@ class ServoDriveModel:
         if not (isinstance(substeps, int) and 1 <= substeps <= 10000):
             raise ValueError(f"substeps = {substeps}: must be an integer in [1, 10000]")
         self.i, self.J, self.b, self.limit = ratio, motor_inertia, viscous_friction, torque_limit
-        self.kp, self.kv, self.ti, self.kff = (position_gain, velocity_gain, velocity_integral_time,
-                                               velocity_feedforward)
+        self.kp, self.kv, self.ti, self.kff = (
+            position_gain,
+            velocity_gain,
+            velocity_integral_time,
+            velocity_feedforward,
+        )
         self.substeps = substeps
         self.state = {}
 
@@ -79,8 +98,16 @@ class ServoDriveModel:
         """Start at rest on the reference, holding the load: the velocity integral is preset
         to the torque that balances `tau_in`, so the run starts in static equilibrium."""
         holding = min(max(-tau_in, -self.limit), self.limit)
-        self.state = {"time": time, "theta": self.i * theta_ref, "omega": 0.0, "integral": holding,
-                      "tau": holding, "ref": theta_ref, "ref_time": time, "ref_rate": 0.0}
+        self.state = {
+            "time": time,
+            "theta": self.i * theta_ref,
+            "omega": 0.0,
+            "integral": holding,
+            "tau": holding,
+            "ref": theta_ref,
+            "ref_time": time,
+            "ref_rate": 0.0,
+        }
         return self.outputs()
 
     def step(self, time, step_size, theta_ref, tau_in):
@@ -116,10 +143,11 @@ class ServoDriveModel:
 
 
 class ServoDrive(Fmi2Slave):
-
     author = "rvte"
-    description = ("Robot-joint servo drive: motor inertia, viscous friction, torque limit and a "
-                   "cascaded P position / PI velocity controller on the motor encoder")
+    description = (
+        "Robot-joint servo drive: motor inertia, viscous friction, torque limit and a "
+        "cascaded P position / PI velocity controller on the motor encoder"
+    )
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -135,33 +163,57 @@ class ServoDrive(Fmi2Slave):
         self._failed = None
 
         cont, par = Fmi2Variability.continuous, Fmi2Variability.fixed
-        for name, text in (("theta_ref", "arm position reference [rad]; the motor reference is ratio times it"),
-                           ("tau_in", "torque of the reducer on the motor shaft [N.m], "
-                                      "negative when it resists positive rotation")):
-            self.register_variable(Real(name, causality=Fmi2Causality.input, variability=cont,
-                                        description=text))
-        for name, text in (("theta_motor", "motor (encoder) angle [rad]"),
-                           ("omega_motor", "motor speed [rad/s]"),
-                           ("tau_motor", "motor torque of the last sub-step [N.m], within +-torque_limit")):
-            self.register_variable(Real(name, causality=Fmi2Causality.output, variability=cont,
-                                        initial=Fmi2Initial.calculated, description=text))
-        for name, text in (("ratio", "reducer ratio i [1]"),
-                           ("motor_inertia", "rotor inertia plus reducer input shaft [kg.m2]"),
-                           ("viscous_friction", "viscous friction on the motor shaft [N.m.s/rad]"),
-                           ("torque_limit", "peak motor torque [N.m]"),
-                           ("position_gain", "position loop gain [1/s]"),
-                           ("velocity_gain", "velocity loop proportional gain [N.m.s/rad]"),
-                           ("velocity_integral_time", "velocity loop integral time [s]"),
-                           ("velocity_feedforward", "fraction of the setpoint rate fed forward [1]")):
-            self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=par,
-                                        description=text))
-        self.register_variable(Integer("substeps", causality=Fmi2Causality.parameter, variability=par,
-                                       description="integration and control sub-steps per communication step"))
+        for name, text in (
+            ("theta_ref", "arm position reference [rad]; the motor reference is ratio times it"),
+            (
+                "tau_in",
+                "torque of the reducer on the motor shaft [N.m], negative when it resists positive rotation",
+            ),
+        ):
+            self.register_variable(
+                Real(name, causality=Fmi2Causality.input, variability=cont, description=text)
+            )
+        for name, text in (
+            ("theta_motor", "motor (encoder) angle [rad]"),
+            ("omega_motor", "motor speed [rad/s]"),
+            ("tau_motor", "motor torque of the last sub-step [N.m], within +-torque_limit"),
+        ):
+            self.register_variable(
+                Real(
+                    name,
+                    causality=Fmi2Causality.output,
+                    variability=cont,
+                    initial=Fmi2Initial.calculated,
+                    description=text,
+                )
+            )
+        for name, text in (
+            ("ratio", "reducer ratio i [1]"),
+            ("motor_inertia", "rotor inertia plus reducer input shaft [kg.m2]"),
+            ("viscous_friction", "viscous friction on the motor shaft [N.m.s/rad]"),
+            ("torque_limit", "peak motor torque [N.m]"),
+            ("position_gain", "position loop gain [1/s]"),
+            ("velocity_gain", "velocity loop proportional gain [N.m.s/rad]"),
+            ("velocity_integral_time", "velocity loop integral time [s]"),
+            ("velocity_feedforward", "fraction of the setpoint rate fed forward [1]"),
+        ):
+            self.register_variable(
+                Real(name, causality=Fmi2Causality.parameter, variability=par, description=text)
+            )
+        self.register_variable(
+            Integer(
+                "substeps",
+                causality=Fmi2Causality.parameter,
+                variability=par,
+                description="integration and control sub-steps per communication step",
+            )
+        )
 
     def exit_initialization_mode(self):
         try:
-            self._model = ServoDriveModel(*(float(getattr(self, n)) for n in DEFAULTS),
-                                          substeps=int(self.substeps))
+            self._model = ServoDriveModel(
+                *(float(getattr(self, n)) for n in DEFAULTS), substeps=int(self.substeps)
+            )
             self._check_inputs()
             self._show(self._model.initialize(0.0, self.theta_ref, self.tau_in))
         except Exception as exc:  # noqa: BLE001 -- never raise into pythonfmu (fmi2Fatal)

@@ -23,7 +23,6 @@ from pathlib import Path
 
 from compare_points import STUDIES, Job, side_by_side, variant
 
-
 WINDUP_ONLY = '["lost_motion", "torsional_rigidity"]'
 
 
@@ -32,21 +31,25 @@ def compare(study, n: int, processes: int, windup_only: bool = False) -> str:
         study = variant(study, "windup", metrics=WINDUP_ONLY, te_pp_arcsec=None)
     calibrated = Job(study, n, processes)
     estimate = Job(variant(study, "estimate", design='"RV-40E-121-estimate"'), n, processes)
-    lines = [f"### {study.name}: N = {n} ({estimate.X.shape[0]} reducers, the same rows on both "
-             "designs)", ""]
+    lines = [f"### {study.name}: N = {n} ({estimate.X.shape[0]} reducers, the same rows on both designs)", ""]
     lines += side_by_side(estimate, calibrated, "estimate", "calibrated", windup=True)
     return "\n".join(lines)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("studies", nargs="*", type=Path,
-                        default=[STUDIES / "rv40e_121_full_rated.toml", STUDIES / "rv40e_121_full.toml"],
-                        help="study files (default: both of this folder)")
+    parser.add_argument(
+        "studies",
+        nargs="*",
+        type=Path,
+        default=[STUDIES / "rv40e_121_full_rated.toml", STUDIES / "rv40e_121_full.toml"],
+        help="study files (default: both of this folder)",
+    )
     parser.add_argument("-n", type=int, default=1024, help="Sobol base samples (a power of 2)")
     parser.add_argument("--processes", type=int, default=2)
-    parser.add_argument("--windup-only", action="store_true",
-                        help="lost motion and torsional rigidity alone (no TE curve)")
+    parser.add_argument(
+        "--windup-only", action="store_true", help="lost motion and torsional rigidity alone (no TE curve)"
+    )
     args = parser.parse_args(argv)
     for study in args.studies:
         print(compare(study, args.n, args.processes, args.windup_only), flush=True)

@@ -57,12 +57,23 @@ class Job:
         self.study = load_study(path)
         problem = self.study.problem()
         self.X = sobol.sample(problem, n, False, seed=self.study.seed)
-        self.Y = compute(self.study, sobol_job(n, False), self.X.shape[0],
-                         lambda s, e: self.X[s:e], make_backend(processes),
-                         prefix_jobs=other_sobol_jobs(problem, n, False)).Y
-        self.analyses = sobol.analyze(problem, self.Y, self.study.metric_columns, False,
-                                      self.study.resamples, self.study.sobol_confidence,
-                                      self.study.seed)
+        self.Y = compute(
+            self.study,
+            sobol_job(n, False),
+            self.X.shape[0],
+            lambda s, e: self.X[s:e],
+            make_backend(processes),
+            prefix_jobs=other_sobol_jobs(problem, n, False),
+        ).Y
+        self.analyses = sobol.analyze(
+            problem,
+            self.Y,
+            self.study.metric_columns,
+            False,
+            self.study.resamples,
+            self.study.sobol_confidence,
+            self.study.seed,
+        )
 
 
 def side_by_side(a: Job, b: Job, label_a: str, label_b: str, windup: bool) -> list:
@@ -73,20 +84,26 @@ def side_by_side(a: Job, b: Job, label_a: str, label_b: str, windup: bool) -> li
         if not windup and not column.startswith("te_"):
             continue
         ya, yb = a.Y[:, j], b.Y[:, j]
-        lines.append(f"`{column}`: {label_a} / {label_b}: mean ratio {np.mean(ya / yb):.3f}, "
-                     f"correlation {np.corrcoef(ya, yb)[0, 1]:.4f}, largest difference "
-                     f"{np.max(np.abs(ya - yb)):.2f} (mean {yb.mean():.1f} {label_b})")
+        lines.append(
+            f"`{column}`: {label_a} / {label_b}: mean ratio {np.mean(ya / yb):.3f}, "
+            f"correlation {np.corrcoef(ya, yb)[0, 1]:.4f}, largest difference "
+            f"{np.max(np.abs(ya - yb)):.2f} (mean {yb.mean():.1f} {label_b})"
+        )
         lines.append("")
         ia, ib = a.analyses[column].indices, b.analyses[column].indices
         ra, rb = np.argsort(np.argsort(-ia.ST_reported)), np.argsort(np.argsort(-ib.ST_reported))
         lines.append(f"| factor | ST {label_a} | ST {label_b} | rank {label_a} | rank {label_b} |")
         lines.append("|---|---|---|---|---|")
         for g in np.argsort(-ib.ST_reported):
-            lines.append(f"| `{ia.names[g]}` | {ia.ST_reported[g]:.3f} ± {ia.ST_conf[g]:.3f} | "
-                         f"{ib.ST_reported[g]:.3f} ± {ib.ST_conf[g]:.3f} | {ra[g] + 1} | {rb[g] + 1} |")
+            lines.append(
+                f"| `{ia.names[g]}` | {ia.ST_reported[g]:.3f} ± {ia.ST_conf[g]:.3f} | "
+                f"{ib.ST_reported[g]:.3f} ± {ib.ST_conf[g]:.3f} | {ra[g] + 1} | {rb[g] + 1} |"
+            )
         lines.append("")
-        lines.append(f"largest |ST({label_a}) - ST({label_b})| over the factors: "
-                     f"{np.max(np.abs(ia.ST_reported - ib.ST_reported)):.3f}")
+        lines.append(
+            f"largest |ST({label_a}) - ST({label_b})| over the factors: "
+            f"{np.max(np.abs(ia.ST_reported - ib.ST_reported)):.3f}"
+        )
         lines.append("")
     return lines
 
@@ -95,8 +112,10 @@ def compare(study: Path, n: int, processes: int) -> str:
     coarse = Job(study, n, processes)
     fine = Job(fine_copy(study), n, processes)
     assert np.array_equal(coarse.X, fine.X)
-    lines = [f"### {study.name}: n = {n} ({coarse.X.shape[0]} reducers, the same rows at both "
-             "resolutions)", ""]
+    lines = [
+        f"### {study.name}: n = {n} ({coarse.X.shape[0]} reducers, the same rows at both resolutions)",
+        "",
+    ]
     lines += side_by_side(coarse, fine, f"at {coarse.study.points}", f"at {FINE}", windup=False)
     return "\n".join(lines)
 
@@ -108,7 +127,7 @@ def main(argv=None) -> int:
     parser.add_argument("--processes", type=int, default=2)
     args = parser.parse_args(argv)
     for name, n in (("rv40e_121_full.toml", args.n_no_load), ("rv40e_121_full_rated.toml", args.n_rated)):
-        if n > 0:   # 0 leaves that file out
+        if n > 0:  # 0 leaves that file out
             print(compare(STUDIES / name, n, args.processes))
     return 0
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import norm
 
-from rvfmu.core.checks import InputError
+from rvfmu.core.base.checks import InputError
 from tolerance import load_study
 from tolerance.frames import load_results
 
@@ -49,13 +49,12 @@ def main() -> None:
         frame = load_results(study.output, f"sobol-n{args.n}")
     except InputError as exc:
         raise SystemExit(f"error: {exc}") from None
-    groups = list(dict.fromkeys(study.problem()["groups"]))     # SALib's order of the AB_i
+    groups = list(dict.fromkeys(study.problem()["groups"]))  # SALib's order of the AB_i
     y = frame[args.metric].to_numpy()
     G = len(groups)
     if y.size != args.n * (G + 2):
-        raise SystemExit(f"sobol-n{args.n} holds {y.size} rows, not {args.n * (G + 2)}: "
-                         "finish the run first")
-    Y = ((y - y.mean()) / y.std()).reshape(args.n, G + 2)     # rows: A, AB_1 .. AB_G, B
+        raise SystemExit(f"sobol-n{args.n} holds {y.size} rows, not {args.n * (G + 2)}: finish the run first")
+    Y = ((y - y.mean()) / y.std()).reshape(args.n, G + 2)  # rows: A, AB_1 .. AB_G, B
     A, AB, B = Y[:, 0], Y[:, 1:-1], Y[:, -1]
     estimate = total_order(A, B, AB)
     rng = np.random.default_rng(0)
@@ -65,19 +64,22 @@ def main() -> None:
         boots[r] = total_order(A[rows], B[rows], AB[rows])
     z = norm.ppf(0.5 + args.confidence / 2)
     order = np.argsort(-estimate)
-    print(f"{study.name}, {args.metric}, N = {args.n}: ST with {100 * args.confidence:g} % "
-          f"intervals ({args.resamples} resamples)")
+    print(
+        f"{study.name}, {args.metric}, N = {args.n}: ST with {100 * args.confidence:g} % "
+        f"intervals ({args.resamples} resamples)"
+    )
     for rank, g in enumerate(order, 1):
         print(f"  {rank:2d}  {groups[g]:<26} {estimate[g]:.3f} ± {z * boots[:, g].std():.3f}")
-    print("neighbouring ranks: ST difference, its interval's half-width, resamples that keep "
-          "the order")
+    print("neighbouring ranks: ST difference, its interval's half-width, resamples that keep the order")
     for upper, lower in zip(order[:-1], order[1:]):
         spread = boots[:, upper] - boots[:, lower]
         difference = estimate[upper] - estimate[lower]
         half = z * spread.std()
         verdict = "settled" if difference > half else "not settled"
-        print(f"  {groups[upper]:<26} > {groups[lower]:<26} {difference:+.3f} ± {half:.3f}  "
-              f"{np.mean(spread > 0):6.1%}  {verdict}")
+        print(
+            f"  {groups[upper]:<26} > {groups[lower]:<26} {difference:+.3f} ± {half:.3f}  "
+            f"{np.mean(spread > 0):6.1%}  {verdict}"
+        )
 
 
 if __name__ == "__main__":

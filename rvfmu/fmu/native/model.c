@@ -1,6 +1,6 @@
 /* The quasi-static RV reducer stepped from its TE map (docs/model.md section 8).
  *
- * The TE map: rvfmu.core.te_map solves the quasi-static model once on a grid of
+ * The TE map: rvfmu.core.steppers.te_map solves the quasi-static model once on a grid of
  * input angle (one output revolution) x output torque magnitude, on two branches
  * (resisting and driving loads: the TE jumps by the lost motion where the torque
  * changes sign).  Here it is read from the table the build wrote and interpolated
@@ -57,12 +57,12 @@
 #include <string.h>
 
 #define PI 3.14159265358979323846
-#define ARCSEC_RAD (PI / 180.0 / 3600.0)   /* rvfmu.core.units.ARCSEC, same expression */
-#define RPM (2.0 * PI / 60.0)                /* rvfmu.core.units.RPM, same expression */
+#define ARCSEC_RAD (PI / 180.0 / 3600.0)   /* rvfmu.core.base.units.ARCSEC, same expression */
+#define RPM (2.0 * PI / 60.0)                /* rvfmu.core.base.units.RPM, same expression */
 
 static const char MAGIC[8] = {'R', 'V', 'T', 'E', 'M', 'A', 'P', '\0'};
 enum { FORMAT_VERSION = 4, HEADER_SIZE = 176, NAME_OFFSET = 80, NAME_SIZE = 64 };
-#define REFERENCE_TEMPERATURE_C 40.0   /* rvfmu.core.lubricant: the load-free torque's default */
+#define REFERENCE_TEMPERATURE_C 40.0   /* rvfmu.core.laws.lubricant: the load-free torque's default */
 
 /* -- reading the table ---------------------------------------------------------------- */
 
@@ -421,7 +421,7 @@ double te_arcsec(double te) {
     return te / ARCSEC_RAD;
 }
 
-/* -- input checks: rvfmu/fmu/slave.py and rvfmu.core.limits.check_load ------------------ */
+/* -- input checks: rvfmu/fmu/slave.py and rvfmu.core.reducer.limits.check_load ------------------ */
 
 InputCheck reducer_check_inputs(const TEMap *map, double theta_in, double tau_load, int check_step,
                                 double step_size, char *message, size_t size) {

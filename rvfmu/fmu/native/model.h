@@ -1,10 +1,10 @@
 /* The quasi-static RV reducer stepped from its TE map: the physics of the native FMU.
  *
  * Knows nothing of FMI (fmi2Functions.c maps the FMI calls onto it).  The TE
- * map is the one `rvfmu.core.te_map.TEMap` holds, read from the binary table
+ * map is the one `rvfmu.core.steppers.te_map.TEMap` holds, read from the binary table
  * that `rvfmu.fmu.native` writes (layout in model.c); interpolating it and
  * stepping the reducer reproduce `TEMap.evaluate_one` and
- * `rvfmu.core.reducer_model.QuasiStaticReducer` operation for operation.
+ * `rvfmu.core.steppers.reducer_model.QuasiStaticReducer` operation for operation.
  */
 #ifndef RVTE_MODEL_H
 #define RVTE_MODEL_H
@@ -99,7 +99,7 @@ InputCheck reducer_check_inputs(const TEMap *map, double theta_in, double tau_lo
                                 double step_size, char *message, size_t size);
 
 /* Whether the output speed a step implies, (theta_in - the last step's theta_in) / step_size /
- * ratio [rad/s], is one the model can take (rvfmu.core.limits.check_speed): INPUT_REFUSED beyond
+ * ratio [rad/s], is one the model can take (rvfmu.core.reducer.limits.check_speed): INPUT_REFUSED beyond
  * speed_factor x the allowable output speed, INPUT_WARNING above it.  Finite inputs and a step
  * size > 0 (reducer_check_inputs passed them).  The reason goes to `message`. */
 InputCheck reducer_check_speed(const TEMap *map, const Reducer *reducer, double theta_in,

@@ -1,0 +1,283 @@
+"""The quasi-static TE model: TE curves, windup, lost motion and torsional rigidity.
+
+For each input angle the reducer is in static equilibrium under the output
+torque (`solver`), with the input held at that angle; the carrier's rotation
+away from theta_in / i, plus the windup tau_load x series_compliance of what the
+design puts in series with the output (the carrier's pillars; the flange and
+housing, calibrated), is the TE of
+docs/model.md section 5.  One call evaluates a
+whole batch of reducers: arrays are shaped (samples, angles).
+
+Zero load means the no-load limit of docs/model.md section 5, not a singular solve
+(`solver.solve_pairs`).  Without bearing clearances it is exact and needs no
+iteration: the linear parts take the shape the errors force on them, then the
+carrier turns along the zero-energy mechanism mode until the first pin
+touches.  Only where that pose leaves a pin in interference, and wherever
+bearings have clearance (parts float in it), is an elastic solve needed: the
+equilibrium under a probe torque of NO_LOAD_PROBE times the rated torque
+(with bearing clearances reached by continuation from 1000 times the probe),
+taken back to zero load along its tangent.  The probe resists by default
+(zero_side = -1) or drives (+1): the side the limit is approached from.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from ..base.checks import InputError, finite_number, integer
+from ..base.units import ARCMIN, rad_to_arcsec
+from ..reducer.design import RVDesign
+from ..reducer.errors import ErrorSet, zero_errors
+from ..reducer.limits import check_load
+from . import metrics
+from .equivalent import EquivalentModel, check_angles
+from .solver import solve_pairs
+
+# Probe torque of the elastic no-load solves, x rated torque: 0.04 N*m on an RV-40E, pin
+# deflections of ~1e-3 um, small enough that its contacts are those of zero load.
+NO_LOAD_PROBE = 1e-4
+MODELS_KEPT = 4  # equivalent models kept for the next call (`equivalent_model`)
+POINTS_PER_PIN_PASS = 8  # default sampling: 8 points per pin-passing period (order z_p*z_c)
+LOST_MOTION_FRACTION = 0.03  # catalogue: windup span at +-3 % rated torque
+RIGIDITY_FRACTIONS = (0.5, 1.0)  # catalogue: slope between 50 % and 100 %
+WINDUP_POSITIONS = 8  # locked input positions of the windup test
+
+
+def default_points(design: RVDesign) -> int:
+    """Points per output revolution that resolve the pin-passing order z_p * z_c."""
+    return POINTS_PER_PIN_PASS * design.z_p * design.z_c
+
+
+@dataclass(frozen=True)
+class TECurve:
+    """TE of S reducers over one output revolution at one output torque.
+
+    theta_in: (A,) [rad], input angles, evenly over one output revolution;
+    theta_out: (S, A) [rad]; te: (S, A) [rad] = theta_out - theta_in / i;
+    tau_load: [N*m] (docs/model.md section 2 sign: negative resists); converged: (S,) bool.
+    """
+
+    design: RVDesign
+    tau_load: float
+    theta_in: np.ndarray
+    theta_out: np.ndarray
+    te: np.ndarray
+    converged: np.ndarray
+    pin_force_max: np.ndarray = field(repr=False)  # (S, A) largest pin force [N]
+
+    @property
+    def points(self) -> int:
+        return self.theta_in.size
+
+    @property
+    def te_arcsec(self):
+        return rad_to_arcsec(self.te)
+
+    @property
+    def te_pp_arcsec(self):
+        return metrics.te_pp(self.te_arcsec)
+
+    @property
+    def rms_arcsec(self):
+        return metrics.te_rms(self.te_arcsec)
+
+    @property
+    def mean_arcsec(self):
+        return metrics.te_mean(self.te_arcsec)
+
+    def spectrum_arcsec(self):
+        """(orders (K,), amplitudes (S, K) [arcsec])."""
+        return metrics.order_spectrum(self.te_arcsec)
+
+
+def input_angles(design: RVDesign, points: int) -> np.ndarray:
+    """(points,) input angles evenly over one output revolution, end excluded [rad]; points
+    whose model would not fit in memory are refused here, before any work."""
+    check_angles(design, points)
+    return 2.0 * np.pi * design.ratio * np.arange(points) / points
+
+
+def _checked_errors(design, errors):
+    if errors is None:
+        return zero_errors(design)
+    return errors.check(design)
+
+
+@dataclass(frozen=True)
+class Equilibria:
+    """Quasi-static results on a grid of (sample, load, angle), each array (S, T, A).
+
+    te [rad]; tau_in [N*m]: torque the reducer exerts on the input shaft (flange
+    convention of docs/model.md section 2, about tau_load / i); pin_force_max [N];
+    converged: bool.
+    """
+
+    te: np.ndarray
+    tau_in: np.ndarray
+    pin_force_max: np.ndarray
+    converged: np.ndarray
+
+
+@lru_cache(maxsize=MODELS_KEPT)
+def _equivalent_model(design: RVDesign, theta_in: bytes, flank: int) -> EquivalentModel:
+    return EquivalentModel(design, np.frombuffer(theta_in), flank=flank)
+
+
+def equivalent_model(design: RVDesign, theta_in: np.ndarray, flank: int) -> EquivalentModel:
+    """The equivalent model of `design` at the input angles theta_in (A,) [rad] on `flank`,
+    kept for the next call with the same three (a study's batches all solve the same angles):
+    with it the reduced systems its solves build (`solver.reduced_system`) and the
+    error-free reducer's first guess (`solver._nominal_guess`)."""
+    return _equivalent_model(design, np.ascontiguousarray(theta_in, dtype=float).tobytes(), flank)
+
+
+def equilibria(
+    design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None, zero_side: int = -1
+) -> Equilibria:
+    """Quasi-static equilibrium at every (sample, load, angle) of the grid.
+
+    theta_in: (A,) [rad]; tau_load: (T,) [N*m].  A zero load is the no-load limit
+    approached from a resisting load (zero_side = -1, docs/model.md section 5) or from a
+    driving one (zero_side = +1).  A load beyond the emergency-stop class (5x rated,
+    `limits`) raises InputError; the momentary-class warning is left to the callers.
+    """
+    theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
+    tau_load = np.atleast_1d(np.asarray(tau_load, dtype=float))
+    if tau_load.size:
+        check_load("tau_load", tau_load[np.argmax(np.abs(tau_load))], design.rated_torque)
+    S, T, A = errors.samples, tau_load.size, theta_in.size
+    out = {name: np.empty((S, T, A)) for name in ("te", "tau_in", "pin_force_max")}
+    ok = np.empty((S, T, A), dtype=bool)
+    probe = NO_LOAD_PROBE * design.rated_torque
+    zero_flank = -1 if zero_side > 0 else 1
+    for flank in (1, -1):
+        # flank +1: the sun drives the planets forward (resisting load); -1: the load drives
+        mask = (
+            (tau_load < 0) | ((tau_load == 0) & (zero_flank == 1))
+            if flank == 1
+            else (tau_load > 0) | ((tau_load == 0) & (zero_flank == -1))
+        )
+        loads = np.flatnonzero(mask)
+        if loads.size == 0:
+            continue
+        model = equivalent_model(design, theta_in, flank)
+        s, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
+        eq = solve_pairs(
+            model, errors, s, a, tau_load[t], no_load_probe=probe, progress=progress, zero_side=zero_side
+        )
+        # The output flange: the carrier's crank seats' rotation plus the series windup.
+        out["te"][s, t, a] = model.output_angle(eq.q, tau_load[t])
+        # Mesh force on the sun acts along -w at the sun's base circle.
+        out["tau_in"][s, t, a] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
+        out["pin_force_max"][s, t, a] = eq.pin_force.max(axis=(1, 2))
+        ok[s, t, a] = eq.converged
+    return Equilibria(converged=ok, **out)
+
+
+def equilibrium_te(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None):
+    """TE [rad], largest pin force [N] and convergence at every (sample, load, angle), (S, T, A)."""
+    eq = equilibria(design, errors, theta_in, tau_load, progress)
+    return eq.te, eq.pin_force_max, eq.converged
+
+
+def te_curve(
+    design: RVDesign,
+    errors: ErrorSet | None = None,
+    tau_load: float = 0.0,
+    points: int | None = None,
+    progress=None,
+) -> TECurve:
+    """TE over one output revolution of every reducer in `errors` at output torque `tau_load`.
+
+    tau_load [N*m] follows docs/model.md section 2: a resisting load T is tau_load = -T; 0 gives
+    the no-load TE.  points: per output revolution (default `default_points`).
+    """
+    errors = _checked_errors(design, errors)
+    tau_load = finite_number("tau_load", tau_load)
+    points = default_points(design) if points is None else integer("points", points, 8)
+    theta_in = input_angles(design, points)
+    te, force, ok = equilibrium_te(design, errors, theta_in, [tau_load], progress)
+    theta_out = theta_in / design.ratio + te[:, 0]
+    return TECurve(design, tau_load, theta_in, theta_out, te[:, 0], ok[:, 0].all(axis=-1), force[:, 0])
+
+
+@dataclass(frozen=True)
+class Windup:
+    """Output windup against output torque with the input locked (catalogue test).
+
+    tau_load: (T,) [N*m]; theta_in: (P,) input positions [rad];
+    windup: (S, T, P) [rad], output rotation from its nominal place;
+    converged: (S,) bool, the equilibrium converged at every torque and position.
+    """
+
+    design: RVDesign
+    tau_load: np.ndarray
+    theta_in: np.ndarray
+    windup: np.ndarray
+    converged: np.ndarray
+
+    def lost_motion_arcmin(self):
+        """(S,) windup span at +-3 % rated torque, mean over the positions [arcmin]."""
+        rated = self.design.rated_torque
+        plus = self._at(LOST_MOTION_FRACTION * rated)
+        minus = self._at(-LOST_MOTION_FRACTION * rated)
+        return (plus - minus).mean(axis=-1) / ARCMIN
+
+    def torsional_rigidity_Nm_per_arcmin(self):
+        """(S,) torque / windup slope between 50 % and 100 % rated torque, both senses [N*m/arcmin]."""
+        rated = self.design.rated_torque
+        lo, hi = (f * rated for f in RIGIDITY_FRACTIONS)
+        slope_plus = (self._at(hi) - self._at(lo)) / (hi - lo)
+        slope_minus = (self._at(-lo) - self._at(-hi)) / (hi - lo)
+        compliance = 0.5 * (slope_plus + slope_minus).mean(axis=-1)  # rad per N*m
+        return 1.0 / (compliance / ARCMIN)
+
+    def _at(self, torque):
+        k = int(np.argmin(np.abs(self.tau_load - torque)))
+        if not np.isclose(self.tau_load[k], torque):
+            raise ValueError(f"windup was not computed at {torque} N*m")
+        return self.windup[:, k]
+
+
+def catalogue_torques(design: RVDesign) -> np.ndarray:
+    """Output torques [N*m] of the catalogue hysteresis test, from -rated to +rated."""
+    fractions = np.array(
+        [
+            -1.0,
+            -0.75,
+            -0.5,
+            -0.25,
+            -LOST_MOTION_FRACTION,
+            -0.01,
+            0.01,
+            LOST_MOTION_FRACTION,
+            0.25,
+            0.5,
+            0.75,
+            1.0,
+        ]
+    )
+    return fractions * design.rated_torque
+
+
+def windup_positions(design: RVDesign, positions: int) -> np.ndarray:
+    """(positions,) locked input angles of the windup test over one output revolution [rad],
+    offset by half a pin pitch of the output so that they do not all sit on a pin."""
+    return input_angles(design, positions) + np.pi * design.ratio / (design.z_p * positions)
+
+
+def windup(
+    design: RVDesign, errors: ErrorSet | None = None, tau_load=None, positions: int = WINDUP_POSITIONS
+) -> Windup:
+    """Windup curves with the input locked at `positions` angles over one output revolution."""
+    errors = _checked_errors(design, errors)
+    positions = integer("positions", positions, 1)
+    tau_load = catalogue_torques(design) if tau_load is None else np.asarray(tau_load, dtype=float)
+    if np.any(tau_load == 0.0):
+        raise InputError("tau_load", 0.0, "windup needs nonzero torques (the curve has a jump at 0)")
+    theta_in = windup_positions(design, positions)
+    te, _, ok = equilibrium_te(design, errors, theta_in, tau_load)
+    return Windup(design, tau_load, theta_in, te, ok.all(axis=(1, 2)))
