@@ -25,7 +25,7 @@ from tolerance.least_cost import (
     Verified,
     allocate_scales,
 )
-from tolerance.run import run_mc
+from tolerance.mc_runs import run_mc
 from tolerance.study import load_study
 from tolerance.surrogate import Chaos
 

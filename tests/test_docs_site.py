@@ -125,8 +125,8 @@ def test_the_site_builds_strict_with_every_page_and_the_api_reference(tmp_path):
         ),
         "api/tolerance.html": (
             "tolerance.study.load_study",
-            "tolerance.run.run_mc",
-            "tolerance.run.run_sobol",
+            "tolerance.mc_runs.run_mc",
+            "tolerance.sobol_runs.run_sobol",
             "tolerance.allocation.allocate",
             "tolerance.frames.load_results",
             "tolerance.backends.InProcess.map",

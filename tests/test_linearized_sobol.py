@@ -17,8 +17,8 @@ from tolerance import linearized, sobol
 from tolerance.error_rows import clearance_components, error_set, error_vector
 from tolerance.evaluate import Outputs
 from tolerance.montecarlo import rows
-from tolerance.run import run_sobol
 from tolerance.sampling import errors_from_unit
+from tolerance.sobol_runs import run_sobol
 from tolerance.study import load_study
 
 evaluate_module = importlib.import_module("tolerance.evaluate")

@@ -8,8 +8,8 @@ import pytest
 from test_hardening import run_cli
 from tolerance_toy import write_study
 
-from tolerance import run as run_module
-from tolerance.run import run_sobol
+from tolerance import sobol_runs
+from tolerance.sobol_runs import run_sobol
 from tolerance.study import load_study
 
 TOLERANCES = {
@@ -36,12 +36,12 @@ def test_rounds_double_until_the_order_groups_hold_and_equal_a_plain_run(tmp_pat
     path = study_file(tmp_path)
     result = run_sobol(path, rounds=True, plots=False, output=tmp_path / "rounds")
     sizes = [r.size for r in result.rounds]
-    assert sizes[0] == run_module.ROUND_START
-    assert sizes == [run_module.ROUND_START * 2**k for k in range(len(sizes))]
+    assert sizes[0] == sobol_runs.ROUND_START
+    assert sizes == [sobol_runs.ROUND_START * 2**k for k in range(len(sizes))]
     assert sizes[-1] <= 512
     last = result.rounds[-1]
     if last.settled:
-        same = [r.order_groups for r in result.rounds[-run_module.SETTLED_ROUNDS :]]
+        same = [r.order_groups for r in result.rounds[-sobol_runs.SETTLED_ROUNDS :]]
         assert all(groups == same[0] for groups in same)
         assert not any(r.settled for r in result.rounds[:-1])
     else:
@@ -54,7 +54,7 @@ def test_rounds_double_until_the_order_groups_hold_and_equal_a_plain_run(tmp_pat
     for column, analysis in plain.analyses.items():
         np.testing.assert_array_equal(result.analyses[column].indices.ST, analysis.indices.ST)
     table = result.table()
-    assert f"round of {run_module.ROUND_START} base samples" in table
+    assert f"round of {sobol_runs.ROUND_START} base samples" in table
     document = result.to_json()
     assert [r["size"] for r in document["rounds"]] == sizes
 
@@ -70,7 +70,7 @@ def test_rounds_of_the_linearized_method_double_its_solved_base_samples(tmp_path
     path = study_file(tmp_path, n=512, solved_n=256)
     result = run_sobol(path, method="linearized", rounds=True, plots=False)
     assert result.n == 512
-    assert [r.size for r in result.rounds][0] == run_module.ROUND_START
+    assert [r.size for r in result.rounds][0] == sobol_runs.ROUND_START
     assert result.rounds[-1].size <= 256
     assert all(a.method == "linearized" for a in result.analyses.values())
     assert result.check.rows == 2 * result.rounds[-1].size

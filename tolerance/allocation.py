@@ -431,7 +431,8 @@ class _StudyWiring:
         """
         from . import montecarlo
         from .backends import make_backend
-        from .run import compute, run_mc
+        from .mc_runs import run_mc
+        from .run import compute
 
         if draw == 0 and np.all(scales == 1.0):
             return run_mc(

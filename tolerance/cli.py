@@ -92,7 +92,8 @@ def _kept(args, job_of) -> int:
 
 
 def _sobol_job(args) -> str:
-    from .run import _load, sobol_job
+    from .run import _load
+    from .sobol_runs import sobol_job
     from .study import sobol_base_samples
 
     study = _load(args.study, args.output)
@@ -102,7 +103,7 @@ def _sobol_job(args) -> str:
 
 @_resumable(lambda args: "mc")
 def _mc(args):
-    from .run import run_mc
+    from .mc_runs import run_mc
 
     result = run_mc(
         args.study,
@@ -121,7 +122,7 @@ def _mc(args):
 
 @_resumable(_sobol_job)
 def _sobol(args):
-    from .run import run_sobol
+    from .sobol_runs import run_sobol
 
     result = run_sobol(
         args.study,

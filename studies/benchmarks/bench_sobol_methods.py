@@ -35,7 +35,7 @@ def main() -> None:
 
     from bench_jobs import machine
 
-    from tolerance.run import run_sobol
+    from tolerance.sobol_runs import run_sobol
 
     runs = {}
     with tempfile.TemporaryDirectory() as folder:

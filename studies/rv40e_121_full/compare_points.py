@@ -22,7 +22,8 @@ import numpy as np
 
 from tolerance import load_study, sobol
 from tolerance.backends import make_backend
-from tolerance.run import compute, other_sobol_jobs, sobol_job
+from tolerance.run import compute
+from tolerance.sobol_runs import other_sobol_jobs, sobol_job
 
 HERE = Path(__file__).resolve().parent
 STUDIES = HERE.parent
