@@ -133,6 +133,30 @@ def test_stiffness_command_checks_its_inputs_first(tmp_path):
     assert proc.returncode == 0 and "compliance budget" in proc.stdout and "sum" in proc.stdout
 
 
+def test_stiffness_prints_the_frames_catalogue_figures_beside_the_models():
+    """A preset (estimate or calibrated) is shown beside its frame's catalogue rigidity and
+    lost-motion bound (rvfmu/core/reducer/presets/catalogue.toml: RV-40E, 108 N*m/arcmin, at
+    most 1 arcmin); a design of another name has no frame, and says so."""
+    import dataclasses
+
+    report = api.stiffness("RV-40E-121-estimate")
+    assert report.catalogue.name == "RV-40E"
+    table = report.summary()
+    assert "catalogue 108)" in table and "catalogue at most 1)" in table
+    assert "RV-40E frame, Nabtesco" in table
+    data = report.to_json()["catalogue"]
+    assert data["frame"] == "RV-40E" and data["torsional_rigidity_Nm_per_arcmin"] == 108
+    assert data["lost_motion_max_arcmin"] == 1.0
+    own = api.stiffness(dataclasses.replace(preset("RV-40E-121"), name="bench-reducer-7"))
+    assert own.catalogue is None and own.to_json()["catalogue"] is None
+    assert "catalogue          none: the design is no preset" in own.summary()
+    assert "catalogue 108" not in own.summary()
+    # the model's own figures do not depend on the name
+    assert own.torsional_rigidity_Nm_per_arcmin == pytest.approx(
+        api.stiffness("RV-40E-121").torsional_rigidity_Nm_per_arcmin, rel=1e-12
+    )
+
+
 @pytest.mark.parametrize("clearances", [False, True], ids=["tight", "clearances"])
 def test_with_the_roller_law_shares_still_add_up_and_the_crank_has_rows_of_its_own(
     rv40_rollers, seed002, clearances
