@@ -4,6 +4,7 @@ imports nothing of rvfmu outside itself (the CLI, the FMUs and the plots are lay
 """
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -14,8 +15,9 @@ CORE = Path(rvfmu.core.__file__).parent
 ROOMS = ("base", "laws", "reducer", "statics", "losses", "dynamics", "steppers")
 
 
+@functools.cache
 def modules() -> dict:
-    """{dotted name: path} of every module of the core and its rooms."""
+    """{dotted name: path} of every module of the core and its rooms (walked once a run)."""
     out = {}
     for path in sorted(CORE.rglob("*.py")):
         parts = path.relative_to(CORE.parent.parent).with_suffix("").parts
