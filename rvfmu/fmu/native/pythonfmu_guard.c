@@ -29,6 +29,19 @@
  *   fmi2Reset            forgets that;
  *   fmi2FreeInstance     frees this library's record of the instance.
  *
+ * And one thing at exit.  pythonfmu 0.7.0 releases its interpreter state (the static
+ * shared_ptr `pyState` of its PySlaveInstance.cpp, made at the first fmi2Instantiate) twice
+ * when a process exits with its library still loaded, as fmpy leaves it after a simulation that
+ * raised: exit() runs the static's destructor, which frees the state but leaves the pointer,
+ * and then the library's unload function (onLibraryUnload -> finalizePythonInterpreter)
+ * decrements the count of that freed block again.  valgrind reports the use after free; glibc
+ * aborted one host in about 60 ("corrupted double-linked list") when the freed block had gone
+ * to a bin whose link it then broke.  On a dlclose the order is the other way round and
+ * nothing is wrong.  So right after loading pythonfmu's library, this library registers an
+ * exit handler, which runs before the static's destructor (handlers run in the reverse order
+ * of their registration) and calls finalizePythonInterpreter once: it empties `pyState` before
+ * it releases it, and the two later releases then find it empty.
+ *
  * The instances' records are kept in a list under a mutex (hosts may step instances in
  * threads); pythonfmu's component is the host's handle, unchanged.  POSIX only: on Windows the
  * FMU carries pythonfmu's own DLL.
@@ -80,6 +93,14 @@ static Guard *find(fmi2Component c) {
 static void *library = NULL;
 static char library_error[MESSAGE_SIZE] = "";
 static pthread_once_t library_once = PTHREAD_ONCE_INIT;
+static void (*release_python)(void) = NULL;   /* pythonfmu's finalizePythonInterpreter */
+
+/* At exit, or when this library is unloaded: pythonfmu's interpreter state released once, by
+ * pythonfmu's own function, while its library is still loaded (module doc). */
+static void release_at_exit(void) {
+    if (library && release_python) release_python();
+    release_python = NULL;
+}
 
 static void open_library(void) {
     Dl_info self;
@@ -99,11 +120,15 @@ static void open_library(void) {
         why = dlerror();
         snprintf(library_error, sizeof library_error, "cannot load pythonfmu's library: %s",
                  why ? why : path);
+        return;
     }
+    /* registered after pythonfmu's library registered its static destructors: runs before them */
+    release_python = (void (*)(void))dlsym(library, "finalizePythonInterpreter");
+    if (release_python) atexit(release_at_exit);
 }
 
 __attribute__((destructor)) static void close_library(void) {
-    if (library) dlclose(library);
+    if (library) dlclose(library);   /* its own unload function releases the state first */
     library = NULL;
 }
 
