@@ -10,7 +10,6 @@ the roller law (rvfmu/core/laws/roller_law.py).  `rv40_hertz` is the estimate as
 pins' groove given too: the pins follow the Hertz law (rvfmu/core/laws/pin_law.py).
 """
 
-import os
 import tempfile
 from pathlib import Path
 
@@ -30,14 +29,10 @@ def temporary_files_in_the_runs_folder(tmp_path_factory):
     unpacked in the temporary folder after every simulation that raised, 17 MB for the
     pythonfmu FMU, about 2 GB a run of the suite that no run removed."""
     folder = str(tmp_path_factory.mktemp("tmp"))
-    before = os.environ.get("TMPDIR"), tempfile.tempdir
-    os.environ["TMPDIR"] = tempfile.tempdir = folder
-    yield
-    if before[0] is None:
-        os.environ.pop("TMPDIR", None)
-    else:
-        os.environ["TMPDIR"] = before[0]
-    tempfile.tempdir = before[1]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("TMPDIR", folder)
+        patch.setattr(tempfile, "tempdir", folder)
+        yield
 
 
 @pytest.fixture(scope="session")
