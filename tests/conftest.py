@@ -27,10 +27,13 @@ def temporary_files_in_the_runs_folder(tmp_path_factory):
     """The suite's temporary files, and those of the processes it starts, in pytest's own
     folder of this run (pytest keeps the last three runs' folders): fmpy leaves the FMU it
     unpacked in the temporary folder after every simulation that raised, 17 MB for the
-    pythonfmu FMU, about 2 GB a run of the suite that no run removed."""
+    pythonfmu FMU, about 2 GB a run of the suite that no run removed.  The user's cache
+    folder too ($XDG_CACHE_HOME), where the pythonfmu FMU keeps a copy of its rvfmu package
+    for the hosts the suite starts (`rvfmu.fmu.slave.stable_bundle`)."""
     folder = str(tmp_path_factory.mktemp("tmp"))
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("TMPDIR", folder)
+        patch.setenv("XDG_CACHE_HOME", str(tmp_path_factory.mktemp("cache")))
         patch.setattr(tempfile, "tempdir", folder)
         yield
 

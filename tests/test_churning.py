@@ -95,10 +95,14 @@ def test_a_dry_reducer_is_todays_to_the_bit():
         dry, output_speed_rpm=speeds, load_Nm=loads, points=6, temperature_C=-10.0
     )
     m_wet = friction.efficiency_map(d, output_speed_rpm=speeds, load_Nm=loads, points=6, temperature_C=-10.0)
-    # the wet run with its churning taken out is the dry run, every figure to the bit
+    # the wet run with its churning taken out is the dry run, every figure to the bit: its
+    # other losses, their sum, and the efficiency from them (p_out multiplied in the order
+    # `friction.efficiency_from_loads` multiplies it: another order differs in the last bit)
     rest = [n for n in friction.LOSS_NAMES if n not in churning.CHURNING_NAMES]
-    p_out = np.asarray(loads)[None] * np.asarray(speeds)[:, None] * RPM
-    todays = p_out / (p_out + sum(m_wet.losses[n] for n in rest))
+    kept = sum(m_wet.losses[n] for n in rest)
+    assert np.array_equal(m_dry.loss_W, kept)
+    p_out = np.asarray(loads)[None] * (np.asarray(speeds)[:, None] * RPM)
+    todays = p_out / (p_out + kept)
     assert np.array_equal(m_dry.efficiency, todays)
     for name in rest:
         assert np.array_equal(m_dry.losses[name], m_wet.losses[name]), name

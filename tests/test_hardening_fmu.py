@@ -295,6 +295,89 @@ def test_a_speed_above_the_allowable_one_is_computed_with_one_warning(native, py
                 np.testing.assert_allclose(moving, output_speed, rtol=0.01)
 
 
+TWICE_HOST = r"""
+import json, os, sys
+import numpy as np
+from fmpy import simulate_fmu
+t = np.arange(0, 0.0205, 0.001)
+signal = np.zeros(t.size, dtype=[("time", float), ("theta_in", float), ("tau_load", float)])
+signal["time"], signal["theta_in"] = t, 100.0 * t
+out = []
+for start_values in json.loads(sys.argv[2]):
+    result = simulate_fmu(sys.argv[1], stop_time=0.02, output_interval=0.001, step_size=0.001,
+                          input=signal, start_values=start_values, output=["omega_out"])
+    out.append(float(np.mean(result["omega_out"][5:])))
+kernels = sys.modules["rvfmu.core.dynamics.kernels"]
+print("RESULT", json.dumps({"omega": out, "kernels": kernels.__file__,
+                            "folders": sorted(os.listdir(os.environ["TMPDIR"]))}))
+"""
+
+
+def test_a_host_that_runs_the_python_fmu_again_after_deleting_its_folder_compiles_nothing(
+    python_fmu, design, tmp_path
+):
+    """fmpy's simulate_fmu unpacks the FMU, runs it and deletes the folder; a second run in the
+    same process (the dynamic model after the quasi-static one) used to find the rvfmu modules
+    of the first, their files and cached kernels gone, and compiled every kernel again (84 s on
+    a 2-core AMD EPYC).  The FMU's package is imported from its copy in the user's cache folder
+    instead (`rvfmu.fmu.slave.stable_bundle`): both runs load every kernel they take from there,
+    none is compiled, and a second process reuses the copy."""
+    script = tmp_path / "twice_host.py"
+    script.write_text(TWICE_HOST)
+    cache, temp = tmp_path / "cache", tmp_path / "temp"
+    temp.mkdir()
+    env = {**os.environ, "XDG_CACHE_HOME": str(cache), "TMPDIR": str(temp), "NUMBA_DEBUG_CACHE": "1"}
+    runs = json.dumps([{}, {"model": "dynamic"}])
+    for process in range(2):
+        done = subprocess.run(
+            [sys.executable, str(script), str(python_fmu), runs],
+            capture_output=True,
+            text=True,
+            timeout=HOST_LIMIT,
+            env=env,
+        )
+        assert done.returncode == 0, done.stderr[-3000:]
+        result = json.loads(done.stdout.split("RESULT ", 1)[1])
+        copies = sorted(cache.joinpath("rvte").iterdir())
+        assert len(copies) == 1 and copies[0].name.startswith("fmu-"), copies  # no staging left
+        assert result["kernels"].startswith(str(copies[0])), result["kernels"]
+        assert result["folders"] == []  # fmpy deleted both folders it unpacked
+        saved = [line for line in done.stdout.splitlines() if line.startswith("[cache] data saved")]
+        loaded = [line for line in done.stdout.splitlines() if line.startswith("[cache] data loaded")]
+        assert not saved, saved[:3]
+        assert loaded and all(str(copies[0]) in line for line in loaded), loaded[:3]
+        assert any("communication_step" in line for line in loaded)  # the dynamic step
+        # both models turn the output at the input's speed over the ratio
+        np.testing.assert_allclose(result["omega"], 100.0 / design.ratio, rtol=0.02)
+        if process == 0:
+            made = copies[0].stat().st_mtime_ns
+    assert copies[0].stat().st_mtime_ns == made  # the second process copied nothing
+
+
+def test_the_bundle_is_copied_once_per_digest_or_imported_in_place(tmp_path):
+    """`stable_bundle`: no rvfmu beside the module (not in an FMU) -> None; a bundle -> its copy
+    under the cache root, made once and named by the digest of its sources; a changed source
+    -> another copy; a cache root that cannot be written -> None (imported in place)."""
+    from rvfmu.fmu.slave import stable_bundle
+
+    here = tmp_path / "resources"
+    (here / "rvfmu" / "core").mkdir(parents=True)
+    (here / "rvfmu" / "__init__.py").write_text("")
+    (here / "rvfmu" / "core" / "kernel.py").write_text("X = 1\n")
+    assert stable_bundle(tmp_path / "elsewhere", tmp_path / "cache") is None
+    first = stable_bundle(here, tmp_path / "cache")
+    assert first.parent == tmp_path / "cache" and first.name.startswith("fmu-")
+    assert (first / "rvfmu" / "core" / "kernel.py").read_text() == "X = 1\n"
+    assert stable_bundle(here, tmp_path / "cache") == first
+    assert sorted(p.name for p in (tmp_path / "cache").iterdir()) == [first.name]
+    (here / "rvfmu" / "core" / "kernel.py").write_text("X = 2\n")
+    second = stable_bundle(here, tmp_path / "cache")
+    assert second != first and (second / "rvfmu" / "core" / "kernel.py").read_text() == "X = 2\n"
+    blocked = tmp_path / "file"
+    blocked.write_text("")  # a file where the cache folder should be
+    assert stable_bundle(here, blocked / "rvte") is None
+
+
 # -- libcosim ---------------------------------------------------------------------------------
 
 COSIM_HOST = r'''

@@ -37,25 +37,79 @@ build and at run time, takes the class below as the module's Fmi2Slave
 subclass (the deepest one in the class hierarchy: keep it the only one).
 """
 
+import hashlib
 import math
+import os
+import shutil
 import sys
+import tempfile
 import traceback
 from math import isfinite
 from pathlib import Path
 
-import numpy as np
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
-from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
-from rvfmu.core.base.checks import InputError
-from rvfmu.core.base.units import ARCSEC
-from rvfmu.core.laws.lubricant import REFERENCE_TEMPERATURE_C
-from rvfmu.core.reducer.design import load_design
-from rvfmu.core.reducer.errors import load_errors, zero_errors
-from rvfmu.core.reducer.limits import MOMENTARY_FACTOR, check_load, check_speed
-from rvfmu.core.steppers.dynamic_reducer import DEFAULT_INTERNAL_STEP
-from rvfmu.core.steppers.reducers import MODELS
-from rvfmu.core.steppers.te_map import DRAG_TEMPERATURES, TEMap, build_te_map
+def _bundle_digest(bundle: Path) -> str:
+    """A digest of the bundled rvfmu package's sources (their paths and contents)."""
+    digest = hashlib.sha256()
+    for path in sorted(bundle.rglob("*.py")):
+        digest.update(path.relative_to(bundle).as_posix().encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def stable_bundle(here: Path, cache_root: Path | None = None) -> Path | None:
+    """The folder, outside the host's folder of this FMU, to import the bundled rvfmu from
+    (None: import it where it is).
+
+    In an FMU this module sits in resources/ beside the rvfmu package it carries.  A host may
+    delete the folder it unpacked the FMU to once a run is over and instantiate the FMU again
+    in the same process (fmpy's simulate_fmu does both): the rvfmu modules of the first run
+    stay imported, their files gone, and numba then finds the cached kernels of none of them
+    and compiles every kernel the next run takes (84 s for the dynamic model on a 2-core AMD
+    EPYC).  So the package is copied once, per digest of its sources, into the user's cache
+    folder ($XDG_CACHE_HOME or ~/.cache, rvte/fmu-<digest>), with the compiled kernels it
+    carries, and imported from there by every instance and process.  Where that folder
+    cannot be written, the package is imported in place as before (`_search_resources_first`).
+    """
+    bundle = here / "rvfmu"
+    if not (bundle / "core").is_dir():
+        return None  # not in an FMU: the installed rvfmu
+    if cache_root is None:
+        cache_root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rvte"
+    target = cache_root / f"fmu-{_bundle_digest(bundle)}"
+    try:
+        if not (target / "rvfmu" / "core").is_dir():
+            cache_root.mkdir(parents=True, exist_ok=True)
+            staging = Path(tempfile.mkdtemp(prefix=f"{target.name}.", dir=cache_root))
+            shutil.copytree(bundle, staging / "rvfmu")
+            try:
+                os.rename(staging, target)  # whole or not at all
+            except OSError:  # another process made it meanwhile
+                shutil.rmtree(staging, ignore_errors=True)
+    except (OSError, RuntimeError):  # no writable cache folder, or no home
+        return None
+    return target if (target / "rvfmu" / "core").is_dir() else None
+
+
+if "rvfmu" not in sys.modules:
+    STABLE_BUNDLE = stable_bundle(Path(__file__).resolve().parent)
+    if STABLE_BUNDLE is not None:
+        sys.path.insert(0, str(STABLE_BUNDLE))
+else:
+    STABLE_BUNDLE = None
+
+import numpy as np  # noqa: E402
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String  # noqa: E402
+from pythonfmu.enums import Fmi2Initial, Fmi2Status  # noqa: E402
+
+from rvfmu.core.base.checks import InputError  # noqa: E402
+from rvfmu.core.base.units import ARCSEC  # noqa: E402
+from rvfmu.core.laws.lubricant import REFERENCE_TEMPERATURE_C  # noqa: E402
+from rvfmu.core.reducer.design import load_design  # noqa: E402
+from rvfmu.core.reducer.errors import load_errors, zero_errors  # noqa: E402
+from rvfmu.core.reducer.limits import MOMENTARY_FACTOR, check_load, check_speed  # noqa: E402
+from rvfmu.core.steppers.dynamic_reducer import DEFAULT_INTERNAL_STEP  # noqa: E402
+from rvfmu.core.steppers.reducers import MODELS  # noqa: E402
+from rvfmu.core.steppers.te_map import DRAG_TEMPERATURES, TEMap, build_te_map  # noqa: E402
 
 BUNDLED_DESIGN = "design.toml"
 BUNDLED_ERRORS = "errors.toml"
@@ -323,7 +377,8 @@ class RVReducer(Fmi2Slave):
         if not (math.isfinite(self.dynamic_step) and self.dynamic_step > 0):
             raise FmuInputError(f"dynamic_step = {self.dynamic_step}: must be a finite number > 0")
         resources = Path(self.resources) if self.resources else Path(".")
-        _search_resources_first(resources)
+        if STABLE_BUNDLE is None:  # imported in place: find the modules in this instance's copy
+            _search_resources_first(resources)
         design = load_design(self.design_file or resources / BUNDLED_DESIGN)
         if self.errors_file:
             errors = load_errors(self.errors_file, design)
