@@ -21,6 +21,32 @@ from rvfmu.core.reducer.errors import load_errors
 
 ROOT = Path(__file__).resolve().parent.parent
 
+# The test files that take longest (a minute or more each on a 2-core AMD EPYC: allocations,
+# hosts under valgrind, FMU builds, the studies' backends), run first.  On every core
+# (pytest-xdist, --dist loadfile: each file on one worker) the files go out in this order, so
+# the long ones start at once instead of leaving one worker alone at the end.
+LONG_FIRST = (
+    "test_allocate_rv40e.py",
+    "test_hardening_fmu.py",
+    "test_allocate.py",
+    "test_linearized_sobol.py",
+    "test_fmu.py",
+    "test_hardening_studies.py",
+    "test_law_forms.py",
+    "test_tolerance_runs.py",
+    "test_catalogue.py",
+    "test_fmu_native3.py",
+    "test_fmu_native.py",
+    "test_readme.py",
+)
+
+
+def pytest_collection_modifyitems(items):
+    """The files of LONG_FIRST first, in that order, then the others as collected (each file's
+    tests keep their order)."""
+    rank = {name: k for k, name in enumerate(LONG_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(LONG_FIRST)))
+
 
 @pytest.fixture(scope="session", autouse=True)
 def temporary_files_in_the_runs_folder(tmp_path_factory):
