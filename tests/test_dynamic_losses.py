@@ -62,7 +62,7 @@ def runs(bare):
     return run
 
 
-def test_with_every_new_loss_off_the_run_is_the_one_of_before_to_the_bit(rv40, seed002):
+def test_with_every_new_loss_off_the_run_is_the_one_of_before(rv40, seed002):
     """The balance tests' reducer (every contact rubbing, the output seal stated at 0.5 N*m)
     with the seal law, the input seal, the churning and the breakaway off: the TE, input
     torque and friction power of the model before they came (figures of that model's run, as

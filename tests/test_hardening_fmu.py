@@ -357,7 +357,8 @@ def test_a_host_that_runs_the_python_fmu_again_after_deleting_its_folder_compile
 def test_the_bundle_is_copied_once_per_digest_or_imported_in_place(tmp_path):
     """`stable_bundle`: no rvfmu beside the module (not in an FMU) -> None; a bundle -> its copy
     under the cache root, made once and named by the digest of its sources; a changed source
-    -> another copy; a cache root that cannot be written -> None (imported in place)."""
+    -> another copy; a cache root that cannot be written, or no home folder -> None (imported
+    in place)."""
     from rvfmu.fmu.slave import stable_bundle
 
     here = tmp_path / "resources"
@@ -376,6 +377,10 @@ def test_the_bundle_is_copied_once_per_digest_or_imported_in_place(tmp_path):
     blocked = tmp_path / "file"
     blocked.write_text("")  # a file where the cache folder should be
     assert stable_bundle(here, blocked / "rvte") is None
+    # no XDG_CACHE_HOME and no home folder: in place, nothing raised into the host
+    with mock.patch.dict(os.environ, {"XDG_CACHE_HOME": ""}):
+        with mock.patch("pathlib.Path.home", side_effect=RuntimeError("no home directory")):
+            assert stable_bundle(here) is None
 
 
 # -- libcosim ---------------------------------------------------------------------------------

@@ -73,10 +73,10 @@ def stable_bundle(here: Path, cache_root: Path | None = None) -> Path | None:
     bundle = here / "rvfmu"
     if not (bundle / "core").is_dir():
         return None  # not in an FMU: the installed rvfmu
-    if cache_root is None:
-        cache_root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rvte"
-    target = cache_root / f"fmu-{_bundle_digest(bundle)}"
-    try:
+    try:  # (the digest cannot come from rvfmu's own: importing it decides where rvfmu is from)
+        if cache_root is None:
+            cache_root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rvte"
+        target = cache_root / f"fmu-{_bundle_digest(bundle)}"
         if not (target / "rvfmu" / "core").is_dir():
             cache_root.mkdir(parents=True, exist_ok=True)
             staging = Path(tempfile.mkdtemp(prefix=f"{target.name}.", dir=cache_root))
