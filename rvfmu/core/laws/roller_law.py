@@ -44,8 +44,9 @@ derivative of u's error, which the table's cells make piecewise smooth, so the f
 the energy's derivative and the stiffness the force's as closely as the reference's (whose
 u is at round-off) up to that derivative: central differences of the two forms differ by
 at most 1e-9 of the force and of the stiffness where s - c > 0.1 um (5.3e-10 measured; the
-last bits of the math library set it; closer, both are at round-off), and Gauss quadratures of the force and the stiffness give the energy's and the
-force's increase within 1e-11 (tests/test_law_forms.py).  Against the reference, force,
+last bits of the math library set it; closer, both are at round-off), and Gauss quadratures
+of the force and the stiffness give the energy's and the force's increase within 1e-11
+(tests/test_law_forms.py).  Against the reference, force,
 stiffness and energy agree within 2e-10 relative wherever s - c exceeds 1e-10 m; closer
 to the play, both are at the round-off of u - c (an ulp of s over s - c) and agree within
 the spread the reference shows over a few ulps of its own u.
