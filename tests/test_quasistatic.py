@@ -11,10 +11,12 @@ from rvfmu.core.reducer.profile import disc_profile
 from rvfmu.core.statics.equivalent import EquivalentModel
 from rvfmu.core.statics.quasistatic import (
     NO_LOAD_PROBE,
+    catalogue_torques,
     default_points,
     equilibria,
     equilibrium_te,
     input_angles,
+    metric_torques,
     te_curve,
     windup,
 )
@@ -422,6 +424,35 @@ def test_the_roller_law_winds_up_as_its_stated_stiffness_under_load_and_softer_n
         linear.torsional_rigidity_Nm_per_arcmin()[0], rel=0.02
     )
     assert rollers.lost_motion_arcmin()[0] > linear.lost_motion_arcmin()[0] + 0.02
+
+
+def test_the_windup_at_the_metrics_torques_gives_the_whole_tests_metrics():
+    """The studies solve the windup test at the six torques lost motion and rigidity read
+    (`metric_torques`): every torque is a separate equilibrium, so on reducers of the complete
+    study, with every bearing clearance and the roller law of the calibrated preset, the two
+    metrics equal those of all twelve catalogue torques."""
+    from tolerance import sobol
+    from tolerance.sampling import errors_from_unit
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / "rv40e_121_full.toml")
+    X = sobol.sample(study.problem(), 64, False, seed=study.seed)
+    design, errors = study.design, errors_from_unit(study, X[[3, 200, 555, 901]])
+    torques = metric_torques(design)
+    whole = catalogue_torques(design)
+    assert torques.size == 6 and np.all(np.isin(torques, whole)) and np.all(np.diff(torques) > 0)
+    assert set(np.round(np.abs(torques) / design.rated_torque, 12)) == {0.03, 0.5, 1.0}
+    part, full = windup(design, errors, torques), windup(design, errors, whole)
+    assert part.converged.all() and full.converged.all()
+    np.testing.assert_allclose(part.lost_motion_arcmin(), full.lost_motion_arcmin(), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(
+        part.torsional_rigidity_Nm_per_arcmin(), full.torsional_rigidity_Nm_per_arcmin(), rtol=1e-12, atol=0
+    )
+    # the part solved is what the metrics read: the windup at +-3 % is the whole test's there
+    for k, torque in enumerate(torques):
+        np.testing.assert_array_equal(
+            part.windup[:, k], full.windup[:, int(np.flatnonzero(whole == torque)[0])]
+        )
 
 
 def test_with_the_roller_law_the_no_load_te_is_the_limit_of_vanishing_loads():

@@ -5,7 +5,8 @@ pure function (no files, no global state) over a batch of rows, so that any
 backend (in-process, worker processes, Dask workers) gives the same numbers
 for the same batch.  The whole batch goes through the core model at once
 (`te_curve` solves every reducer and angle together); the windup test, which
-costs more, runs only if the study asks for lost motion or torsional rigidity.
+costs more, runs only if the study asks for lost motion or torsional rigidity, and then at
+the six torques those two read (`metric_torques`).
 
 Metrics (study file names, then the column that holds them and its unit):
 te_pp -> te_pp_arcsec, rms -> rms_arcsec (about the mean), order_<k> ->
@@ -27,7 +28,7 @@ import numpy as np
 from rvfmu.core.losses.friction import operating_losses
 from rvfmu.core.reducer.errors import ErrorSet
 from rvfmu.core.statics import metrics
-from rvfmu.core.statics.quasistatic import te_curve, windup
+from rvfmu.core.statics.quasistatic import metric_torques, te_curve, windup
 
 from .error_rows import ErrorRows
 from .sampling import errors_from_unit
@@ -145,7 +146,7 @@ def outputs(study, errors: ErrorSet) -> Outputs:
         te = curve.te_arcsec
         converged &= curve.converged
     if "lost_motion" in kinds:
-        wind = windup(design, errors, positions=study.windup_positions)
+        wind = windup(design, errors, metric_torques(design), positions=study.windup_positions)
         converged &= wind.converged
         scalars["lost_motion"] = wind.lost_motion_arcmin()
         scalars["torsional_rigidity"] = wind.torsional_rigidity_Nm_per_arcmin()

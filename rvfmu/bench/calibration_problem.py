@@ -46,7 +46,7 @@ from ..core.base.units import RPM
 from ..core.reducer.design import RVDesign
 from ..core.reducer.errors import stack, zero_errors
 from ..core.reducer.limits import check_speed
-from ..core.statics.quasistatic import windup
+from ..core.statics.quasistatic import metric_torques, windup
 from .calibration_data import DataSet
 from .calibration_values import LOAD_FREE_FIELDS, Parameter, parameters
 from .compare import as_bench_sees, model_grid, periodic
@@ -202,7 +202,7 @@ def evaluate(problem: Problem, design: RVDesign) -> tuple[list[np.ndarray], bool
                     if c.rated_torque_Nm is None
                     else design.with_fields(rated_torque=c.rated_torque_Nm)
                 )
-                w = windup(model, _errors(design, d))
+                w = windup(model, _errors(design, d), metric_torques(model))
                 figures = {
                     "torsional_rigidity_Nm_per_arcmin": w.torsional_rigidity_Nm_per_arcmin()[0],
                     "lost_motion_arcmin": w.lost_motion_arcmin()[0],

@@ -582,8 +582,17 @@ def newton_pairs(
                     step[i] = -step[i]
             else:
                 step[:] = -np.linalg.solve(hess, grad)
+            largest_step, largest_trial = 0.0, 0.0
             for i in range(n):
                 trial_q[i] = qs[i] + step[i]
+                largest_step = max(largest_step, abs(step[i]))
+                largest_trial = max(largest_trial, abs(trial_q[i]))
+            if (not first) and largest_step <= step_tolerance + 1e-12 * largest_trial:
+                # the step no longer moves: taken whole, and the pair is done without the
+                # evaluation at its end (which only its line search would read)
+                qs[:] = trial_q
+                done = True
+                break
             trial = _evaluate(
                 Ks,
                 Kts,

@@ -263,6 +263,15 @@ def catalogue_torques(design: RVDesign) -> np.ndarray:
     return fractions * design.rated_torque
 
 
+def metric_torques(design: RVDesign) -> np.ndarray:
+    """The six torques of `catalogue_torques` that lost motion and torsional rigidity read
+    (+-3 %, +-50 % and +-100 % of rated) [N*m]: each torque is a separate equilibrium, so a
+    windup test at these alone gives both metrics as the whole test does, at half its solves
+    (the studies, the calibration)."""
+    positive = np.array(sorted({LOST_MOTION_FRACTION, *RIGIDITY_FRACTIONS}))
+    return np.concatenate([-positive[::-1], positive]) * design.rated_torque
+
+
 def windup_positions(design: RVDesign, positions: int) -> np.ndarray:
     """(positions,) locked input angles of the windup test over one output revolution [rad],
     offset by half a pin pitch of the output so that they do not all sit on a pin."""
