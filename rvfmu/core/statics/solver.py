@@ -101,13 +101,14 @@ class Equilibrium:
 
     q: (B, n) displacements [m; rotations as arc length at R_p];
     pin_force: (B, 2, z_p) [N], >= 0; mesh_force: (B, n_c) [N], sun-planet mesh
-    forces along their lines of action (compression positive); converged: (B,)
+    forces along their lines of action (compression positive), both None from a solve
+    asked for the unknowns alone (`ReducedSystem.solve`, forces False); converged: (B,)
     bool; iterations: most used.
     """
 
     q: np.ndarray
-    pin_force: np.ndarray
-    mesh_force: np.ndarray
+    pin_force: np.ndarray | None
+    mesh_force: np.ndarray | None
     converged: np.ndarray
     iterations: int
 
@@ -238,6 +239,7 @@ class ReducedSystem:
         start_only=False,
         release_step=True,
         offsets=None,
+        forces=True,
     ) -> Equilibrium:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
@@ -265,6 +267,8 @@ class ReducedSystem:
         release_step: after the roller law's no-load solve (`start`), the weak springs let
         go by one Newton step (`newton.release_step`) instead of LAW_RELEASE_ROUNDS solves.
         offsets: `model.offsets(errors, sample, angle)` when the caller has them already.
+        forces: False leaves the pins' and meshes' forces out (None): a solve whose unknowns
+        only start the next one.
         """
         model = self.model
         B = len(angle)
@@ -380,6 +384,8 @@ class ReducedSystem:
             -(np.einsum("aln,an->al", self.G[angle], qn) + np.einsum("alm,am->al", self.H[angle], b_lin))
             + tau[:, None] * self.gl[angle]
         )
+        if not forces:
+            return Equilibrium(q, None, None, converged, iterations)
         delta = pin_delta(model.pin_rows[angle], qn[:, self.pin_local], pin_b)
         n_c = model.design.n_c
         mesh = np.einsum("bmn,bn->bm", model.linear_rows[angle][:, :n_c], q) + lin_b[:, :n_c]
@@ -721,6 +727,7 @@ def solve_pairs(
                 None if toward is None else toward[part],
                 start_only=law is not None and law_start == "kinematic",
                 offsets=offsets,
+                forces=law is None,  # with the law, only its solve's forces are the answer's
             )
             if law is not None:
                 # the kinematic limit with the stated stiffnesses is within a fraction of an
