@@ -448,7 +448,7 @@ def test_the_windup_at_the_metrics_torques_gives_the_whole_tests_metrics():
     np.testing.assert_allclose(
         part.torsional_rigidity_Nm_per_arcmin(), full.torsional_rigidity_Nm_per_arcmin(), rtol=1e-12, atol=0
     )
-    # the part solved is what the metrics read: the windup at +-3 % is the whole test's there
+    # and what the metrics read is the same: the windup at each of the six is the whole test's there
     for k, torque in enumerate(torques):
         np.testing.assert_array_equal(
             part.windup[:, k], full.windup[:, int(np.flatnonzero(whole == torque)[0])]
