@@ -282,13 +282,14 @@ def newton_batched(work, first_active, q0=None):
         guess = first_active if first else None
         grad, hess, true_grad, used = work.gradient_hessian(q, guess, bearings_engaged=first)
         step = -np.linalg.solve(hess, grad[..., None])[..., 0]
-        trial, delta = work.energy(q + step)
+        trial_q = q + step
+        trial, delta = work.energy(trial_q)
         slope = np.einsum("bi,bi->b", true_grad, step)
         full = trial <= energy + 1e-4 * slope + 1e-13 * np.abs(energy)
         if not first:
             # a step that no longer moves is taken whole, whatever the energy's round-off says
             # (the compiled kernel then ends the pair without evaluating its end)
-            full |= np.max(np.abs(step), axis=1) <= STEP_TOLERANCE + 1e-12 * np.max(np.abs(q + step), axis=1)
+            full |= np.max(np.abs(step), axis=1) <= STEP_TOLERANCE + 1e-12 * np.max(np.abs(trial_q), axis=1)
         alpha = np.ones(len(q))
         if not np.all(full):
             short = np.flatnonzero(~full)
