@@ -79,3 +79,33 @@ def test_error_offsets_are_affine_and_follow_their_frames():
     # the carrier assembly error is a fixed-frame offset of the main bearing, any pose
     np.testing.assert_allclose(brg[2, -1], -3 * UM * np.array([np.cos(0.5), np.sin(0.5)]), atol=1e-15)
     assert np.all(lin[:2] == 0)
+
+
+def test_compiled_pin_offsets_are_the_numpy_ones_to_the_bit():
+    """`pin_offsets` repeats the numpy route's arithmetic pair by pair: every error that moves a
+    pin's offset (pin radius, radial and pitch errors, the discs' lobe profile and pitch) drawn
+    at once, for random pairs and for a whole grid of angles (a slice)."""
+    from rvfmu.core.base.compiled import COMPILED
+
+    if not COMPILED:
+        pytest.skip("numba absent: the numpy route is the only one")
+    design = preset("RV-40E-121")
+    theta_in = np.linspace(0.0, 2 * np.pi * design.ratio, 97, endpoint=False)
+    model = EquivalentModel(design, theta_in)
+    rng = np.random.default_rng(45)
+    errors = zero_errors(design, 5)
+    for name in ("pin_radius", "pin_radial", "pin_pitch", "disc_profile", "disc_pitch"):
+        values = getattr(errors, name)
+        values[...] = rng.normal(0.0, 3 * UM, values.shape)
+    sample, angle = rng.integers(0, 5, 700), rng.integers(0, theta_in.size, 700)
+    for s, a in ((sample, angle), (np.full(theta_in.size, 3), slice(None))):
+        assert model.compiled_pins
+        compiled = model.offsets(errors, s, a)
+        model.compiled_pins = False
+        try:
+            plain = model.offsets(errors, s, a)
+        finally:
+            model.compiled_pins = True
+        for x, y in zip(compiled, plain):
+            assert x.shape == y.shape and np.array_equal(x, y)
+        assert np.abs(compiled[2]).max() > 1 * UM  # the errors moved the pins

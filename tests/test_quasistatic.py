@@ -511,3 +511,75 @@ def test_a_stated_stiffness_its_rollers_cannot_reach_is_refused(rv40, rv40_rolle
     with pytest.raises(InputError) as info:
         rv40.with_fields(tapered_rollers=14, tapered_roller_length=6e-3, tapered_contact_angle=0.0)
     assert info.value.field == "tapered_contact_angle_deg"
+
+
+def _study_errors(name, rows):
+    from tolerance import sobol
+    from tolerance.sampling import errors_from_unit
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / name)
+    X = sobol.sample(study.problem(), 64, False, seed=study.seed)
+    return study.design, errors_from_unit(study, X[rows])
+
+
+@pytest.mark.parametrize("name", ["quick_mc.toml", "rv40e_121_full.toml"])
+def test_the_te_without_the_forces_is_the_te_with_them_to_the_bit(name):
+    """The studies ask for the TE alone (`forces=False`): the pins' and meshes' forces are left
+    out after each solve, nothing else; on reducers with the roller law (quick_mc) and with every
+    bearing clearance (the complete study), at no load and under load, and in the windup test."""
+    design, errors = _study_errors(name, [1, 70, 333])
+    theta = input_angles(design, 90)
+    loads = [0.0, -0.3 * design.rated_torque, 0.05 * design.rated_torque]
+    with_forces = equilibria(design, errors, theta, loads)
+    without = equilibria(design, errors, theta, loads, forces=False)
+    assert without.tau_in is None and without.pin_force_max is None
+    assert with_forces.converged.all()
+    np.testing.assert_array_equal(without.te, with_forces.te)
+    np.testing.assert_array_equal(without.converged, with_forces.converged)
+    assert np.ptp(with_forces.te[:, 0], axis=-1).min() > 1 * ARCSEC  # the errors make a TE
+    curve = te_curve(design, errors, 0.0, 90, forces=False)
+    assert curve.pin_force_max is None
+    np.testing.assert_array_equal(curve.te, with_forces.te[:, 0])
+    # the windup test never reads the forces: the same windup as the equilibria with them
+    torques = metric_torques(design)
+    wind = windup(design, errors, torques, positions=3)
+    te, force, ok = equilibrium_te(design, errors, wind.theta_in, torques)
+    assert force is not None
+    np.testing.assert_array_equal(wind.windup, te)
+
+
+def test_the_compiled_first_pin_is_the_numpy_one(monkeypatch):
+    """`first_pin` (the kinematic no-load pose's first pin, compiled) against the numpy route
+    it replaces, called on the same pairs inside a no-load TE of quick_mc's reducers: the
+    same pins decide (rigid the same) and the pose agrees to round-off, which a dot product
+    summed in another order leaves; the TE then agrees within the Newton tolerance."""
+    from rvfmu.core.statics import newton_kernel
+    from rvfmu.core.statics.solver import ReducedSystem
+
+    if not newton_kernel.COMPILED:
+        pytest.skip("numba absent: the numpy route is the only one")
+    design, errors = _study_errors("quick_mc.toml", [2, 41, 300, 600])
+    first_contact = ReducedSystem._first_contact
+    seen = []
+
+    def both(self, angle, f, pin_b, direction):
+        compiled = first_contact(self, angle, f, pin_b, direction)
+        monkeypatch.setattr(ReducedSystem, "compiled_first_pin", False)
+        plain = first_contact(self, angle, f, pin_b, direction)
+        monkeypatch.setattr(ReducedSystem, "compiled_first_pin", True)
+        seen.append((compiled, plain))
+        return compiled
+
+    monkeypatch.setattr(ReducedSystem, "_first_contact", both)
+    reference = te_curve(design, errors, 0.0, 360, forces=False)
+    assert seen
+    for (q, rigid), (q_plain, rigid_plain) in seen:
+        np.testing.assert_array_equal(rigid, rigid_plain)
+        np.testing.assert_allclose(q, q_plain, rtol=1e-13, atol=1e-13 * np.abs(q_plain).max())
+    assert any(r.any() for (_, r), _ in seen) and any((~r).any() for (_, r), _ in seen)
+    monkeypatch.setattr(ReducedSystem, "_first_contact", first_contact)
+    monkeypatch.setattr(ReducedSystem, "compiled_first_pin", False)
+    plain = te_curve(design, errors, 0.0, 360, forces=False)
+    assert reference.converged.all() and plain.converged.all()
+    np.testing.assert_allclose(reference.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-9)

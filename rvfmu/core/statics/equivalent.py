@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base.checks import fits_in_memory
+from ..base.compiled import COMPILED, kernel
 from ..reducer.design import RVDesign
 from ..reducer.errors import CLEARANCES, ErrorSet
 
@@ -202,6 +203,9 @@ class EquivalentModel:
     the no-load limit approached from one), -1 when the load drives the output
     (or the no-load limit is approached from that side).
     """
+
+    # the pins' offsets by the compiled `pin_offsets` (False: by numpy, `_pin_offsets_numpy`)
+    compiled_pins = COMPILED
 
     def __init__(self, design: RVDesign, theta_in, flank: int = 1, sun_rotation: bool = False):
         self.design = design
@@ -390,6 +394,32 @@ class EquivalentModel:
             )
         )
 
+        if self.compiled_pins:
+            pins = np.empty((len(sample), 2, d.z_p))
+            contiguous = np.ascontiguousarray
+            pin_offsets(
+                self._pin_geometry,
+                self._lobe_flat,
+                np.arange(self._lobe_flat.shape[0])[angle],
+                np.asarray(sample, dtype=np.int64),
+                contiguous(errors.pin_radius, dtype=float),
+                contiguous(errors.pin_radial, dtype=float),
+                contiguous(errors.pin_pitch, dtype=float),
+                contiguous(errors.disc_profile, dtype=float).ravel(),
+                contiguous(errors.disc_pitch, dtype=float).ravel(),
+                2 * d.z_c,
+                d.R_p * d.z_c / d.z_p,
+                pins,
+            )
+        else:
+            pins = self._pin_offsets_numpy(errors, sample, angle)
+        return linear, bearings, pins
+
+    def _pin_offsets_numpy(self, errors: ErrorSet, sample, angle) -> np.ndarray:
+        """The pins' offsets (B, 2, z_p) [m] of `offsets` as numpy arrays: the reference that
+        `pin_offsets` is held to (to the bit, tests/test_equivalent.py) and the route
+        without numba."""
+        d = self.design
         # Pins: pin centre moved by its radial/pitch error, radius error, disc lobe
         # profile (+ material) and pitch (lobe turned about the disc centre).
         gap, nr, nt, lever = np.moveaxis(self._pin_geometry[angle], 1, 0)  # each (B, 2, z_p)
@@ -403,7 +433,32 @@ class EquivalentModel:
         flat = self._lobe_flat[angle] + (2 * d.z_c) * np.asarray(sample)[:, None, None]
         pins += np.take(errors.disc_profile, flat)
         pins += np.take(errors.disc_pitch, flat) * (lever / (d.R_p * d.z_c / d.z_p))
-        return linear, bearings, pins
+        return pins
+
+
+@kernel
+def pin_offsets(
+    geometry, lobe_flat, angle, sample, radius, radial, pitch_error, profile, pitch, lobes, pitch_arm, out
+):
+    """The pins' offsets of `EquivalentModel.offsets` for the pairs (sample[b], angle[b]) into
+    out (B, 2, z_p) [m], one pair at a time, without the (B, 4, 2, z_p) gather of the numpy
+    route (`_pin_offsets_numpy`), whose arithmetic it repeats operation for operation (the
+    same values to the bit).  geometry (A, 4, 2, z_p): per angle the profile's gap, n . e_k,
+    n . t_k and the lever of each contact; lobe_flat (A, 2, z_p): the lobe each pin meets as
+    a flat index into one reducer's (2, z_c) lobe arrays, of `lobes` = 2 z_c entries;
+    radius, radial, pitch_error (S, z_p): the pins' errors; profile, pitch (S * 2 z_c): the
+    discs' lobe errors, flat; pitch_arm: R_p z_c / z_p [m], the lever of a lobe's pitch
+    error at unit angle."""
+    for b in range(angle.size):
+        a, s = angle[b], sample[b]
+        for disc in range(2):
+            for k in range(out.shape[2]):
+                value = radius[s, k] - geometry[a, 0, disc, k]
+                value = value - radial[s, k] * geometry[a, 1, disc, k]
+                value = value - pitch_error[s, k] * geometry[a, 2, disc, k]
+                lobe = lobe_flat[a, disc, k] + lobes * s
+                value = value + profile[lobe]
+                out[b, disc, k] = value + pitch[lobe] * (geometry[a, 3, disc, k] / pitch_arm)
 
 
 def touched_columns(rows: np.ndarray) -> np.ndarray:

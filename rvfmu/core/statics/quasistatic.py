@@ -66,7 +66,7 @@ class TECurve:
     theta_out: np.ndarray
     te: np.ndarray
     converged: np.ndarray
-    pin_force_max: np.ndarray = field(repr=False)  # (S, A) largest pin force [N]
+    pin_force_max: np.ndarray | None = field(repr=False)  # (S, A) largest pin force [N]; None: not asked for
 
     @property
     def points(self) -> int:
@@ -112,12 +112,12 @@ class Equilibria:
 
     te [rad]; tau_in [N*m]: torque the reducer exerts on the input shaft (flange
     convention of docs/model.md section 2, about tau_load / i); pin_force_max [N];
-    converged: bool.
+    converged: bool.  tau_in and pin_force_max are None where the forces were not asked for.
     """
 
     te: np.ndarray
-    tau_in: np.ndarray
-    pin_force_max: np.ndarray
+    tau_in: np.ndarray | None
+    pin_force_max: np.ndarray | None
     converged: np.ndarray
 
 
@@ -135,7 +135,13 @@ def equivalent_model(design: RVDesign, theta_in: np.ndarray, flank: int) -> Equi
 
 
 def equilibria(
-    design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None, zero_side: int = -1
+    design: RVDesign,
+    errors: ErrorSet,
+    theta_in,
+    tau_load,
+    progress=None,
+    zero_side: int = -1,
+    forces: bool = True,
 ) -> Equilibria:
     """Quasi-static equilibrium at every (sample, load, angle) of the grid.
 
@@ -143,13 +149,17 @@ def equilibria(
     approached from a resisting load (zero_side = -1, docs/model.md section 5) or from a
     driving one (zero_side = +1).  A load beyond the emergency-stop class (5x rated,
     `limits`) raises InputError; the momentary-class warning is left to the callers.
+    forces: False computes no pin and mesh forces (tau_in and pin_force_max None): the TE
+    alone, the same to the bit, for the callers that read nothing else (the studies, the
+    windup test).
     """
     theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
     tau_load = np.atleast_1d(np.asarray(tau_load, dtype=float))
     if tau_load.size:
         check_load("tau_load", tau_load[np.argmax(np.abs(tau_load))], design.rated_torque)
     S, T, A = errors.samples, tau_load.size, theta_in.size
-    out = {name: np.empty((S, T, A)) for name in ("te", "tau_in", "pin_force_max")}
+    names = ("te", "tau_in", "pin_force_max") if forces else ("te",)
+    out = {name: np.empty((S, T, A)) for name in names}
     ok = np.empty((S, T, A), dtype=bool)
     probe = NO_LOAD_PROBE * design.rated_torque
     zero_flank = -1 if zero_side > 0 else 1
@@ -166,20 +176,32 @@ def equilibria(
         model = equivalent_model(design, theta_in, flank)
         s, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
         eq = solve_pairs(
-            model, errors, s, a, tau_load[t], no_load_probe=probe, progress=progress, zero_side=zero_side
+            model,
+            errors,
+            s,
+            a,
+            tau_load[t],
+            no_load_probe=probe,
+            progress=progress,
+            zero_side=zero_side,
+            forces=forces,
         )
         # The output flange: the carrier's crank seats' rotation plus the series windup.
         out["te"][s, t, a] = model.output_angle(eq.q, tau_load[t])
-        # Mesh force on the sun acts along -w at the sun's base circle.
-        out["tau_in"][s, t, a] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
-        out["pin_force_max"][s, t, a] = eq.pin_force.max(axis=(1, 2))
+        if forces:
+            # Mesh force on the sun acts along -w at the sun's base circle.
+            out["tau_in"][s, t, a] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
+            out["pin_force_max"][s, t, a] = eq.pin_force.max(axis=(1, 2))
         ok[s, t, a] = eq.converged
-    return Equilibria(converged=ok, **out)
+    return Equilibria(out["te"], out.get("tau_in"), out.get("pin_force_max"), ok)
 
 
-def equilibrium_te(design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None):
-    """TE [rad], largest pin force [N] and convergence at every (sample, load, angle), (S, T, A)."""
-    eq = equilibria(design, errors, theta_in, tau_load, progress)
+def equilibrium_te(
+    design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None, forces: bool = True
+):
+    """TE [rad], largest pin force [N] (None without `forces`) and convergence at every
+    (sample, load, angle), (S, T, A)."""
+    eq = equilibria(design, errors, theta_in, tau_load, progress, forces=forces)
     return eq.te, eq.pin_force_max, eq.converged
 
 
@@ -189,19 +211,24 @@ def te_curve(
     tau_load: float = 0.0,
     points: int | None = None,
     progress=None,
+    forces: bool = True,
 ) -> TECurve:
     """TE over one output revolution of every reducer in `errors` at output torque `tau_load`.
 
     tau_load [N*m] follows docs/model.md section 2: a resisting load T is tau_load = -T; 0 gives
-    the no-load TE.  points: per output revolution (default `default_points`).
+    the no-load TE.  points: per output revolution (default `default_points`).  forces:
+    False leaves the largest pin force out (pin_force_max None), for callers that read the
+    TE alone (the tolerance studies): the same TE to the bit, without the pins' and meshes'
+    forces at every pair.
     """
     errors = _checked_errors(design, errors)
     tau_load = finite_number("tau_load", tau_load)
     points = default_points(design) if points is None else integer("points", points, 8)
     theta_in = input_angles(design, points)
-    te, force, ok = equilibrium_te(design, errors, theta_in, [tau_load], progress)
+    te, force, ok = equilibrium_te(design, errors, theta_in, [tau_load], progress, forces=forces)
     theta_out = theta_in / design.ratio + te[:, 0]
-    return TECurve(design, tau_load, theta_in, theta_out, te[:, 0], ok[:, 0].all(axis=-1), force[:, 0])
+    force = None if force is None else force[:, 0]
+    return TECurve(design, tau_load, theta_in, theta_out, te[:, 0], ok[:, 0].all(axis=-1), force)
 
 
 @dataclass(frozen=True)
@@ -288,5 +315,5 @@ def windup(
     if np.any(tau_load == 0.0):
         raise InputError("tau_load", 0.0, "windup needs nonzero torques (the curve has a jump at 0)")
     theta_in = windup_positions(design, positions)
-    te, _, ok = equilibrium_te(design, errors, theta_in, tau_load)
+    te, _, ok = equilibrium_te(design, errors, theta_in, tau_load, forces=False)
     return Windup(design, tau_load, theta_in, te, ok.all(axis=(1, 2)))

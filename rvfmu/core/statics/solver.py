@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..base.compiled import kernel
 from ..laws.pin_law import contact_forces, contacts
 from ..reducer.errors import ErrorSet, zero_errors
 from . import newton_kernel
@@ -122,6 +123,10 @@ class ReducedSystem:
     (the no-load limit with the stated stiffnesses, `_routes`) no bearing follows the
     roller law: the nonlinear ones are linear beyond their clearance.
     """
+
+    # the kinematic no-load pose's first pin by the compiled `first_pin` where the iteration
+    # is compiled (False: by numpy, `_first_pin_numpy`, the reference)
+    compiled_first_pin = True
 
     def __init__(self, model: EquivalentModel, nonlinear: np.ndarray, rollers: bool = True):
         self.model = model
@@ -637,6 +642,26 @@ class ReducedSystem:
         pair needs the elastic solve.
         """
         q0 = -np.einsum("bij,bj->bi", self.free_shape[angle], f)
+        if newton_kernel.COMPILED and self.compiled_first_pin:
+            mu, rigid = np.empty(len(angle)), np.empty(len(angle), dtype=bool)
+            first_pin(
+                self.model.pin_rows,
+                self.pin_rate,
+                np.asarray(angle, dtype=np.int64),
+                np.ascontiguousarray(q0[:, self.pin_local]),
+                np.ascontiguousarray(pin_b, dtype=float),
+                float(direction),
+                GAP_TOLERANCE,
+                mu,
+                rigid,
+            )
+        else:
+            mu, rigid = self._first_pin_numpy(angle, q0, pin_b, direction)
+        return q0 + mu[:, None] * self.mode[angle][:, self.N], rigid
+
+    def _first_pin_numpy(self, angle, q0, pin_b, direction):
+        """(mu (B,), rigid (B,)) of `_first_contact` as numpy arrays: the reference that
+        `first_pin` is held to (tests/test_quasistatic.py) and the route without numba."""
         delta0 = pin_delta(self.model.pin_rows[angle], q0[:, self.pin_local], pin_b)
         rate = self.pin_rate[angle]
         closing = rate * direction > 0  # closes as the carrier turns that way
@@ -646,8 +671,46 @@ class ReducedSystem:
         mu = -direction * key.max(axis=(1, 2))
         after = delta0 + rate * mu[:, None, None]
         rigid = np.isfinite(mu) & np.all(after <= GAP_TOLERANCE, axis=(1, 2))
-        mu = np.where(np.isfinite(mu), mu, 0.0)
-        return q0 + mu[:, None] * self.mode[angle][:, self.N], rigid
+        return np.where(np.isfinite(mu), mu, 0.0), rigid
+
+
+@kernel
+def first_pin(pin_rows, pin_rate, angle, q_local, pin_b, direction, gap_tolerance, mu, rigid):
+    """`_first_contact`'s turn of the carrier for each pair b, one pair at a time: the pins'
+    deflections at the shape q_local (B, 2, 3) of the discs' unknowns, pin_rows (A, 2, z_p, 3)
+    and offsets pin_b (B, 2, z_p) [m], the turn mu[b] along the mode (closing rates pin_rate
+    (A, 2, z_p)) that brings the first closing pin to contact coming from the far side
+    (direction +1 or -1), 0 if none closes, and rigid[b]: a pin closes and no pin is then
+    in interference beyond gap_tolerance.  Without the (B, 2, z_p, 3) gathers of the numpy
+    route (`ReducedSystem._first_pin_numpy`)."""
+    discs, pins = pin_b.shape[1], pin_b.shape[2]
+    for b in range(angle.size):
+        a = angle[b]
+        key = -np.inf
+        for d in range(discs):
+            for k in range(pins):
+                rate = pin_rate[a, d, k]
+                if rate * direction > 0.0:
+                    delta = (
+                        pin_rows[a, d, k, 0] * q_local[b, d, 0]
+                        + pin_rows[a, d, k, 1] * q_local[b, d, 1]
+                        + pin_rows[a, d, k, 2] * q_local[b, d, 2]
+                    ) + pin_b[b, d, k]
+                    key = max(key, direction * delta / rate)
+        turn = -direction * key
+        ok = np.isfinite(turn)
+        if ok:
+            for d in range(discs):
+                for k in range(pins):
+                    delta = (
+                        pin_rows[a, d, k, 0] * q_local[b, d, 0]
+                        + pin_rows[a, d, k, 1] * q_local[b, d, 1]
+                        + pin_rows[a, d, k, 2] * q_local[b, d, 2]
+                    ) + pin_b[b, d, k]
+                    if not delta + pin_rate[a, d, k] * turn <= gap_tolerance:
+                        ok = False
+        mu[b] = turn if np.isfinite(turn) else 0.0
+        rigid[b] = ok
 
 
 def pin_forces(delta, law):
@@ -674,6 +737,7 @@ def solve_pairs(
     zero_side: int = -1,
     law_start: str = "kinematic",
     law_release: str = "step",
+    forces: bool = True,
 ) -> Equilibrium:
     """Equilibria of many (reducer, angle) pairs, in chunks.
 
@@ -691,6 +755,8 @@ def solve_pairs(
     law_release: how the weak springs then let go: "step", one Newton step at the end of
     the law's solve (`newton.release_step`); "solve", LAW_RELEASE_ROUNDS solves
     (`ReducedSystem._release`, the reference).
+    forces: False leaves the pins' and meshes' forces out (pin_force and mesh_force None),
+    for callers that read only the unknowns (the TE, the windup): the same q to the bit.
     """
     if law_start not in LAW_STARTS:
         raise ValueError(f"law_start {law_start!r}: must be one of {LAW_STARTS}")
@@ -703,8 +769,8 @@ def solve_pairs(
     clearance = np.any(half > 0, axis=0)
     B = sample.size
     q = np.empty((B, model.n_dof))
-    pin_force = np.empty((B, 2, model.design.z_p))
-    mesh_force = np.empty((B, model.design.n_c))
+    pin_force = np.empty((B, 2, model.design.z_p)) if forces else None
+    mesh_force = np.empty((B, model.design.n_c)) if forces else None
     converged = np.empty(B, dtype=bool)
     iterations = 0
     for pairs, nonlinear, rollers, then_law in _routes(model, clearance, tau_load):
@@ -727,7 +793,7 @@ def solve_pairs(
                 None if toward is None else toward[part],
                 start_only=law is not None and law_start == "kinematic",
                 offsets=offsets,
-                forces=law is None,  # with the law, only its solve's forces are the answer's
+                forces=forces and law is None,  # with the law, only its solve's forces are the answer's
             )
             if law is not None:
                 # the kinematic limit with the stated stiffnesses is within a fraction of an
@@ -742,12 +808,14 @@ def solve_pairs(
                     start=eq.q,
                     release_step=law_release == "step",
                     offsets=offsets,
+                    forces=forces,
                 )
             return at, eq
 
         for at, eq in map_chunks(chunk, range(0, pairs.size, CHUNK)):
-            q[at], pin_force[at], converged[at] = eq.q, eq.pin_force, eq.converged
-            mesh_force[at] = eq.mesh_force
+            q[at], converged[at] = eq.q, eq.converged
+            if forces:
+                pin_force[at], mesh_force[at] = eq.pin_force, eq.mesh_force
             iterations = max(iterations, eq.iterations)
             if progress is not None:
                 progress(at.size)
