@@ -305,8 +305,9 @@ def compile_kernels(design: RVDesign | None = None, errors: ErrorSet | None = No
     these files: the same sources in its resources then load them instead of compiling on a
     host's first dynamic step.  The run: a few Newmark steps with each contact law, and the
     FMU's dynamic model (`DynamicReducer`) of `design` with `errors` (default: the RV-20E
-    without errors) initialised under both signs of load, whose elastic equilibrium takes
-    the quasi-static Newton kernels, and stepped."""
+    without errors) initialised under both signs of load and at none, whose elastic
+    equilibrium takes the quasi-static Newton kernels (and at no load the kinematic pose's,
+    `solver.first_pin`; the error offsets' `equivalent.pin_offsets` in both), and stepped."""
     from pathlib import Path
 
     from ..base.compiled import SOURCES_STAMP
@@ -315,7 +316,7 @@ def compile_kernels(design: RVDesign | None = None, errors: ErrorSet | None = No
     from ..laws import pin_law, roller_law
     from ..reducer.design import preset
     from ..reducer.errors import zero_errors
-    from ..statics import newton_kernel
+    from ..statics import equivalent, newton_kernel, solver
 
     if not kernels.COMPILED:
         return []
@@ -326,14 +327,24 @@ def compile_kernels(design: RVDesign | None = None, errors: ErrorSet | None = No
         NewmarkStepper.starting_at(model, np.zeros(model.n)).advance(1)
     design = small if design is None else design
     errors = zero_errors(design) if errors is None else errors
-    for load in (-0.1, 0.1):
+    for load in (-0.1, 0.0, 0.1):
         reducer = DynamicReducer(design, errors)
         reducer.initialize(0.0, 0.0, load * design.rated_torque)
         reducer.step(0.0, 1e-3, 1e-3, load * design.rated_torque)
     files = []
     # every kernel this process has compiled or loaded from the cache: those called from
     # Python (a kernel's callees are in its own cache files)
-    for module in (kernels, dynamic_geometry, sys.modules[__name__], newton_kernel, pin_law, roller_law):
+    modules = (
+        kernels,
+        dynamic_geometry,
+        sys.modules[__name__],
+        newton_kernel,
+        equivalent,
+        solver,
+        pin_law,
+        roller_law,
+    )
+    for module in modules:
         folder = Path(module.__file__).parent / "__pycache__"
         kernels_here = {id(f): f for f in vars(module).values() if hasattr(f, "py_func")}
         for function in kernels_here.values():  # once each: some have two names
