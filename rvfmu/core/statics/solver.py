@@ -684,30 +684,26 @@ def first_pin(pin_rows, pin_rate, angle, q_local, pin_b, direction, gap_toleranc
     in interference beyond gap_tolerance.  Without the (B, 2, z_p, 3) gathers of the numpy
     route (`ReducedSystem._first_pin_numpy`)."""
     discs, pins = pin_b.shape[1], pin_b.shape[2]
+    delta = np.empty((discs, pins))  # this pair's deflections at q_local, before the turn
     for b in range(angle.size):
         a = angle[b]
         key = -np.inf
         for d in range(discs):
             for k in range(pins):
+                delta[d, k] = (
+                    pin_rows[a, d, k, 0] * q_local[b, d, 0]
+                    + pin_rows[a, d, k, 1] * q_local[b, d, 1]
+                    + pin_rows[a, d, k, 2] * q_local[b, d, 2]
+                ) + pin_b[b, d, k]
                 rate = pin_rate[a, d, k]
                 if rate * direction > 0.0:
-                    delta = (
-                        pin_rows[a, d, k, 0] * q_local[b, d, 0]
-                        + pin_rows[a, d, k, 1] * q_local[b, d, 1]
-                        + pin_rows[a, d, k, 2] * q_local[b, d, 2]
-                    ) + pin_b[b, d, k]
-                    key = max(key, direction * delta / rate)
+                    key = max(key, direction * delta[d, k] / rate)
         turn = -direction * key
         ok = np.isfinite(turn)
         if ok:
             for d in range(discs):
                 for k in range(pins):
-                    delta = (
-                        pin_rows[a, d, k, 0] * q_local[b, d, 0]
-                        + pin_rows[a, d, k, 1] * q_local[b, d, 1]
-                        + pin_rows[a, d, k, 2] * q_local[b, d, 2]
-                    ) + pin_b[b, d, k]
-                    if not delta + pin_rate[a, d, k] * turn <= gap_tolerance:
+                    if not delta[d, k] + pin_rate[a, d, k] * turn <= gap_tolerance:
                         ok = False
         mu[b] = turn if np.isfinite(turn) else 0.0
         rigid[b] = ok
