@@ -6,9 +6,7 @@ whole chunk at once and is the reference.  Their equilibria must agree to
 1e-9 arcsec on every route the solver takes: loaded and no-load, with and
 without bearing clearances (the continuation), resisting and driving, the
 pairs re-solved on all pins, and the compiled iteration's warm starts from the
-neighbouring angle (which the numpy one does not take).  The compiled iteration runs here
-without its quadratic stop (`newton.QUADRATIC_CAP`, which the numpy one has not): the same
-iteration; tests/test_quasistatic.py holds the stop to it.
+neighbouring angle (which the numpy one does not take).
 """
 
 import os
@@ -22,7 +20,7 @@ import numpy as np
 import pytest
 
 from rvfmu.core.reducer.errors import stack
-from rvfmu.core.statics import newton, newton_kernel
+from rvfmu.core.statics import newton_kernel
 from rvfmu.core.statics.equivalent import touched_columns
 from rvfmu.core.statics.newton_kernel import (
     _bearing_deflections,
@@ -52,10 +50,9 @@ def assert_agree(compiled, plain, switch_share=0.0):
 
 
 def both(run):
-    """run() with the compiled iteration (no quadratic stop), then with the numpy one."""
+    """run() with the compiled iteration, then with the numpy one."""
     assert newton_kernel.COMPILED, "numba is a dependency: the compiled iteration must be the one in use"
-    with mock.patch.object(newton, "QUADRATIC_CAP", None):
-        compiled = run()
+    compiled = run()
     with mock.patch.object(newton_kernel, "COMPILED", False):
         plain = run()
     return compiled, plain

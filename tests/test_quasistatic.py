@@ -553,14 +553,12 @@ def test_the_compiled_first_pin_is_the_numpy_one(monkeypatch):
     """`first_pin` (the kinematic no-load pose's first pin, compiled) against the numpy route
     it replaces, called on the same pairs inside a no-load TE of quick_mc's reducers: the
     same pins decide (rigid the same) and the pose agrees to round-off, which a dot product
-    summed in another order leaves; the TE then agrees within the Newton tolerance (without
-    the quadratic stop, whose choice of the last step that round-off can tip)."""
-    from rvfmu.core.statics import newton, newton_kernel
+    summed in another order leaves; the TE then agrees within the Newton tolerance."""
+    from rvfmu.core.statics import newton_kernel
     from rvfmu.core.statics.solver import ReducedSystem
 
     if not newton_kernel.COMPILED:
         pytest.skip("numba absent: the numpy route is the only one")
-    monkeypatch.setattr(newton, "QUADRATIC_CAP", None)
     design, errors = _study_errors("quick_mc.toml", [2, 41, 300, 600])
     first_contact = ReducedSystem._first_contact
     seen = []
@@ -585,74 +583,3 @@ def test_the_compiled_first_pin_is_the_numpy_one(monkeypatch):
     plain = te_curve(design, errors, 0.0, 360, forces=False)
     assert reference.converged.all() and plain.converged.all()
     np.testing.assert_allclose(reference.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-9)
-
-
-class NewtonSteps:
-    """Counts the Newton steps of every pair the compiled iteration solves while installed."""
-
-    def __init__(self, monkeypatch):
-        from rvfmu.core.statics import newton_kernel
-
-        self.pairs, self.steps = 0, 0
-        inner = newton_kernel.newton_pairs
-
-        def counted(*args):
-            inner(*args)
-            self.pairs += args[-1].size
-            self.steps += int(args[-1].sum())
-
-        monkeypatch.setattr(newton_kernel, "newton_pairs", counted)
-
-
-@pytest.mark.parametrize("name, points", [("quick_mc.toml", 360), ("rv40e_121_full.toml", 180)])
-def test_the_quadratic_stop_takes_fewer_steps_to_the_same_te(name, points, monkeypatch):
-    """`newton.QUADRATIC_CAP` against the iteration that ends every pair on a step that no longer
-    moves (None, the reference): fewer Newton steps, at no load and under a resisting and a
-    driving load, and the same TE within the bounds docs/model.md section 5 states (1e-5
-    arcsec; te_pp 1e-6 arcsec, on the complete study's floating parts the TE 1e-4 arcsec, the
-    reference's own resolution there)."""
-    from rvfmu.core.statics import newton, newton_kernel
-
-    if not newton_kernel.COMPILED:
-        pytest.skip("numba absent: the numpy iteration has no quadratic stop")
-    design, errors = _study_errors(name, [5, 77, 150, 401])
-    loads = (0.0, -0.3 * design.rated_torque, 0.5 * design.rated_torque)
-    bound = 1e-5 if name == "quick_mc.toml" else 1e-4
-    runs = {}
-    for cap in (None, newton.QUADRATIC_CAP):
-        with pytest.MonkeyPatch.context() as patch:
-            patch.setattr(newton, "QUADRATIC_CAP", cap)
-            count = NewtonSteps(patch)
-            runs[cap] = [te_curve(design, errors, load, points, forces=False) for load in loads], count
-    (reference, before), (quick, after) = runs.values()
-    # fewer steps in all (the solver may re-solve a pair anew, so the pairs need not match)
-    assert before.pairs > 0 and after.steps < 0.95 * before.steps, (after.steps, before.steps)
-    for old, new in zip(reference, quick):
-        assert old.converged.all() and new.converged.all()
-        np.testing.assert_allclose(new.te_arcsec, old.te_arcsec, rtol=0, atol=bound)
-        np.testing.assert_allclose(new.te_pp_arcsec, old.te_pp_arcsec, rtol=0, atol=1e-6)
-
-
-def test_the_quadratic_stop_waits_where_a_contact_changes_at_the_steps_end(monkeypatch):
-    """A pair of quick_mc (no load) whose third Newton step, 8.6e-11 m after one of 7.9e-8 m,
-    passes the quadratic test, but takes its one pin in contact out of contact: the reference
-    then steps 5e-4 m away to another pin and its TE is 0.28 arcsec higher.  With the cap
-    raised to 1e-10 m, so that this step is a candidate, the contact check makes it go on:
-    the reference's TE."""
-    from rvfmu.core.statics import newton, newton_kernel
-    from tolerance.montecarlo import sample
-    from tolerance.sampling import errors_from_unit
-    from tolerance.study import load_study
-
-    if not newton_kernel.COMPILED:
-        pytest.skip("numba absent: the numpy iteration has no quadratic stop")
-    study = load_study(ROOT / "studies" / "quick_mc.toml")
-    errors = errors_from_unit(study, sample(study, 32)).take([11])
-    theta = input_angles(study.design, 720)[412:413]
-    te = {}
-    for cap in (None, 1e-10):
-        monkeypatch.setattr(newton, "QUADRATIC_CAP", cap)
-        eq = equilibria(study.design, errors, theta, [0.0], forces=False)
-        assert eq.converged.all()
-        te[cap] = float(eq.te[0, 0, 0] / ARCSEC)
-    assert te[1e-10] == pytest.approx(te[None], abs=1e-6)

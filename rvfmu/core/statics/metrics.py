@@ -23,9 +23,8 @@ NOISE_FLOOR_ARCSEC = 1e-3
 # Relative part, x the curve's largest harmonic: the solver's coarsest deliberate
 # approximation.  Its convergence is far finer: a Newton step of less than
 # newton.STEP_TOLERANCE = 1e-14 m + 1e-12 |q| ends the iteration (~1e-8 arcsec at the pin
-# circle; within 1e-6 arcsec where the compiled iteration's quadratic stop ends it,
-# newton.QUADRATIC_CAP), gaps are resolved to newton.GAP_TOLERANCE = 1e-12 m (~3e-6
-# arcsec), and the orders that are not there come out at ~1e-12 arcsec (round-off of the windup).  But
+# circle), gaps are resolved to newton.GAP_TOLERANCE = 1e-12 m (~3e-6 arcsec), and the
+# orders that are not there come out at ~1e-12 arcsec (round-off of the windup).  But
 # every reduced unknown carries a spring of solver.REGULARISATION = 1e-6 x the softest
 # element (solver.weak_stiffness), which moves every deflection, and so every harmonic and its products, by
 # up to ~1e-6 of the TE variation: an order smaller than 1e-6 x the largest one cannot

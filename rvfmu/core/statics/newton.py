@@ -27,10 +27,6 @@ from . import newton_kernel
 
 MAX_ITERATIONS = 400
 STEP_TOLERANCE = 1e-14  # m: converged when a Newton step moves less (1e-8 um)
-# m: the compiled iteration also ends a pair on a step this small after a full one where their
-# quadratic convergence puts the next below STEP_TOLERANCE / 10 (`newton_kernel.newton_pairs`);
-# None: only on a step that no longer moves, as the numpy iteration (the reference)
-QUADRATIC_CAP = 1e-11
 GAP_TOLERANCE = 1e-12  # m: an interference smaller than this is contact, not preload
 SHRINK_FRACTION = 0.25  # drop converged pairs from the work arrays once a quarter are done
 MIN_PAIRS_PER_THREAD = 64  # a thread of the compiled iteration gets at least this many pairs
@@ -189,7 +185,6 @@ def newton_compiled(work, first_active, q0=None, chain=None, release=False):
             mode_unit,
             MAX_ITERATIONS,
             STEP_TOLERANCE,
-            QUADRATIC_CAP or 0.0,
             GAP_TOLERANCE,
             converged[lo:hi],
             iterations[lo:hi],

@@ -439,44 +439,6 @@ def _line_search(
 
 
 @kernel
-def _same_contacts(
-    rows,
-    pin_b,
-    pin_local,
-    brg_rows,
-    brg_cols,
-    brg_off,
-    c_half,
-    q,
-    trial_q,
-    used,
-    gap_tolerance,
-    delta,
-    d,
-    d_here,
-):
-    """Whether every pin and every bearing with clearance is in the same state at trial_q as
-    at q: a pin in the iteration's contact set (`used` at q: deflection above -gap_tolerance)
-    there too, a bearing outside its play at both or at neither.  Deflections at trial_q go
-    into delta (2, K) and d (p, 2), those of the bearings at q into d_here (p, 2)."""
-    _deflections(rows, pin_b, pin_local, trial_q, delta)
-    for j in range(2):
-        for k in range(delta.shape[1]):
-            if (delta[j, k] > -gap_tolerance) != used[j, k]:
-                return False
-    if brg_rows.shape[0] == 0:
-        return True
-    _bearing_deflections(brg_rows, brg_cols, brg_off, trial_q, d)
-    _bearing_deflections(brg_rows, brg_cols, brg_off, q, d_here)
-    for b in range(d.shape[0]):
-        out_there = d[b, 0] ** 2 + d[b, 1] ** 2 > c_half[b] ** 2
-        out_here = d_here[b, 0] ** 2 + d_here[b, 1] ** 2 > c_half[b] ** 2
-        if out_there != out_here:
-            return False
-    return True
-
-
-@kernel
 def newton_pairs(
     angle,
     K,
@@ -502,7 +464,6 @@ def newton_pairs(
     mode_unit,
     max_iterations,
     step_tolerance,
-    quadratic_cap,
     gap_tolerance,
     converged,
     iterations,
@@ -518,17 +479,7 @@ def newton_pairs(
     quadratic (`smooth`).  release > 0: each converged pair then lets go of the weak springs
     of stiffness `release` about it (`solver.ReducedSystem.reg_matrix`, their direction
     across the unit mode mode_unit (A, n) at its angle): one Newton step, q += H^-1 R q,
-    with the Hessian H already factored at the solution (`newton.release_step`).
-
-    quadratic_cap > 0: a step of at most quadratic_cap [m] after a full one is taken as the
-    last where Newton's quadratic convergence, measured on the two, puts the step after it
-    below a tenth of step_tolerance, s_k^3 / s_(k-1)^2 <= step_tolerance / 10 (the step
-    after is C s_k^2 with C = s_k / s_(k-1)^2), and where every pin and bearing keeps its
-    state (in contact or not, outside its play or not) from the step's start to its end
-    (`_same_contacts`): a contact that changes there starts another piece of the energy,
-    whose minimiser may lie far away.  The pair then ends without the evaluation at that
-    step's end, which would only have found the next step too small to move
-    (`newton.QUADRATIC_CAP`); 0 ends every pair on a step that no longer moves."""
+    with the Hessian H already factored at the solution (`newton.release_step`)."""
     B, n = q.shape
     p = brg_rows.shape[1]
     Kp = rows.shape[2]
@@ -592,7 +543,6 @@ def newton_pairs(
             )
         done = False
         it = 0
-        last_move = np.inf  # the last step taken, where it was a full Newton step (else inf)
         while it < max_iterations:
             it += 1
             first = it == 1 and guessed
@@ -637,32 +587,9 @@ def newton_pairs(
                 trial_q[i] = qs[i] + step[i]
                 largest_step = max(largest_step, abs(step[i]))
                 largest_trial = max(largest_trial, abs(trial_q[i]))
-            if (not first) and (
-                largest_step <= step_tolerance + 1e-12 * largest_trial
-                or (
-                    largest_step <= quadratic_cap
-                    and largest_step**3 <= 0.1 * step_tolerance * last_move * last_move
-                    and _same_contacts(
-                        rs,
-                        bs,
-                        pin_local,
-                        Bs,
-                        brg_cols,
-                        os_,
-                        cs,
-                        qs,
-                        trial_q,
-                        used,
-                        gap_tolerance,
-                        delta_trial,
-                        d_trial,
-                        dd,
-                    )
-                )
-            ):
-                # the step no longer moves, or the next one would not (quadratic_cap): taken
-                # whole, and the pair is done without the evaluation at its end (which only
-                # its line search, or the step after, would read)
+            if (not first) and largest_step <= step_tolerance + 1e-12 * largest_trial:
+                # the step no longer moves: taken whole, and the pair is done without the
+                # evaluation at its end (which only its line search would read)
                 qs[:] = trial_q
                 done = True
                 break
@@ -721,7 +648,6 @@ def newton_pairs(
                 qs[i] += alpha * step[i]
                 largest_move = max(largest_move, abs(alpha * step[i]))
                 largest_q = max(largest_q, abs(qs[i]))
-            last_move = largest_move if full and not first else np.inf
             # Done when a step no longer moves (a guessed first step says nothing of that), or,
             # piecewise quadratic, when a full step landed where exactly the pins it assumed touch.
             done = (not first) and largest_move <= step_tolerance + 1e-12 * largest_q
