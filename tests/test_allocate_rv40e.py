@@ -8,7 +8,7 @@ points correlates at 0.96 with that at 720 and is 13 % lower on average).
 The allocation is that of this study as written, verified with the same
 model, so the test asks what it would of the full one.  Its current tolerances
 over-achieve a 0.95 yield (about 0.995), so the allocation must open them,
-and cost less, while a second Monte Carlo of 10 000 reducers of the allocated
+and cost less, while a second Monte Carlo of 5000 reducers of the allocated
 study, drawn with another seed, still shows the target met: the low end of
 its 95 % interval at or above 0.95.
 """
@@ -23,7 +23,7 @@ from tolerance import load_study, run_mc
 
 STUDY = Path(__file__).resolve().parents[1] / "studies" / "rv40e_121_full_rated.toml"
 TARGET = 0.95
-INDEPENDENT = 10_000
+INDEPENDENT = 5000  # at a yield near 0.97 its 95 % interval is +-0.005: the target 0.95 stands clear
 
 
 def edited(text: str, **values) -> str:
@@ -54,7 +54,7 @@ def test_the_current_tolerances_over_achieve_and_the_allocation_opens_them_for_l
         assert f.lower <= f.allocated <= f.upper
 
 
-def test_an_independent_monte_carlo_of_10000_reducers_confirms_the_target(allocation, tmp_path):
+def test_an_independent_monte_carlo_of_5000_reducers_confirms_the_target(allocation, tmp_path):
     """The allocated study file, run as any study with another seed (so other reducers than
     the allocation's own verification), meets the target: its interval's low end >= 0.95."""
     path, result = allocation

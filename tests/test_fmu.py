@@ -378,10 +378,12 @@ def test_runs_where_numpy_and_scipy_are_installed_but_not_rvte_nor_numba(fmu_pat
     """A fresh venv with numpy, scipy, fmpy and libcosimpy only: both importers run the FMU,
     quasi-static and dynamic (the dynamic model's kernels then run as plain numpy)."""
     venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
+    # a venv without pip of its own, filled by this one's (pip --python), without byte-compiling
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True, timeout=120)
     python = venv / "bin" / "python"
     subprocess.run(
-        [str(python), "-m", "pip", "install", "-q", "numpy", "scipy", "fmpy", "libcosimpy"],
+        [sys.executable, "-m", "pip", "--python", str(python), "install", "-q", "--no-compile"]
+        + ["numpy", "scipy", "fmpy", "libcosimpy"],
         check=True,
         timeout=900,
         capture_output=True,

@@ -138,7 +138,7 @@ def test_a_discontinuous_output_fails_the_check_and_falls_back_to_saltelli(tmp_p
 
 
 def test_at_no_load_the_check_fails_and_the_ranking_is_saltellis(tmp_path):
-    path = loaded_study(tmp_path, name="noload", load=0.0, n=64, solved_n=16)
+    path = loaded_study(tmp_path, name="noload", load=0.0, n=32, solved_n=16)
     said = []
     result = run_sobol(path, method="linearized", plots=False, log=said.append)
     assert said[0].startswith("warning: method linearized at no load")
