@@ -20,6 +20,7 @@ import pytest
 
 import tolerance
 from tolerance import load_study, run_mc
+from tolerance.least_cost import look_sizes
 
 STUDY = Path(__file__).resolve().parents[1] / "studies" / "rv40e_121_full_rated.toml"
 TARGET = 0.95
@@ -47,7 +48,11 @@ def test_the_current_tolerances_over_achieve_and_the_allocation_opens_them_for_l
     assert len(result.factors) == 15
     assert result.yield_current.low > TARGET  # the starting drawing over-achieves
     assert result.feasible and result.yield_allocated.low >= TARGET
-    assert result.yield_allocated.n == 2000  # the study's [montecarlo] n
+    # the study's [montecarlo] n at most, a look of the sequential verification
+    assert result.looks == look_sizes(2000, load_study(path).batch_size) == (512, 1024, 2000)
+    assert result.yield_allocated.n in result.looks and result.yield_current.n in result.looks
+    assert "each look's interval at 98.3 %" in result.table()
+    assert "over the sequential verification's 3 looks" in Path(result.allocated_study_file).read_text()
     assert result.total_cost_allocated < result.total_cost_current
     assert sum(f.allocated > f.current for f in result.factors) >= 1
     for f in result.factors:

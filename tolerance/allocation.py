@@ -14,6 +14,7 @@ allocation.json.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import tomllib
@@ -27,6 +28,7 @@ from rvfmu.core.base.checks import InputError, finite_number, integer
 from . import cost as costs
 from .least_cost import (
     HIGH_YIELD,
+    LOOKS,
     MIN_HIGH_YIELD_N,
     Limit,
     Round,
@@ -34,6 +36,8 @@ from .least_cost import (
     ScaledModel,
     Verified,
     allocate_scales,
+    look_confidence,
+    look_sizes,
 )
 from .surrogate import SURROGATE_KIND
 
@@ -97,6 +101,8 @@ class AllocationResult:
     rounds: tuple[Round, ...] = ()
     files: dict = field(default_factory=dict)
     unconfirmed: bool = False  # verified allocations met the target, fresh draws did not
+    looks: tuple[int, ...] = ()  # reducers after which each verification looked (sequential)
+    look_confidence: float = 0.95  # the confidence of each look's interval
 
     def to_json(self) -> dict:
         """The allocation.json document (its schema is read by the HTML report: keep it)."""
@@ -210,6 +216,12 @@ class AllocationResult:
                 f"yield, {label:<9} {y.estimate:.5f}  ({c} interval {y.low:.5f} - "
                 f"{y.high:.5f}, Monte Carlo of {y.n} reducers of the true model)"
             )
+        if len(self.looks) > 1:
+            lines.append(
+                f"verification: sequential, a look after {', '.join(map(str, self.looks))} "
+                f"reducers, stopped at the first clear of the target; each look's interval at "
+                f"{100 * self.look_confidence:.3g} % so that the {c} holds over all {len(self.looks)}"
+            )
         if self.unconfirmed:
             lines.append(
                 f"target {self.target_yield:g}: NOT CONFIRMED: the cheapest allocations "
@@ -253,14 +265,18 @@ def allocate(
     processes: int | None = None,
     log=None,
     yes: bool = False,
+    looks: int | None = None,
 ) -> AllocationResult:
     """The least-cost tolerances of a study file with a verified yield >= yield_target.
 
     The yield is that of all spec lines at once; costs and bounds come from the
     [tolerances.NAME.cost] tables (tolerance/cost.py).  n: reducers of each
-    verification Monte Carlo (default the study's [montecarlo] n, at least
-    MIN_HIGH_YIELD_N for a target >= HIGH_YIELD); processes: local worker
-    processes for the training groups and those Monte Carlo runs.  Everything is
+    verification Monte Carlo at most (default the study's [montecarlo] n, at least
+    MIN_HIGH_YIELD_N for a target >= HIGH_YIELD); looks: each verification looks
+    at its yield up to this many times and stops once its interval is clear of
+    the target (tolerance/least_cost.py, step 6; 1: one Monte Carlo of n
+    reducers; default LOOKS); processes: local worker processes for the training groups and
+    those Monte Carlo runs.  Everything is
     stored in the output folder (default the study's; it must be this study's
     or new): the current
     tolerances' Monte Carlo as `rvte mc` would store it, the training and the
@@ -284,6 +300,7 @@ def allocate(
     if n is None:
         n = max(study.mc_n, MIN_HIGH_YIELD_N) if target >= HIGH_YIELD else study.mc_n
     n = integer("n", n, 1)
+    looks = LOOKS if looks is None else integer("looks", looks, 1, 16)
     folder = open_output(study, study.output)
     allocated_path = folder / f"{_file_name(study.name)}_allocated.toml"
     if study.path is not None and allocated_path.resolve() == Path(study.path).resolve():
@@ -294,10 +311,19 @@ def allocate(
         )
     _warn_load(study, log)
     wiring = _StudyWiring(study, _allocated_factors(study), folder, progress, log, yes, processes)
-    result = allocate_scales(
-        wiring.model(), target, n, log=log, progress=progress, column_names=study.metric_columns
-    )
-    return wiring.report(result, target, allocated_path)
+    with wiring.kept_backend():
+        result = allocate_scales(
+            wiring.model(),
+            target,
+            n,
+            log=log,
+            progress=progress,
+            column_names=study.metric_columns,
+            looks=looks,
+        )
+    wiring.current_files(result.current.n)
+    sizes = look_sizes(n, study.batch_size, looks)
+    return wiring.report(result, target, allocated_path, sizes)
 
 
 def study_model(study_path, output=None, processes: int | None = None, log=None) -> ScaledModel:
@@ -331,6 +357,22 @@ class _StudyWiring:
         self.models = tuple(costs.resolved(f) for f in factors)
         self.current = np.array([costs.current_um(f) for f in factors])
         self.layout = [(f, start, stop) for f, start, stop in study.layout if f in factors]
+        self.backend = None  # the verifications' backend while `kept_backend` holds it open
+
+    @contextlib.contextmanager
+    def kept_backend(self):
+        """One backend for every verification Monte Carlo of the search: a pool of worker
+        processes starts once, not at each look of each verification.  An error or Ctrl-C
+        ends its workers at once, as a run's own backend does."""
+        from .backends import make_backend
+
+        backend = make_backend(self.processes)
+        with backend:
+            self.backend = _Entered(backend)
+            try:
+                yield
+            finally:
+                self.backend = None
 
     def model(self) -> ScaledModel:
         study = self.study
@@ -351,6 +393,7 @@ class _StudyWiring:
             seed=study.seed,
             confidence=study.mc_confidence,
             evaluate_groups=self.evaluate_groups,
+            block=study.batch_size,
         )
 
     def magnitudes(self, U: np.ndarray) -> np.ndarray:
@@ -423,42 +466,53 @@ class _StudyWiring:
 
     def verify(self, scales, n: int, draw: int = 0):
         """The Monte Carlo of n reducers of the study file with these tolerances, on draws
-        number `draw`: rows 0 to n - 1 of that file's `rvte mc`, its seed `seed_of(draw)`.
+        number `draw`: rows 0 to n - 1 of that file's `rvte mc`, its seed `seed_of(draw)`,
+        computed in whole batches as `rvte mc -n n` computes them (so a larger n, and that
+        command, reuse every one).
 
-        Draws 0 are the study's own seed: at the current tolerances this is
-        `rvte mc` of the study itself (summary, samples and worst reducer
-        written, no figures), so that the output folder is ready for `rvte report`.
+        Draws 0 at the current tolerances are the study's own `rvte mc`, in its own
+        output folder (`current_files` writes its files once the search is over).
         """
         from . import montecarlo
         from .backends import make_backend
-        from .mc_runs import run_mc
         from .run import compute
 
         if draw == 0 and np.all(scales == 1.0):
-            return run_mc(
-                self.study,
-                n,
-                output=self.folder,
-                processes=self.processes,
-                progress=self.progress,
-                plots=False,
-                log=self.log,
-                yes=self.yes,
-            ).Y
-        study = self.candidate(scales, draw=draw)[1]
+            study = self.study
+            output = self.folder
+        else:
+            study = self.candidate(scales, draw=draw)[1]
+            output = study.output
         computed = compute(
             study,
             "mc",
-            n,
+            math.ceil(n / study.batch_size) * study.batch_size,
             lambda a, b: montecarlo.rows(study, a, b),
-            make_backend(self.processes),
+            self.backend or make_backend(self.processes),
             self.progress,
             self.log,
-            output=study.output,
+            output=output,
             yes=self.yes,
             size_field=("n", n),
         )
         return computed.Y[:n]
+
+    def current_files(self, n: int) -> None:
+        """`rvte mc` of the study itself at the n reducers its verification ran (every batch
+        stored: summary, samples and worst reducer written, no figures), so that the output
+        folder is ready for `rvte report`."""
+        from .mc_runs import run_mc
+
+        run_mc(
+            self.study,
+            n,
+            output=self.folder,
+            processes=self.processes,
+            progress=self.progress,
+            plots=False,
+            log=self.log,
+            yes=self.yes,
+        )
 
     def seed_of(self, draw: int) -> int:
         """The seed of draws number `draw`: the study's for 0, else one derived from it."""
@@ -489,9 +543,11 @@ class _StudyWiring:
         assert study.inputs_hash == probe.inputs_hash, "the allocated file must be what was verified"
         return text, study
 
-    def report(self, result: ScaleAllocation, target: float, path: Path) -> AllocationResult:
-        """Write the allocated study file and allocation.json; the result record."""
+    def report(self, result: ScaleAllocation, target: float, path: Path, sizes=()) -> AllocationResult:
+        """Write the allocated study file and allocation.json; the result record.  sizes: the
+        reducers after which each verification looked."""
         study = self.study
+        level = look_confidence(study.mc_confidence, max(len(sizes), 1))
         factors = []
         for f, model, t0, s, lo, hi in zip(
             self.factors,
@@ -543,6 +599,13 @@ class _StudyWiring:
                 if result.confirmations
                 else ""
             )
+            + (
+                f"The interval is at {100 * level:.3g} %, so that the {100 * study.mc_confidence:g} % "
+                f"holds over the sequential verification's {len(sizes)} looks ({', '.join(map(str, sizes))} "
+                "reducers); `rvte mc` prints the plain one.\n"
+                if len(sizes) > 1
+                else ""
+            )
             + f"Run: rvte mc {path.name} -n {allocated.n}   (reuses that Monte Carlo)"
         )
         text, _ = self.candidate(result.scales, header, allocated.draw)
@@ -566,10 +629,31 @@ class _StudyWiring:
             confidence=study.mc_confidence,
             rounds=result.rounds,
             unconfirmed=not result.feasible and bool(result.confirmations),
+            looks=tuple(sizes),
+            look_confidence=level,
             files={"allocated_study": path, "allocation": self.folder / "allocation.json"},
         )
         (self.folder / "allocation.json").write_text(json.dumps(record.to_json(), indent=1) + "\n")
         return record
+
+
+class _Entered:
+    """A backend already entered, lent to runs that enter and leave it: they leave it open."""
+
+    def __init__(self, backend):
+        self.backend, self.workers = backend, backend.workers
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def describe(self) -> str:
+        return self.backend.describe()
+
+    def map(self, study, tasks):
+        return self.backend.map(study, tasks)
 
 
 def _train_group(study, U, job) -> np.ndarray:

@@ -164,6 +164,7 @@ def _allocate(args):
         processes=args.processes,
         log=_log,
         yes=args.yes,
+        looks=args.looks,
     )
     _show(result, args.json)
 
@@ -285,8 +286,16 @@ def add_study_commands(subparsers) -> None:
     p.add_argument(
         "-n",
         type=int,
-        help="reducers of each verification Monte Carlo (default: the "
+        help="reducers of each verification Monte Carlo at most (default: the "
         "study's [montecarlo] n, at least 10000 for a yield >= 0.99)",
+    )
+    p.add_argument(
+        "--looks",
+        type=int,
+        metavar="K",
+        help="each verification looks at its yield after n/16, n/8, ... n reducers "
+        "(K looks at most, none below 500) and stops once it is clear of the target "
+        "(default 5; 1: one Monte Carlo of n reducers)",
     )
     p.add_argument(
         "-o",

@@ -60,15 +60,23 @@ model has the last word:
    yield with the margin (L-BFGS-B) is verified: the search climbs, and
    learns the surrogate's error on the way.
 6. Verification.  The allocation is checked by a Monte Carlo of the true
-   model: the allocated study file's own `rvte mc`, n reducers (the study's
-   [montecarlo] n, at least MIN_HIGH_YIELD_N for a target >= 0.99), on draws
-   of its own (every verification its own seed: the search never compares
-   allocations on the same reducers, so it cannot pick one whose reducers
-   happen to flatter it, and the verifications are independent, as the
-   correction assumes).  Its yield "meets the target" when the low end of its
-   confidence interval (Wilson, tolerance/montecarlo.py) is at or above the
-   target, not merely its estimate: an allocation that meets a 0.9973 target
-   does so with 97.5 % confidence.  The search stops when the next plan would
+   model: the allocated study file's own `rvte mc`, at most n reducers (the
+   study's [montecarlo] n, at least MIN_HIGH_YIELD_N for a target >= 0.99), on
+   draws of its own (every verification its own seed: the search never
+   compares allocations on the same reducers, so it cannot pick one whose
+   reducers happen to flatter it, and the verifications are independent, as
+   the correction assumes).  Its yield "meets the target" when the low end of
+   its confidence interval (Wilson, tolerance/montecarlo.py) is at or above
+   the target, not merely its estimate: an allocation that meets a 0.9973
+   target does so with 97.5 % confidence.  The verification is sequential
+   (`sequential_yield`): it looks at its yield after n/16, n/8, n/4, n/2
+   and n reducers (`look_sizes`; the first rows of a larger run are those of
+   a smaller one) and stops at the first look whose interval lies wholly
+   above or wholly below the target.  Each look's interval is at the
+   confidence 1 - (1 - c) / K for K looks (Bonferroni), so that all K
+   intervals hold together with confidence c, and the interval it stops on
+   is a valid c-interval whichever look that is: an allocation far from the
+   target is decided on a fraction of the reducers, one near it on all n.  The search stops when the next plan would
    save less than IMPROVEMENT of the cheapest allocation that met the target,
    after PATIENCE rounds in a row without a cheaper one, or after MAX_ROUNDS.
    Confirmation: the cheapest allocation that met the target was chosen
@@ -120,6 +128,8 @@ CORRECTION_LOCAL = 0.2  # and a local part,
 CORRECTION_LENGTH = 0.5  # correlated over this change of ln s per factor (x1.65)
 HIGH_YIELD = 0.99  # from this target on, verify with at least MIN_HIGH_YIELD_N reducers
 MIN_HIGH_YIELD_N = 10000  # 27 expected failures at 0.9973: the estimate means something
+LOOKS = 5  # a verification looks at its yield after n/16, n/8, n/4, n/2 and n reducers
+MIN_LOOK = 500  # and never after fewer than this (nor on a part of a block)
 
 
 # -- the problem the core sees ----------------------------------------------------------------
@@ -152,7 +162,10 @@ class ScaledModel:
     allocation, on the draw-th set of unit draws (0: the study's own; each
     other number independent of every other: the search never judges two
     allocations on the same reducers, so it cannot pick one whose draws
-    happen to flatter it).  snap(s) -> the scales that will be written (rounding).
+    happen to flatter it; the first rows of a larger n are those of a smaller
+    one, which a sequential verification relies on).  snap(s) -> the scales that
+    will be written (rounding).  block: the verification's n rounds up to whole
+    blocks of this many reducers (the study's batches), which it reuses.
     """
 
     names: tuple[str, ...]
@@ -168,6 +181,7 @@ class ScaledModel:
     seed: int = 0
     confidence: float = 0.95
     evaluate_groups: Callable | None = None
+    block: int = 1  # verify's n is best a multiple of this (its batches: see look_sizes)
 
     @property
     def lower(self) -> np.ndarray:
@@ -249,28 +263,40 @@ def allocate_scales(
     log=None,
     progress: bool | None = False,
     column_names: tuple[str, ...] | None = None,
+    looks: int = LOOKS,
 ) -> ScaleAllocation:
     """The least-cost scales with a verified yield >= target (module docstring, steps 1-7).
 
-    n: reducers of each verification Monte Carlo; groups: training groups of
-    TRAIN_GROUP reducers (default max(MIN_TRAIN_GROUPS, TRAIN_GROUPS_PER_FACTOR * F)).
+    n: reducers of each verification Monte Carlo at most; looks: the
+    sequential verification's looks at most (1: every verification is one
+    Monte Carlo of n reducers); groups: training groups of TRAIN_GROUP reducers
+    (default max(MIN_TRAIN_GROUPS, TRAIN_GROUPS_PER_FACTOR * F)).
     """
     say = log or (lambda text: None)
     F = len(model.names)
     lower, upper = model.lower, model.upper
     ones = np.ones(F)
     z_target = float(ndtri(target))
+    sizes = look_sizes(n, model.block, looks)
+    level = look_confidence(model.confidence, len(sizes))
     # what a verification of n reducers must show for the low end of its interval to reach
     # the target: the target plus z_conf binomial standard errors, in probit units
-    z_need = z_target + float(ndtri(0.5 + 0.5 * model.confidence)) * _binomial_probit_noise(target, n)
+    z_need = z_target + float(ndtri(0.5 + 0.5 * level)) * _binomial_probit_noise(target, n)
     evaluations = 0
     data = []  # (scales (k, F), R (k, F), Y (k, M), training group)
 
-    current = _verify(model, ones, n, 0)
-    evaluations += n
+    def verify(scales, draw) -> Verified:
+        """The sequential verification at scales on draws number `draw` (counted)."""
+        nonlocal evaluations
+        verified, rows = sequential_yield(model, scales, target, sizes, draw, level)
+        evaluations += rows
+        return verified
+
+    current = verify(ones, 0)
     say(
         f"allocate: current tolerances: yield {current.estimate:.5f} "
         f"[{current.low:.5f}, {current.high:.5f}] of {current.n}"
+        + (f" (verifications look after {', '.join(map(str, sizes))} reducers)" if len(sizes) > 1 else "")
     )
 
     groups = groups or max(MIN_TRAIN_GROUPS, TRAIN_GROUPS_PER_FACTOR * F)
@@ -359,11 +385,11 @@ def allocate_scales(
     draw, misses, stale = 1, 0, 0
 
     def monte_carlo(scales) -> Verified:
-        """The true model's Monte Carlo of n reducers at scales, on the next draws of its own."""
-        nonlocal draw, evaluations
-        verified = _verify(model, scales, n, draw)
+        """The true model's Monte Carlo of at most n reducers at scales, on the next draws of
+        its own."""
+        nonlocal draw
+        verified = verify(scales, draw)
         draw += 1
-        evaluations += n
         every.append(verified)
         return verified
 
@@ -697,19 +723,52 @@ def optimise(model: ScaledModel, probit_at, wanted: float, starts=(), lower=None
     return best
 
 
-def _verify(model: ScaledModel, scales, n: int, draw: int) -> Verified:
-    """The true model's Monte Carlo at scales on draws number `draw`, judged."""
-    return judge(model, scales, model.verify(np.asarray(scales, dtype=float), n, draw), draw)
+def look_sizes(n: int, block: int = 1, looks: int = LOOKS) -> tuple[int, ...]:
+    """The reducers after which a verification of at most n looks at its yield.
+
+    n / 2^j for j < looks, each rounded up to whole blocks (so that the next
+    look reuses every batch of this one) and kept if at least MIN_LOOK and
+    below n; then n itself.  n = 10 000 in blocks of 64: 640, 1280, 2560,
+    5056, 10 000.
+    """
+    sizes = {n}
+    for j in range(1, looks):
+        size = -(-math.ceil(n / 2**j) // block) * block
+        if MIN_LOOK <= size < n:
+            sizes.add(size)
+    return tuple(sorted(sizes))
 
 
-def judge(model: ScaledModel, scales, Y, draw: int = 0) -> Verified:
-    """The yield of metrics Y (n, M) against every limit, with its interval."""
+def look_confidence(confidence: float, looks: int) -> float:
+    """The confidence of each look's interval for `looks` looks to hold together with
+    `confidence` (Bonferroni: the chance that any of them misses the yield is at most
+    looks x (1 - this))."""
+    return 1.0 - (1.0 - confidence) / looks
+
+
+def sequential_yield(
+    model: ScaledModel, scales, target: float, sizes, draw: int, level: float
+) -> tuple[Verified, int]:
+    """(the verification, the reducers it ran): the true model's Monte Carlo at scales on
+    draws number `draw`, looking after each of `sizes` reducers and stopping at the first
+    look whose interval (at `level`) lies wholly above or wholly below the target."""
+    scales = np.asarray(scales, dtype=float)
+    for size in sizes:
+        verified = judge(model, scales, model.verify(scales, size, draw), draw, level)
+        if verified.low >= target or verified.high < target:
+            break
+    return verified, size
+
+
+def judge(model: ScaledModel, scales, Y, draw: int = 0, confidence: float | None = None) -> Verified:
+    """The yield of metrics Y (n, M) against every limit, with its interval at `confidence`
+    (default the model's)."""
     ok = np.all(np.isfinite(Y), axis=1)
     passes = ok.copy()
     for limit in model.limits:
         passes[ok] &= limit.passes(Y[ok, limit.column])
     evaluated, passed = int(ok.sum()), int(passes.sum())
-    low, high = wilson_interval(passed, evaluated, model.confidence)
+    low, high = wilson_interval(passed, evaluated, model.confidence if confidence is None else confidence)
     return Verified(np.asarray(scales, dtype=float).copy(), passed, evaluated, low, high, draw)
 
 
