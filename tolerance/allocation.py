@@ -321,8 +321,10 @@ def allocate(
             column_names=study.metric_columns,
             looks=looks,
         )
-    wiring.current_files(result.current.n)
     sizes = look_sizes(n, study.batch_size, looks)
+    # the reducers of the look that decided the current tolerances (their n counts the
+    # finite ones only)
+    wiring.current_files(next((size for size in sizes if size >= result.current.n), n))
     return wiring.report(result, target, allocated_path, sizes)
 
 
