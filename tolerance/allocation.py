@@ -37,7 +37,6 @@ from .least_cost import (
     Verified,
     allocate_scales,
     look_confidence,
-    look_sizes,
 )
 from .surrogate import SURROGATE_KIND
 
@@ -321,11 +320,10 @@ def allocate(
             column_names=study.metric_columns,
             looks=looks,
         )
-    sizes = look_sizes(n, study.batch_size, looks)
     # the reducers of the look that decided the current tolerances (their n counts the
     # finite ones only)
-    wiring.current_files(next((size for size in sizes if size >= result.current.n), n))
-    return wiring.report(result, target, allocated_path, sizes)
+    wiring.current_files(next((size for size in result.looks if size >= result.current.n), n))
+    return wiring.report(result, target, allocated_path)
 
 
 def study_model(study_path, output=None, processes: int | None = None, log=None) -> ScaledModel:
@@ -545,10 +543,10 @@ class _StudyWiring:
         assert study.inputs_hash == probe.inputs_hash, "the allocated file must be what was verified"
         return text, study
 
-    def report(self, result: ScaleAllocation, target: float, path: Path, sizes=()) -> AllocationResult:
-        """Write the allocated study file and allocation.json; the result record.  sizes: the
-        reducers after which each verification looked."""
+    def report(self, result: ScaleAllocation, target: float, path: Path) -> AllocationResult:
+        """Write the allocated study file and allocation.json; the result record."""
         study = self.study
+        sizes = result.looks
         level = look_confidence(study.mc_confidence, max(len(sizes), 1))
         factors = []
         for f, model, t0, s, lo, hi in zip(

@@ -248,6 +248,7 @@ class ScaleAllocation:
     validation: str
     evaluations: int
     confirmations: tuple[Verified, ...] = ()
+    looks: tuple[int, ...] = ()  # the reducers after which each verification looked
 
 
 # -- the core: scales -> cheapest verified allocation ---------------------------------------------
@@ -485,6 +486,7 @@ def allocate_scales(
                     validation,
                     evaluations,
                     tuple(confirmations),
+                    sizes,
                 )
             refuted.add(best)
             stale = 0
@@ -517,11 +519,29 @@ def allocate_scales(
         best = max(confirmations, key=lambda c: c.estimate)
         validation += "; no verified allocation was confirmed on fresh draws"
         return ScaleAllocation(
-            best.scales, False, current, best, rounds, samples, validation, evaluations, tuple(confirmations)
+            best.scales,
+            False,
+            current,
+            best,
+            rounds,
+            samples,
+            validation,
+            evaluations,
+            tuple(confirmations),
+            sizes,
         )
     reached = max(reversed(points), key=lambda done: done.verified.estimate)
     return ScaleAllocation(
-        reached.verified.scales, False, current, reached.verified, rounds, samples, validation, evaluations
+        reached.verified.scales,
+        False,
+        current,
+        reached.verified,
+        rounds,
+        samples,
+        validation,
+        evaluations,
+        (),
+        sizes,
     )
 
 
