@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 import tolerance
-from tolerance import load_study, run_mc
+from tolerance import backends, load_study, run_mc
 from tolerance.least_cost import look_sizes
 
 STUDY = Path(__file__).resolve().parents[1] / "studies" / "rv40e_121_full_rated.toml"
@@ -40,11 +40,22 @@ def allocation(tmp_path_factory):
     folder = tmp_path_factory.mktemp("rv40e_allocate")
     path = folder / "rv40e_121_full_rated_36.toml"
     path.write_text(edited(STUDY.read_text(), name='"rv40e_121_full_rated_36"', points=36, output='"output"'))
-    return path, tolerance.allocate(path, TARGET, progress=False, processes=2)
+    pools = []  # the worker pools started during the allocation, by their size
+    real = backends.local_pool
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(backends, "local_pool", lambda workers: pools.append(workers) or real(workers))
+        result = tolerance.allocate(path, TARGET, progress=False, processes=2)
+    return path, result, pools
+
+
+def test_one_pool_of_workers_serves_the_training_and_every_verification(allocation):
+    _, result, pools = allocation
+    assert result.surrogate_samples > 0 and len(result.rounds) >= 1
+    assert pools == [2]
 
 
 def test_the_current_tolerances_over_achieve_and_the_allocation_opens_them_for_less(allocation):
-    path, result = allocation
+    path, result, _ = allocation
     assert len(result.factors) == 15
     assert result.yield_current.low > TARGET  # the starting drawing over-achieves
     assert result.feasible and result.yield_allocated.low >= TARGET
@@ -62,7 +73,7 @@ def test_the_current_tolerances_over_achieve_and_the_allocation_opens_them_for_l
 def test_an_independent_monte_carlo_of_5000_reducers_confirms_the_target(allocation, tmp_path):
     """The allocated study file, run as any study with another seed (so other reducers than
     the allocation's own verification), meets the target: its interval's low end >= 0.95."""
-    path, result = allocation
+    path, result, _ = allocation
     allocated = Path(result.allocated_study_file)
     text = edited(allocated.read_text(), seed=9001, output=f'"{tmp_path / "independent"}"')
     check = tmp_path / "independent.toml"

@@ -443,14 +443,21 @@ class _StudyWiring:
         return _train_group(self.scaled_study(scales, U.shape[0]), U, job)
 
     def evaluate_groups(self, tasks):
-        """The training groups (scales, U, job), in order; on worker processes if asked."""
+        """The training groups (scales, U, job), in order; on worker processes if asked: those
+        of the verifications' backend while `kept_backend` holds it open, else a pool of their
+        own."""
         studies = [(self.scaled_study(s, U.shape[0]), U, job) for s, U, job in tasks]
         if not self.processes or self.processes < 2:
             yield from (_train_group(*task) for task in studies)
             return
         from concurrent.futures.process import BrokenProcessPool
 
-        from .backends import _DIED, local_pool, spawning, stop_pool
+        from .backends import _DIED, Processes, local_pool, spawning, stop_pool
+
+        kept = getattr(self.backend, "backend", None)
+        if isinstance(kept, Processes):
+            yield from kept.calls(_train_group, studies, chunksize=4)
+            return
 
         pool = local_pool(self.processes)  # as the Processes backend's
         finished = False

@@ -244,6 +244,15 @@ class Processes:
         except BrokenProcessPool as exc:
             raise RuntimeError(_DIED.format(exc=exc)) from None
 
+    def calls(self, function, arguments, chunksize: int = 1):
+        """function(*args) for each args of `arguments` on the workers; yield the results in
+        order (for work that is not one study's batches: the allocation's training groups,
+        each a study of its own).  A dead pool raises RuntimeError."""
+        try:
+            yield from self._pool.map(function, *zip(*arguments), chunksize=chunksize)
+        except BrokenProcessPool as exc:
+            raise RuntimeError(_DIED.format(exc=exc)) from None
+
 
 _DIED = (
     "a worker process died ({exc}); finished batches are kept. A script that uses worker "
