@@ -136,6 +136,28 @@ def test_chaos_evaluates_as_openturns_does():
     )
 
 
+def test_the_quadratic_form_of_a_degree_2_chaos_is_its_sum_of_legendre_terms():
+    """The search evaluates its chaos (degree 2) as k0 + g.x + x.Q x with two BLAS products;
+    the sum over the orthonormal Legendre terms is the reference, values and gradients."""
+    rng = np.random.default_rng(6)
+    X = rng.uniform(-1, 1, (600, 4))
+    y = 0.3 + X[:, 0] - 2.0 * X[:, 1] * X[:, 2] + 0.7 * X[:, 3] ** 2 - 0.4 * X[:, 0] * X[:, 3]
+    chaos = Chaos(X, y + 0.01 * rng.standard_normal(600))
+    assert chaos.quadratic is not None
+    assert sum(np.count_nonzero(a) == 2 for a in chaos.alpha) >= 2  # interactions kept
+    assert sum(a.max() == 2 for a in chaos.alpha) >= 1  # and a square
+    test = rng.uniform(-1, 1, (200, 4))
+    value, gradient = chaos.value_gradient(test)
+    reference, reference_gradient = chaos.terms_value_gradient(test)
+    np.testing.assert_allclose(value, reference, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(gradient, reference_gradient, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(chaos(test), chaos.terms(test), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(chaos(test), np.asarray(chaos.metamodel(test))[:, 0], atol=1e-12)
+    cubic = Chaos(X, y + X[:, 0] ** 3, 3)  # beyond degree 2: the terms themselves
+    assert cubic.quadratic is None
+    np.testing.assert_allclose(cubic(test), np.asarray(cubic.metamodel(test))[:, 0], atol=1e-12)
+
+
 def _central_differences(function, X, h=1e-6):
     """d function / d X by central differences: function (m, F) -> (m,), X (m, F): (m, F)."""
     return np.stack(

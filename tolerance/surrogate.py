@@ -62,9 +62,29 @@ class Chaos:
         self.metamodel = result.getMetaModel()
         # LARS keeps the step of least error: the kept basis is the minimum of the history
         self.loo_error = float(min(result.getErrorHistory()))
+        self.quadratic = _quadratic_form(self.alpha, self.coefficients) if degree <= 2 else None
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
-        """Values at X (n, d) in [-1, 1]: (n,)."""
+        """Values at X (n, d) in [-1, 1]: (n,); of degree 2 or less as the quadratic form
+        `quadratic` (two BLAS products), else by `terms`."""
+        if self.quadratic is None:
+            return self.terms(X)
+        k0, g, Q = self.quadratic
+        return k0 + X @ g + np.einsum("nd,nd->n", X @ Q, X)
+
+    def value_gradient(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Values (n,) and gradient (n, d) with respect to X at X (n, d) in [-1, 1]: of
+        degree 2 or less by the quadratic form (the gradient g + 2 Q x), else by
+        `terms_value_gradient`."""
+        if self.quadratic is None:
+            return self.terms_value_gradient(X)
+        k0, g, Q = self.quadratic
+        XQ = X @ Q
+        return k0 + X @ g + np.einsum("nd,nd->n", XQ, X), g + 2.0 * XQ
+
+    def terms(self, X: np.ndarray) -> np.ndarray:
+        """Values at X (n, d) summed term by term over the orthonormal Legendre products (any
+        degree; the reference of the quadratic form)."""
         P, _ = self._legendre(X, derivatives=False)
         out = np.zeros(P.shape[2])
         for alpha, c in zip(self.alpha, self.coefficients):
@@ -78,8 +98,8 @@ class Chaos:
             out += term
         return out
 
-    def value_gradient(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Values (n,) and gradient (n, d) with respect to X at X (n, d) in [-1, 1]."""
+    def terms_value_gradient(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`value_gradient` term by term (any degree; the reference of the quadratic form)."""
         P, D = self._legendre(X, derivatives=True)
         value, gradient = np.zeros(P.shape[2]), np.zeros(P.shape[1:])  # (n,), (d, n)
         for alpha, c in zip(self.alpha, self.coefficients):
@@ -113,6 +133,34 @@ class Chaos:
         if derivatives:
             D *= norm
         return P, D
+
+
+def _quadratic_form(alpha: np.ndarray, coefficients: np.ndarray) -> tuple:
+    """(k0, g (d,), Q (d, d) symmetric) with chaos(x) = k0 + g . x + x . Q x, for a chaos of
+    total degree 2 or less (multi-indices alpha (terms, d), coefficients (terms,)).
+
+    With the orthonormal Legendre polynomials P1(x) = sqrt(3) x and P2(x) = sqrt(5) (3 x^2 -
+    1) / 2, a term c P1(x_i) adds sqrt(3) c to g_i, c P2(x_i) adds 3 sqrt(5) c / 2 to Q_ii
+    and -sqrt(5) c / 2 to k0, and c P1(x_i) P1(x_j) adds 3 c / 2 to Q_ij and to Q_ji.
+    """
+    d = alpha.shape[1]
+    k0, g, Q = 0.0, np.zeros(d), np.zeros((d, d))
+    root3, root5 = np.sqrt(3.0), np.sqrt(5.0)
+    for a, c in zip(alpha, coefficients):
+        nonzero = np.flatnonzero(a)
+        if nonzero.size == 0:
+            k0 += c
+        elif nonzero.size == 1 and a[nonzero[0]] == 1:
+            g[nonzero[0]] += root3 * c
+        elif nonzero.size == 1:  # a[i] == 2
+            i = nonzero[0]
+            Q[i, i] += 1.5 * root5 * c
+            k0 -= 0.5 * root5 * c
+        else:  # x_i x_j
+            i, j = nonzero
+            Q[i, j] += 1.5 * c
+            Q[j, i] += 1.5 * c
+    return k0, g, Q
 
 
 class Surrogate:
