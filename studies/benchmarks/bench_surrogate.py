@@ -27,21 +27,12 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+from bench_roller_law import best_of  # this folder: the script's own
 
 from tolerance.least_cost import YIELD_DRAWS, Limit
 from tolerance.surrogate import Chaos, Surrogate
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def best_of(repeat: int, function) -> float:
-    """The least wall time of `repeat` calls of function() [s]."""
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def flat(result) -> np.ndarray:
@@ -79,16 +70,16 @@ def kernels(inputs: int, repeat: int) -> None:
         ("chaos values and gradient", lambda: mean.value_gradient(X), lambda: mean.terms_value_gradient(X)),
     ):
         a, b = flat(fast()), flat(slow())
-        t_fast, t_slow = best_of(repeat, fast), best_of(repeat, slow)
+        t_fast, t_slow = best_of(fast, repeat), best_of(slow, repeat)
         print(
             f"| {what} | {YIELD_DRAWS} | {1e3 * t_slow:.2f} | {1e3 * t_fast:.2f} | {t_slow / t_fast:.1f} | "
             f"{np.abs(a - b).max():.1e} |"
         )
     fast_p = surrogate.probability(at, gradient=True)
-    t_fast = best_of(repeat, lambda: surrogate.probability(at, gradient=True))
+    t_fast = best_of(lambda: surrogate.probability(at, gradient=True), repeat)
     with terms_only():
         slow_p = surrogate.probability(at, gradient=True)
-        t_slow = best_of(repeat, lambda: surrogate.probability(at, gradient=True))
+        t_slow = best_of(lambda: surrogate.probability(at, gradient=True), repeat)
     difference = max(np.abs(fast_p[0] - slow_p[0]).max(), np.abs(fast_p[1] - slow_p[1]).max())
     print(
         f"| surrogate probability and gradient (mean and log variance) | {YIELD_DRAWS} | {1e3 * t_slow:.2f} | "
