@@ -288,6 +288,35 @@ def test_vg_7_is_taken_from_vi_75():
     assert lubricant.viscosity_100(7, 75.0) >= 2.0
 
 
+def test_a_design_is_checked_without_solving_for_its_viscosity():
+    """Building a design checks its lubricant by D2270's bracket alone: the root (and
+    scipy.optimize, 0.3-0.7 s to import, and 20 s under valgrind in an FMU host) waits for the
+    first viscosity asked for, which then is D2270's."""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys\n"
+        "from rvfmu.core.reducer.design import preset\n"
+        "from rvfmu.core.laws import lubricant\n"
+        "design = preset('RV-40E-121')\n"
+        "before = 'scipy.optimize' in sys.modules\n"
+        "nu = lubricant.viscosity_cSt(design, 60.0)\n"
+        "print(before, 'scipy.optimize' in sys.modules, repr(nu))\n"
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    before, after, nu = run.stdout.split()
+    assert (before, after) == ("False", "True")
+    design = preset("RV-40E-121")
+    assert float(nu) == lubricant.viscosity_cSt(design, 60.0)
+    assert float(nu) == lubricant.walther_viscosity(
+        lubricant.ISO_VG_VISCOSITY[design.lubricant_iso_vg],
+        lubricant.viscosity_100(design.lubricant_iso_vg, design.lubricant_viscosity_index),
+        60.0,
+    )
+
+
 # -- the job and the CLI ----------------------------------------------------------------------
 
 

@@ -34,7 +34,6 @@ import functools
 import math
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..base.checks import InputError, finite_number
 
@@ -177,6 +176,8 @@ def viscosity_index(nu_40, nu_100) -> np.ndarray:
 
 @functools.lru_cache(maxsize=256)
 def _nu_100(nu_40: float, index: float) -> float:
+    from scipy.optimize import brentq  # here: its import takes 0.3-0.7 s, which most commands need not pay
+
     return float(
         brentq(
             lambda y: float(viscosity_index(nu_40, y)) - index,
@@ -192,6 +193,13 @@ def viscosity_100(grade, index, where: str = "") -> float:
     """The kinematic viscosity [mm^2/s] at 100 C of an ISO VG `grade` oil of viscosity index
     `index`: the root Y of ASTM D2270's VI(U, Y) = index, U the grade's viscosity at 40 C.
     InputError (naming lubricant_iso_vg) where the root falls below D2270's 2 mm^2/s."""
+    nu_40, index = _d2270_bracket(grade, index, where)
+    return _nu_100(nu_40, index)
+
+
+def _d2270_bracket(grade, index, where: str) -> tuple[float, float]:
+    """(U, index) of an ISO VG `grade` oil whose root Y of VI(U, Y) = index lies in D2270's
+    range [2 mm^2/s, U]; InputError as `viscosity_100` says where it does not."""
     grade = check_grade(grade, where=where)
     index = check_viscosity_index(index, where=where)
     nu_40 = ISO_VG_VISCOSITY[grade]
@@ -206,7 +214,7 @@ def viscosity_100(grade, index, where: str = "") -> float:
             f"{math.ceil(least)} or more, or a grade from 10 up",
             where,
         )
-    return _nu_100(nu_40, index)
+    return nu_40, index
 
 
 def walther_viscosity(nu_40: float, nu_100: float, temperature_C) -> np.ndarray:
@@ -248,5 +256,6 @@ def viscosity_cSt(design, temperature_C: float = REFERENCE_TEMPERATURE_C) -> flo
 
 def check_lubricant(grade, index, where: str = "") -> None:
     """Refuse (InputError) a grade that is not ISO 3448's, an index outside
-    VISCOSITY_INDEX_RANGE, or a pair that leaves ASTM D2270's range (`viscosity_100`)."""
-    viscosity_100(grade, index, where)
+    VISCOSITY_INDEX_RANGE, or a pair that leaves ASTM D2270's range (`viscosity_100`).  The
+    root itself waits for the first viscosity asked for: every design is checked, few need it."""
+    _d2270_bracket(grade, index, where)
