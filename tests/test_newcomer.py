@@ -139,3 +139,47 @@ def test_every_module_imports_first_in_a_fresh_interpreter():
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip().endswith("none failed"), proc.stdout
     assert int(proc.stdout.split()[0]) > 30
+
+
+TE_IMPORTS = """
+import runpy, sys
+unused, sys.argv = sys.argv[1:], ["rvte", "te", "RV-40E-121", "--points", "36"]
+try:
+    runpy.run_module("rvfmu.cli", run_name="__main__")
+except SystemExit as stop:
+    assert not stop.code, stop.code
+print(" ".join(m for m in unused if m in sys.modules) or "none")
+"""
+
+# What the TE command never uses, and what each would add to its start (import time here).
+UNUSED_BY_TE = (
+    "scipy.optimize",  # 0.3-0.7 s: only the lubricant's D2270 root, asked for by the losses
+    "scipy.special",  # 0.2 s: only the studies' normal draws
+    "scipy.stats",
+    "SALib",
+    "pandas",
+    "pyarrow",
+    "distributed",
+    "matplotlib",  # only with --plot
+    "openturns",
+)
+
+
+def test_the_te_command_loads_no_library_it_does_not_use():
+    """`rvte te` starts in about 2 s, a third of it imports: the studies' libraries and the
+    optimisers wait for the first command that needs them."""
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    proc = subprocess.run(
+        [sys.executable, "-c", TE_IMPORTS, *UNUSED_BY_TE],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "te_pp" in proc.stdout
+    assert proc.stdout.splitlines()[-1] == "none"

@@ -33,8 +33,9 @@ cross-sampling.  `draw_names` lists the columns of each factor in order.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
-from scipy.special import ndtr, ndtri
 
 from rvfmu.core.base.units import UM
 from rvfmu.core.reducer.design import RVDesign
@@ -74,11 +75,19 @@ DRAWS = {  # what the columns of one factor are, for the docs and the column nam
     "clearance": "1",
 }
 
-_P3 = float(ndtr(TRUNCATION_SIGMAS))
 _RAYLEIGH_TAIL = float(np.exp(-0.5 * TRUNCATION_SIGMAS**2))  # P(|circular normal| > 3 sigma)
 
 
 # -- the distributions, each a map from u in [0, 1] ------------------------------------------
+
+
+@functools.cache
+def _normal() -> tuple:
+    """(ndtri, P3): scipy.special's inverse normal CDF and the normal CDF at TRUNCATION_SIGMAS,
+    on first use (scipy.special takes 0.2 s to import; `rvte te` draws nothing)."""
+    from scipy.special import ndtr, ndtri
+
+    return ndtri, float(ndtr(TRUNCATION_SIGMAS))
 
 
 def centred(u, half_width, distribution):
@@ -86,7 +95,8 @@ def centred(u, half_width, distribution):
     u = np.clip(u, 0.0, 1.0)
     if distribution == "uniform":
         return half_width * (2.0 * u - 1.0)
-    return half_width / TRUNCATION_SIGMAS * ndtri((1.0 - _P3) + u * (2.0 * _P3 - 1.0))
+    ndtri, p3 = _normal()
+    return half_width / TRUNCATION_SIGMAS * ndtri((1.0 - p3) + u * (2.0 * p3 - 1.0))
 
 
 def fraction(u, distribution):
@@ -94,7 +104,8 @@ def fraction(u, distribution):
     u = np.clip(u, 0.0, 1.0)
     if distribution == "uniform":
         return u
-    return ndtri(0.5 + u * (_P3 - 0.5)) / TRUNCATION_SIGMAS
+    ndtri, p3 = _normal()
+    return ndtri(0.5 + u * (p3 - 0.5)) / TRUNCATION_SIGMAS
 
 
 def disc_radius(u, radius, distribution):
