@@ -5,7 +5,6 @@ calibration's reach, and negative values after list options on the command line.
 import dataclasses
 import json
 import re
-import time
 
 import numpy as np
 import pytest
@@ -72,9 +71,7 @@ def test_a_sweep_below_the_lost_motion_test_torque_is_refused(rv40, capsys, no_e
 
 def test_the_smallest_sweep_allowed_keeps_the_loops_invariants(rv40):
     smallest = MIN_SWEEP_FRACTION * rv40.rated_torque
-    start = time.perf_counter()
     h = hysteresis(rv40, max_load=smallest, positions=4)
-    assert time.perf_counter() - start < 120.0
     assert h.converged and h.tau_load[-1] == pytest.approx(smallest)
     assert 0.0 < h.friction_torque.max() <= smallest
     work = sum(h.friction_work_J.values())
@@ -240,7 +237,6 @@ def test_a_catalogue_figure_out_of_reach_writes_nothing(tmp_path, capsys, text, 
     data = tmp_path / "absurd.toml"
     data.write_text(text)
     out = tmp_path / "calibrated.toml"
-    start = time.perf_counter()
     err = one_line_error(
         *run_cli(
             [
@@ -258,7 +254,6 @@ def test_a_catalogue_figure_out_of_reach_writes_nothing(tmp_path, capsys, text, 
         ),
         "calibrate",
     )
-    assert time.perf_counter() - start < 120.0
     assert not out.exists()
     assert f"error: {figure} = {value}: out of the fit's reach" in err
     # the window: 412 N*m/arcmin / and x 30, the modification scale's 0.05 to 4

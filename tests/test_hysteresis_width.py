@@ -4,7 +4,6 @@ loop's own path and friction torques on the RV-40E-121, in the JSON and in the f
 
 import dataclasses
 import json
-import time
 
 import numpy as np
 import pytest
@@ -140,9 +139,7 @@ def test_rv40_width_is_the_path_read_at_plus_and_minus_the_friction_torque(repor
 
 def test_rv40_width_is_positive_and_of_the_size_of_the_loops_friction(report):
     h = report.loop
-    start = time.perf_counter()
     width = report.width_arcmin()
-    assert time.perf_counter() - start < 0.5
     assert width.shape == report.width_torques_Nm.shape and np.all(width > 0.0)
     # loaded: the path's slope (the record's rigidity, 50-100 % rated) times 2 T_f there
     for torque in (-300.0, 300.0):
@@ -175,9 +172,7 @@ def test_without_friction_the_branches_are_one_line(rv40_121):
 
 def test_json_and_summary_carry_the_width(report, capsys, tmp_path):
     plot = tmp_path / "loop.png"
-    start = time.perf_counter()
     code, out, err = run_cli(["hysteresis", "RV-40E-121", "--json", "--plot", plot], capsys)
-    assert time.perf_counter() - start < 60.0
     assert code == 0, err
     data = json.loads(out)
     assert data["width_at_zero_arcmin"] == pytest.approx(report.width_at_zero_arcmin, rel=1e-12)

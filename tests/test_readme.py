@@ -5,7 +5,6 @@ import re
 import shlex
 import subprocess
 import sys
-import time
 
 from conftest import ROOT
 
@@ -101,7 +100,6 @@ def test_readme_fmpy_example_runs_as_written(tmp_path):
     # The README's paths are relative to the repository; run in a fresh folder so nothing
     # is written into the working tree, with the repository's input files given in full.
     args = [str(ROOT / a) if a.startswith("studies/") else a for a in shlex.split(build)[1:]]
-    start = time.monotonic()
     proc = subprocess.run(
         [sys.executable, "-m", "rvfmu.cli", *args], cwd=tmp_path, capture_output=True, text=True, timeout=300
     )
@@ -121,4 +119,3 @@ def test_readme_fmpy_example_runs_as_written(tmp_path):
     assert match, run.stdout
     assert int(match.group(2)) == 1001  # 1 s at 1 ms, both ends
     assert float(match.group(1)) > 0.0  # the errors and the load make a TE
-    assert time.monotonic() - start < 90, "the README's FMU build and example took too long"

@@ -177,7 +177,6 @@ def test_the_templates_are_found_from_another_folder_and_are_package_data(tmp_pa
         "print(render_html(*parts))\nprint(render_markdown(*parts))\n"
     )
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    clock = time.perf_counter()
     run = subprocess.run(
         [sys.executable, "-c", script],
         cwd=tmp_path,
@@ -188,7 +187,6 @@ def test_the_templates_are_found_from_another_folder_and_are_package_data(tmp_pa
         check=False,
     )
     assert run.returncode == 0, run.stderr
-    assert time.perf_counter() - clock < 60.0
     filename, _, rest = run.stdout.partition("\n")
     assert Path(filename) == TEMPLATES / "report.html.j2"
     assert rest.startswith("<!DOCTYPE html>\n") and "<title>T &amp; &lt;b&gt;</title>" in rest
