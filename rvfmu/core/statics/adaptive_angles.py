@@ -32,6 +32,16 @@ was missed (within 1e-6 arcsec) and 61-73 % of the solves were needed (0.8-0.95
 of the full curve's time); looser ones missed by up to 18.6 arcsec.  So the
 gain is a third at most, not a large fraction.  `AdaptiveTEPP.excess_bound_arcsec`
 says what E each reducer ended with.
+
+Where the rule misses: a preloaded reducer without clearance at no load, whose TE
+jumps at single angles where its contacts change (docs/model.md section 5).  On
+studies/quick_mc.toml's reducers (the calibrated RV-40E-121, seed 1's Monte Carlo rows)
+with the default settings, at 3200 points 4 of 48 reducers came out short by 0.07-1.2
+arcsec with 56 % of the solves, and at the study's 720 points, where the pin-passing
+ripple aliases and neighbouring grid points are all but unrelated, 2 of 256 by 0.7 and
+1.2 arcsec with 99 % of them.  Such a curve gives no interval a bound that a narrower
+spike must respect; its te_pp takes the full curve (`quasistatic.te_curve`), which is
+what every study does.
 """
 
 from __future__ import annotations
