@@ -141,9 +141,9 @@ def test_every_module_imports_first_in_a_fresh_interpreter():
     assert int(proc.stdout.split()[0]) > 30
 
 
-TE_IMPORTS = """
-import runpy, sys
-unused, sys.argv = sys.argv[1:], ["rvte", "te", "RV-40E-121", "--points", "36"]
+COMMAND_IMPORTS = """
+import json, runpy, sys
+unused, sys.argv = sys.argv[2:], ["rvte", *json.loads(sys.argv[1])]
 try:
     runpy.run_module("rvfmu.cli", run_name="__main__")
 except SystemExit as stop:
@@ -151,11 +151,11 @@ except SystemExit as stop:
 print(" ".join(m for m in unused if m in sys.modules) or "none")
 """
 
-# What the TE command never uses, and what each would add to its start (import time here).
+# What a command never uses, and what each would add to its start (import time here).
 UNUSED_BY_TE = (
     "scipy.optimize",  # 0.3-0.7 s: only the lubricant's D2270 root, asked for by the losses
     "scipy.special",  # 0.2 s: only the studies' normal draws
-    "scipy.stats",
+    "scipy.stats",  # 1.1 s: only the Sobol analyses and the allocation
     "SALib",
     "pandas",
     "pyarrow",
@@ -163,23 +163,38 @@ UNUSED_BY_TE = (
     "matplotlib",  # only with --plot
     "openturns",
 )
+UNUSED_BY_MC = ("scipy.optimize", "scipy.stats", "SALib", "distributed", "matplotlib", "openturns")
 
 
-def test_the_te_command_loads_no_library_it_does_not_use():
-    """`rvte te` starts in about 2 s, a third of it imports: the studies' libraries and the
-    optimisers wait for the first command that needs them."""
+def loaded_by(args: list, unused: tuple) -> str:
+    """The modules of `unused` that `rvte *args` loads in a fresh interpreter ("none")."""
+    import json
     import subprocess
     import sys
 
     from conftest import ROOT
 
     proc = subprocess.run(
-        [sys.executable, "-c", TE_IMPORTS, *UNUSED_BY_TE],
+        [sys.executable, "-c", COMMAND_IMPORTS, json.dumps(args), *unused],
         capture_output=True,
         text=True,
         cwd=ROOT,
         timeout=600,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert "te_pp" in proc.stdout
-    assert proc.stdout.splitlines()[-1] == "none"
+    return proc.stdout.splitlines()[-1]
+
+
+def test_the_te_command_loads_no_library_it_does_not_use():
+    """`rvte te` starts in about 2 s, a third of it imports: the studies' libraries and the
+    optimisers wait for the first command that needs them."""
+    assert loaded_by(["te", "RV-40E-121", "--points", "36"], UNUSED_BY_TE) == "none"
+
+
+def test_a_monte_carlo_loads_no_sobol_nor_plotting_library(tmp_path):
+    """`rvte mc` (here without figures) needs the draws and the store, not SALib and
+    scipy.stats, which the Sobol analyses import when they run."""
+    path = write_study(tmp_path, montecarlo={"n": 8})
+    args = ["mc", str(path), "-o", str(tmp_path / "out"), "--no-plots"]
+    assert loaded_by(args, UNUSED_BY_MC) == "none"
+    assert (tmp_path / "out" / "mc_summary.json").is_file()

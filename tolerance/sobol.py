@@ -56,10 +56,6 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from SALib.analyze import sobol as salib_analyze
-from SALib.sample import sobol as salib_sample
-from SALib.util import extract_group_names, scale_samples
-from scipy.stats import norm, qmc
 
 WIDE_CI = 0.1  # half-width of an index's interval above which its rank is uncertain
 CONVERGED_CHANGE = 0.05  # largest |ST(N) - ST(N/2)| of a converged study (5 % of the variance)
@@ -69,8 +65,14 @@ WHOLE_INPUT_NOTE = (
 )
 
 
+# SALib and scipy.stats (which SALib imports) are imported where they are used: 1.1 s that
+# `rvte mc` and everything else importing this module's constants need not pay.
+
+
 def group_names(problem: dict) -> list[str]:
     """The problem's groups (or variables, if it has no groups), in SALib's order."""
+    from SALib.util import extract_group_names
+
     return list(extract_group_names(problem)[0])
 
 
@@ -86,6 +88,8 @@ def sample(problem: dict, n: int, second_order: bool = False, seed: int = 0) -> 
         warnings.simplefilter("ignore", UserWarning)  # n is checked to be a power of 2 upstream
         if len(group_names(problem)) == 1:
             return _one_group_sample(problem, n, second_order, seed)
+        from SALib.sample import sobol as salib_sample
+
         return salib_sample.sample(problem, n, calc_second_order=second_order, scramble=True, seed=seed)
 
 
@@ -98,6 +102,9 @@ def _one_group_sample(problem: dict, n: int, second_order: bool, seed: int) -> n
     scaling to the bounds and the row order: for one variable this is exactly
     what `SALib.sample.sobol.sample` returns.
     """
+    from SALib.util import scale_samples
+    from scipy.stats import qmc
+
     D = problem["num_vars"]
     base = qmc.Sobol(d=2 * D, scramble=True, seed=seed).random(n)
     A, B = base[:, :D], base[:, D:]
@@ -198,6 +205,8 @@ class Indices:
         constant output."""
         if self.ST_resamples is None or self.constant:
             return None
+        from scipy.stats import norm
+
         z = norm.ppf(0.5 + self.confidence / 2)
         ranked = self.ranking()
         steps = []
@@ -292,6 +301,8 @@ def indices(
             whole_input=True,
         )
     # SALib seeds its bootstrap only for a truthy seed: 0 would give different CIs each run.
+    from SALib.analyze import sobol as salib_analyze
+
     si = salib_analyze.analyze(
         problem,
         y,
