@@ -86,7 +86,7 @@ def test_each_slope_is_the_central_difference_of_two_independent_solves(tmp_path
 def linear_outputs(weights):
     """A reducer model that is linear in the error vector: the TE curve = weights . e."""
 
-    def outputs(study, errors):
+    def outputs(study, errors, related=None):
         te = error_vector(errors) @ weights
         return Outputs(te, {}, np.ones(errors.samples, dtype=bool))
 
@@ -119,7 +119,7 @@ def test_a_discontinuous_output_fails_the_check_and_falls_back_to_saltelli(tmp_p
     column = int(np.argmax(draws.std(axis=0)))
     centre = draws[:, column].mean()
 
-    def outputs(study, errors):
+    def outputs(study, errors, related=None):
         step = (error_vector(errors)[:, column] > centre).astype(float)
         te = step[:, None] * np.sin(np.linspace(0, 6.28, study.points))[None] * 10.0
         return Outputs(te, {}, np.ones(errors.samples, dtype=bool))
@@ -173,11 +173,11 @@ def interrupting(after):
     calls = {"n": 0}
     real = evaluate_module.outputs
 
-    def outputs(study, errors):
+    def outputs(study, errors, related=None):
         calls["n"] += 1
         if calls["n"] > after:
             raise KeyboardInterrupt
-        return real(study, errors)
+        return real(study, errors, related)
 
     return outputs
 

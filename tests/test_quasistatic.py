@@ -583,3 +583,55 @@ def test_the_compiled_first_pin_is_the_numpy_one(monkeypatch):
     plain = te_curve(design, errors, 0.0, 360, forces=False)
     assert reference.converged.all() and plain.converged.all()
     np.testing.assert_allclose(reference.te_arcsec, plain.te_arcsec, rtol=0, atol=1e-9)
+
+
+def _newton_steps(run):
+    """(run()'s result, the compiled Newton iteration's steps in it, summed over its pairs)."""
+    from unittest import mock
+
+    from rvfmu.core.statics import newton_kernel
+
+    kernel, steps = newton_kernel.newton_pairs, []
+
+    def counted(*arguments):
+        kernel(*arguments)
+        steps.append(int(arguments[-1].sum()))  # the kernel's iterations (B,), filled in
+
+    with mock.patch.object(newton_kernel, "newton_pairs", counted):
+        return run(), sum(steps)
+
+
+def test_a_reducer_started_from_a_near_one_reaches_the_same_curve_in_fewer_steps():
+    """`te_curve(start_from=...)`: the roller law's no-load solves of a reducer start from
+    another's solutions at the same angle instead of its kinematic pose.  On one base sample
+    of Saltelli's design (A, the eight rows A_B^(i) that take one group's columns from B,
+    then B), each A_B^(i) started from A: the same curves within the Newton tolerance
+    (newton.STEP_TOLERANCE at R_p), in fewer Newton steps; the no-load route with bearing
+    clearances and a loaded curve ignore the starts."""
+    from rvfmu.core.statics import newton
+
+    design, errors = _study_errors("rv40e_121_sobol.toml", list(range(10)))
+    start_from = np.array([-1] + [0] * 8 + [-1])
+    plain, steps = _newton_steps(lambda: te_curve(design, errors, 0.0, 120, forces=False))
+    started, fewer = _newton_steps(
+        lambda: te_curve(design, errors, 0.0, 120, forces=False, start_from=start_from)
+    )
+    assert plain.converged.all() and started.converged.all()
+    bound = 2.0 * newton.STEP_TOLERANCE / design.R_p / ARCSEC
+    assert np.abs(started.te_arcsec - plain.te_arcsec).max() <= bound
+    assert np.array_equal(started.te_arcsec[[0, 9]], plain.te_arcsec[[0, 9]])  # solved as before
+    assert fewer < 0.85 * steps, (fewer, steps)
+    loaded = te_curve(design, errors, -100.0, 60, forces=False)
+    same = te_curve(design, errors, -100.0, 60, forces=False, start_from=start_from)
+    np.testing.assert_array_equal(same.te_arcsec, loaded.te_arcsec)
+
+
+def test_a_start_from_itself_or_out_of_range_is_refused_and_a_chained_one_dropped():
+    design, errors = _study_errors("rv40e_121_sobol.toml", [0, 1, 2])
+    for bad in ([0, -1, -1], [-1, 3, -1], [-1, 0]):
+        with pytest.raises(ValueError, match="start_from"):
+            te_curve(design, errors, 0.0, 16, forces=False, start_from=bad)
+    # 2 starts from 1, which starts from 0: 2 is solved from its kinematic pose, with 0 and 1
+    from rvfmu.core.statics.quasistatic import _started_from
+
+    np.testing.assert_array_equal(_started_from([-1, 0, 1], 3), [-1, 0, -1])

@@ -1,5 +1,6 @@
 """The Sobol harness: Ishigami's analytic indices, Saltelli slicing, negative estimates, a toy ranking."""
 
+import importlib
 import json
 from pathlib import Path
 
@@ -246,3 +247,47 @@ def test_lowering_n_reuses_the_first_rows_of_a_larger_run(toy_sobol, tmp_path):
     lower = run_sobol(path, n=16, output=out, plots=False)
     assert lower.computed.computed == 0 and lower.computed.reused == 10
     np.testing.assert_array_equal(lower.Y, small.Y[:80])
+
+
+def test_saltelli_rows_start_from_their_base_sample_and_monte_carlo_rows_from_none():
+    """`evaluate.related_rows`: each row A_B^(i) of Saltelli's design shares all but group i's
+    columns with its A, the row before it that it starts from; A and B start from none, nor
+    does any row of a Monte Carlo sample (independent rows share no column).  A batch that
+    begins inside a base sample starts its A_B^(i) rows from the first of them."""
+    from tolerance.evaluate import related_rows
+
+    problem = {
+        "num_vars": 8,
+        "names": [f"x{i}" for i in range(8)],
+        "groups": ["a", "a", "b", "b", "c", "c", "d", "d"],
+        "bounds": [[0.0, 1.0]] * 8,
+    }
+    X = sobol.sample(problem, 8, False, seed=3)
+    per = sobol.rows_per_base_sample(problem, False)  # A, four A_B^(i), B
+    related = related_rows(X)
+    for k in range(0, X.shape[0], per):
+        np.testing.assert_array_equal(related[k : k + per], [-1, k, k, k, k, -1])
+    # without its A: the rows A_B^(3) and A_B^(4) share half their columns with A_B^(2)
+    np.testing.assert_array_equal(related_rows(X[2:per]), [-1, 0, 0, -1])
+    assert related_rows(np.random.default_rng(1).random((16, 8))) is None
+
+
+def test_a_saltelli_batch_gives_the_metrics_of_its_rows_solved_from_their_own_starts(monkeypatch):
+    """`evaluate` on one base sample of the Sobol study's design (no load, the roller law):
+    its rows A_B^(i) solved from A's solutions give the metrics of the same rows solved each
+    from its kinematic pose (the relation switched off), within 1e-7 arcsec."""
+    evaluate_module = importlib.import_module(
+        "tolerance.evaluate"
+    )  # the package's `evaluate` is the function
+    from tolerance.study import load_study
+
+    study = load_study(Path(__file__).resolve().parents[1] / "studies" / "rv40e_121_sobol.toml")
+    X = sobol.sample(study.problem(), 8, False, seed=study.seed)[:10]
+    assert evaluate_module.related_rows(X) is not None
+    Y, converged = evaluate_module.evaluate(study, X)
+    monkeypatch.setattr(evaluate_module, "RELATED_SHARE", 2.0)  # no row shares twice its columns
+    assert evaluate_module.related_rows(X) is None
+    Y_own, converged_own = evaluate_module.evaluate(study, X)
+    assert converged.all() and converged_own.all()
+    np.testing.assert_allclose(Y, Y_own, rtol=0, atol=1e-7)
+    assert np.all(Y[:, 0] > 1.0)  # te_pp: curves of some arcsec, not a trivial agreement

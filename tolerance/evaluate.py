@@ -68,6 +68,10 @@ def metric_column(name: str) -> str:
     return f"{name}_{unit}" if unit else name
 
 
+RELATED_SHARE = 0.5  # of the columns a row must share with an earlier one to start from its solutions
+RELATED_WINDOW = 64  # rows back that a row is compared with (Saltelli's A is G + 1 back at most)
+
+
 def evaluate(study, X) -> tuple[np.ndarray, np.ndarray]:
     """Metrics of the reducers of rows X (S, D) in [0, 1).
 
@@ -79,11 +83,13 @@ def evaluate(study, X) -> tuple[np.ndarray, np.ndarray]:
     """
     if isinstance(X, ErrorRows):
         errors, width, of = X.errors(), sum(map(len, output_columns(study))), _output_values
+        related = None
     else:
         X = np.asarray(X, dtype=float)
         errors, width, of = errors_from_unit(study, X), len(study.metrics), _metrics
+        related = related_rows(X)
     try:
-        return of(study, errors)
+        return of(study, errors, related)
     except np.linalg.LinAlgError:
         # One singular reducer must not cost the batch: solve the reducers one by one.
         Y = np.full((errors.samples, width), np.nan)
@@ -109,17 +115,39 @@ def output_columns(study) -> tuple[tuple, tuple]:
     return te, tuple(k for group in (WINDUP_METRICS, FRICTION_METRICS) if kinds & set(group) for k in group)
 
 
-def _output_values(study, errors: ErrorSet):
+def related_rows(X) -> np.ndarray | None:
+    """(S,) int: for each row of X (S, D), the row before it in X that has the most columns
+    equal to its own, if at least RELATED_SHARE of them, else -1; None where no row has one.
+
+    Saltelli's design (`sobol.sample`) builds each base sample's rows A_B^(i) from its row A
+    with the columns of group i taken from B: every one shares all but a group's columns with
+    its A, which comes before it.  A reducer with nearly the same errors has nearly the same
+    equilibria, so its solutions start those of the other (`quasistatic.te_curve`,
+    start_from).  Independent rows (a Monte Carlo sample) share no column."""
+    X = np.asarray(X)
+    S = X.shape[0]
+    if S < 2 or X.ndim != 2 or X.shape[1] == 0:
+        return None
+    best, shared = np.full(S, -1), np.zeros(S, dtype=int)
+    for back in range(1, min(S, RELATED_WINDOW + 1)):  # the row `back` rows before each
+        common = (X[back:] == X[:-back]).sum(axis=1)
+        closer = (common >= shared[back:]) & (common > 0)  # a tie: the earlier row, a base sample's first
+        best[back:][closer], shared[back:][closer] = np.flatnonzero(closer), common[closer]
+    related = np.where(shared >= RELATED_SHARE * X.shape[1], best, -1)
+    return related if np.any(related >= 0) else None
+
+
+def _output_values(study, errors: ErrorSet, related=None):
     """(S, C) the outputs in `output_columns`' order, and converged (S,)."""
-    out = outputs(study, errors)
+    out = outputs(study, errors, related)
     parts = ([out.te_arcsec] if out.te_arcsec is not None else []) + [
         out.scalars[k][:, None] for k in output_columns(study)[1]
     ]
     return np.hstack(parts), out.converged
 
 
-def _metrics(study, errors: ErrorSet):
-    out = outputs(study, errors)
+def _metrics(study, errors: ErrorSet, related=None):
+    out = outputs(study, errors, related)
     return metrics_from(study, out.te_arcsec, out.scalars), out.converged
 
 
@@ -134,8 +162,9 @@ class Outputs:
     converged: np.ndarray
 
 
-def outputs(study, errors: ErrorSet) -> Outputs:
-    """The TE curve and the scalar metrics of the reducers `errors` (`Outputs`)."""
+def outputs(study, errors: ErrorSet, related=None) -> Outputs:
+    """The TE curve and the scalar metrics of the reducers `errors` (`Outputs`); related (S,)
+    int, optional: the reducer whose no-load solutions start each one's (`related_rows`)."""
     design = study.design
     te_columns, kinds = output_columns(study)
     scalars = {}
@@ -143,7 +172,9 @@ def outputs(study, errors: ErrorSet) -> Outputs:
     converged = np.ones(errors.samples, dtype=bool)
     if te_columns:
         # the metrics read the TE alone: no pin and mesh forces at its pairs
-        curve = te_curve(design, errors, tau_load=-study.load_Nm, points=study.points, forces=False)
+        curve = te_curve(
+            design, errors, tau_load=-study.load_Nm, points=study.points, forces=False, start_from=related
+        )
         te = curve.te_arcsec
         converged &= curve.converged
     if "lost_motion" in kinds:

@@ -142,6 +142,7 @@ def equilibria(
     progress=None,
     zero_side: int = -1,
     forces: bool = True,
+    start_from=None,
 ) -> Equilibria:
     """Quasi-static equilibrium at every (sample, load, angle) of the grid.
 
@@ -152,6 +153,13 @@ def equilibria(
     forces: False computes no pin and mesh forces (tau_in and pin_force_max None): the TE
     alone, the same to the bit, for the callers that read nothing else (the studies, the
     windup test).
+    start_from: (S,) int, optional: for each reducer, another (>= 0) whose solutions start its
+    no-load solves with the roller law at the same load and angle (`solver.solve_pairs`,
+    law_from), or -1.  Those reducers are solved after the others; one whose own start is
+    another's is started as usual.  The equilibria are the same within the Newton
+    tolerance: for reducers whose errors are nearly the same (Saltelli's rows that differ
+    from another in one group, `tolerance.evaluate.related_rows`), in fewer steps.  Loaded
+    pairs are solved as without it, to the bit.
     """
     theta_in = np.atleast_1d(np.asarray(theta_in, dtype=float))
     tau_load = np.atleast_1d(np.asarray(tau_load, dtype=float))
@@ -175,33 +183,61 @@ def equilibria(
             continue
         model = equivalent_model(design, theta_in, flank)
         s, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
-        eq = solve_pairs(
-            model,
-            errors,
-            s,
-            a,
-            tau_load[t],
-            no_load_probe=probe,
-            progress=progress,
-            zero_side=zero_side,
-            forces=forces,
-        )
-        # The output flange: the carrier's crank seats' rotation plus the series windup.
-        out["te"][s, t, a] = model.output_angle(eq.q, tau_load[t])
-        if forces:
-            # Mesh force on the sun acts along -w at the sun's base circle.
-            out["tau_in"][s, t, a] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
-            out["pin_force_max"][s, t, a] = eq.pin_force.max(axis=(1, 2))
-        ok[s, t, a] = eq.converged
+        started = _started_from(start_from, S)
+        later = (started[s] >= 0) & (tau_load[t] == 0.0)  # the starts serve the no-load solves
+        solved = np.full((S, T, A, model.n_dof), np.nan) if later.any() else None
+        for part in (~later, later) if later.any() else (slice(None),):
+            ps, pt, pa = s[part], t[part], a[part]
+            if ps.size == 0:
+                continue
+            eq = solve_pairs(
+                model,
+                errors,
+                ps,
+                pa,
+                tau_load[pt],
+                no_load_probe=probe,
+                progress=progress,
+                zero_side=zero_side,
+                forces=forces,
+                law_from=None if part is not later else solved[started[ps], pt, pa],
+            )
+            if solved is not None and part is not later:
+                solved[ps, pt, pa] = eq.q
+            # The output flange: the carrier's crank seats' rotation plus the series windup.
+            out["te"][ps, pt, pa] = model.output_angle(eq.q, tau_load[pt])
+            if forces:
+                # Mesh force on the sun acts along -w at the sun's base circle.
+                out["tau_in"][ps, pt, pa] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
+                out["pin_force_max"][ps, pt, pa] = eq.pin_force.max(axis=(1, 2))
+            ok[ps, pt, pa] = eq.converged
     return Equilibria(out["te"], out.get("tau_in"), out.get("pin_force_max"), ok)
 
 
+def _started_from(start_from, samples: int) -> np.ndarray:
+    """(S,) int: the reducer whose solutions start each reducer's no-load solves, -1 for none;
+    a start that is itself started from another is dropped (those are solved first)."""
+    if start_from is None:
+        return np.full(samples, -1)
+    started = np.asarray(start_from, dtype=int).ravel()
+    if started.shape != (samples,) or np.any(started >= samples) or np.any(started == np.arange(samples)):
+        raise ValueError(f"start_from: must be {samples} indices of other reducers or -1")
+    started = np.where(started < 0, -1, started)
+    return np.where((started >= 0) & (started[np.maximum(started, 0)] < 0), started, -1)
+
+
 def equilibrium_te(
-    design: RVDesign, errors: ErrorSet, theta_in, tau_load, progress=None, forces: bool = True
+    design: RVDesign,
+    errors: ErrorSet,
+    theta_in,
+    tau_load,
+    progress=None,
+    forces: bool = True,
+    start_from=None,
 ):
     """TE [rad], largest pin force [N] (None without `forces`) and convergence at every
-    (sample, load, angle), (S, T, A)."""
-    eq = equilibria(design, errors, theta_in, tau_load, progress, forces=forces)
+    (sample, load, angle), (S, T, A); start_from as `equilibria`'s."""
+    eq = equilibria(design, errors, theta_in, tau_load, progress, forces=forces, start_from=start_from)
     return eq.te, eq.pin_force_max, eq.converged
 
 
@@ -212,6 +248,7 @@ def te_curve(
     points: int | None = None,
     progress=None,
     forces: bool = True,
+    start_from=None,
 ) -> TECurve:
     """TE over one output revolution of every reducer in `errors` at output torque `tau_load`.
 
@@ -219,13 +256,16 @@ def te_curve(
     the no-load TE.  points: per output revolution (default `default_points`).  forces:
     False leaves the largest pin force out (pin_force_max None), for callers that read the
     TE alone (the tolerance studies): the same TE to the bit, without the pins' and meshes'
-    forces at every pair.
+    forces at every pair.  start_from: (S,) int, optional, as `equilibria`'s: each reducer's
+    no-load solves started from another's solutions (or -1), the same curves in fewer steps.
     """
     errors = _checked_errors(design, errors)
     tau_load = finite_number("tau_load", tau_load)
     points = default_points(design) if points is None else integer("points", points, 8)
     theta_in = input_angles(design, points)
-    te, force, ok = equilibrium_te(design, errors, theta_in, [tau_load], progress, forces=forces)
+    te, force, ok = equilibrium_te(
+        design, errors, theta_in, [tau_load], progress, forces=forces, start_from=start_from
+    )
     theta_out = theta_in / design.ratio + te[:, 0]
     force = None if force is None else force[:, 0]
     return TECurve(design, tau_load, theta_in, theta_out, te[:, 0], ok[:, 0].all(axis=-1), force)

@@ -734,6 +734,7 @@ def solve_pairs(
     law_start: str = "kinematic",
     law_release: str = "step",
     forces: bool = True,
+    law_from=None,
 ) -> Equilibrium:
     """Equilibria of many (reducer, angle) pairs, in chunks.
 
@@ -753,6 +754,11 @@ def solve_pairs(
     (`ReducedSystem._release`, the reference).
     forces: False leaves the pins' and meshes' forces out (pin_force and mesh_force None),
     for callers that read only the unknowns (the TE, the windup): the same q to the bit.
+    law_from: (B, n_dof), optional: where the roller law's no-load solve of each pair starts
+    instead of its kinematic pose (a row of NaN: the kinematic pose), e.g. the solution of a
+    reducer with nearly the same errors at the same angle.  The energy is convex, so its
+    minimiser is the same (within the Newton tolerance); a start closer to it takes fewer
+    steps (`quasistatic.equilibria`, start_from).  Other routes ignore it.
     """
     if law_start not in LAW_STARTS:
         raise ValueError(f"law_start {law_start!r}: must be one of {LAW_STARTS}")
@@ -793,7 +799,14 @@ def solve_pairs(
             )
             if law is not None:
                 # the kinematic limit with the stated stiffnesses is within a fraction of an
-                # arcsec of that with the roller law, which starts there
+                # arcsec of that with the roller law, which starts there (or where law_from says)
+                start = eq.q
+                if law_from is not None:
+                    given = law_from[at]
+                    near = np.isfinite(given).all(axis=1)
+                    if near.any():
+                        start = start.copy()
+                        start[near] = given[near]
                 eq = law.solve(
                     errors,
                     sample[at],
@@ -801,7 +814,7 @@ def solve_pairs(
                     tau_load[at],
                     half,
                     probe,
-                    start=eq.q,
+                    start=start,
                     release_step=law_release == "step",
                     offsets=offsets,
                     forces=forces,
