@@ -127,24 +127,8 @@ def part_loops():
     )
 
     @numba.njit
-    def evaluate(
-        angle,
-        K,
-        Kh,
-        brg_rows,
-        brg_cols,
-        f,
-        rows,
-        pin_b,
-        pin_local,
-        pin_law,
-        brg_off,
-        c_half,
-        law,
-        table,
-        gap,
-        Q,
-    ):
+    def evaluate(angle, K, Kh, brg_rows, shared, gap, Q):
+        brg_cols, f, rows, pin_b, pin_local, pin_law, brg_off, c_half, law, table = shared
         n = Q.shape[1]
         grad, hess, Kt = np.empty(n), np.empty((n, n)), np.empty((n, n))
         used = np.empty((2, rows.shape[2]), dtype=np.bool_)
@@ -179,9 +163,8 @@ def part_loops():
         return e
 
     @numba.njit
-    def energy(
-        angle, K, brg_rows, brg_cols, f, rows, pin_b, pin_local, pin_law, brg_off, c_half, law, table, Q
-    ):
+    def energy(angle, K, brg_rows, shared, Q):
+        brg_cols, f, rows, pin_b, pin_local, pin_law, brg_off, c_half, law, table = shared
         delta, d = np.empty((2, rows.shape[2])), np.empty((brg_rows.shape[1], 2))
         e = 0.0
         for s in range(Q.shape[0]):
@@ -314,35 +297,10 @@ def main() -> None:
     print(f"fewest steps of a pair: {steps.min()}")
 
     arguments, q_start = chunks[0]
-    (
-        angle,
-        K,
-        Kh,
-        brg_rows,
-        brg_cols,
-        f,
-        rows,
-        pin_b,
-        pin_local,
-        pin_law,
-        brg_off,
-        c_half,
-        law,
-        table,
-        toward,
-        has_toward,
-        guess,
-        q,
-        warm,
-        chain,
-        release,
-        mode_unit,
-        most,
-        tolerance,
-        gap,
-        converged,
-        iterations,
-    ) = arguments
+    angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pin_law, brg_off, c_half, law, table = (
+        arguments[:14]
+    )
+    gap, iterations = arguments[24], arguments[26]  # newton_pairs' gap_tolerance and its steps
     B = angle.size
     evaluate, energy, pins, bearings, cholesky, copies = part_loops()
     shared = (brg_cols, f, rows, pin_b, pin_local, pin_law, brg_off, c_half, law, table)
@@ -351,9 +309,9 @@ def main() -> None:
         (
             "energy, gradient and Hessian (`_evaluate`)",
             evaluate,
-            (angle, K, Kh, brg_rows, *shared, gap, q_start),
+            (angle, K, Kh, brg_rows, shared, gap, q_start),
         ),
-        ("energy alone (`_energy`)", energy, (angle, K, brg_rows, *shared, q_start)),
+        ("energy alone (`_energy`)", energy, (angle, K, brg_rows, shared, q_start)),
         (
             f"  its pins ({2 * rows.shape[2]}, {touching:.1f} touching)",
             pins,
@@ -384,35 +342,9 @@ def main() -> None:
         print(f"{label:<52} {seconds / B * 1e6:>10.3f}")
 
     def whole():
-        newton_kernel.newton_pairs(
-            angle,
-            K,
-            Kh,
-            brg_rows,
-            brg_cols,
-            f,
-            rows,
-            pin_b,
-            pin_local,
-            pin_law,
-            brg_off,
-            c_half,
-            law,
-            table,
-            toward,
-            has_toward,
-            guess,
-            q_start.copy(),
-            warm,
-            chain,
-            release,
-            mode_unit,
-            most,
-            tolerance,
-            gap,
-            converged.copy(),
-            iterations,
-        )
+        again = list(arguments)
+        again[17], again[25] = q_start.copy(), arguments[25].copy()  # the starts, `converged`
+        newton_kernel.newton_pairs(*again)
 
     seconds = best_of(args.repeats, whole)
     print(
