@@ -171,6 +171,7 @@ def equilibria(
     ok = np.empty((S, T, A), dtype=bool)
     probe = NO_LOAD_PROBE * design.rated_torque
     zero_flank = -1 if zero_side > 0 else 1
+    started = _started_from(start_from, S)
     for flank in (1, -1):
         # flank +1: the sun drives the planets forward (resisting load); -1: the load drives
         mask = (
@@ -183,7 +184,6 @@ def equilibria(
             continue
         model = equivalent_model(design, theta_in, flank)
         s, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
-        started = _started_from(start_from, S)
         later = (started[s] >= 0) & (tau_load[t] == 0.0)  # the starts serve the no-load solves
         solved = np.full((S, T, A, model.n_dof), np.nan) if later.any() else None
         for part in (~later, later) if later.any() else (slice(None),):
