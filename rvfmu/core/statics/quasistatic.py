@@ -186,7 +186,8 @@ def equilibria(
         s, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
         later = (started[s] >= 0) & (tau_load[t] == 0.0)  # the starts serve the no-load solves
         solved = np.full((S, T, A, model.n_dof), np.nan) if later.any() else None
-        for part in (~later, later) if later.any() else (slice(None),):
+        passes = ((~later, False), (later, True)) if later.any() else ((slice(None), False),)
+        for part, from_base in passes:  # the related reducers after the ones they start from
             ps, pt, pa = s[part], t[part], a[part]
             if ps.size == 0:
                 continue
@@ -200,9 +201,9 @@ def equilibria(
                 progress=progress,
                 zero_side=zero_side,
                 forces=forces,
-                law_from=None if part is not later else solved[started[ps], pt, pa],
+                law_from=solved[started[ps], pt, pa] if from_base else None,
             )
-            if solved is not None and part is not later:
+            if solved is not None and not from_base:
                 solved[ps, pt, pa] = eq.q
             # The output flange: the carrier's crank seats' rotation plus the series windup.
             out["te"][ps, pt, pa] = model.output_angle(eq.q, tau_load[pt])
