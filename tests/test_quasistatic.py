@@ -626,6 +626,46 @@ def test_a_reducer_started_from_a_near_one_reaches_the_same_curve_in_fewer_steps
     np.testing.assert_array_equal(same.te_arcsec, loaded.te_arcsec)
 
 
+def test_the_started_reducers_chunks_wait_for_their_starts_on_threads_to_the_same_bit(monkeypatch):
+    """One pass: the chunks of the reducers started from another's solutions wait for the chunks
+    that hold those (`solver._LawStarts`).  With chunks of 64 pairs on two threads (23 chunks
+    of sources and dependents, the threads' route of `newton.map_chunks`) the curves are those
+    of the same call on one thread in chunks of 4096 pairs, to the bit, and the A and B rows
+    those without starts."""
+    from rvfmu.core.statics import newton, solver
+
+    design, errors = _study_errors("rv40e_121_sobol.toml", list(range(10)))
+    start_from = np.array([-1] + [0] * 8 + [-1])
+    monkeypatch.setenv("RVTE_THREADS", "1")
+    one = te_curve(design, errors, 0.0, 144, forces=False, start_from=start_from)
+    monkeypatch.setenv("RVTE_THREADS", "2")
+    monkeypatch.setattr(solver, "CHUNK", 64)
+    chunked = []
+    map_chunks = newton.map_chunks
+
+    def counted(function, parts):
+        parts = list(parts)
+        chunked.append(len(parts))
+        yield from map_chunks(function, parts)
+
+    monkeypatch.setattr(solver, "map_chunks", counted)
+    threads = te_curve(design, errors, 0.0, 144, forces=False, start_from=start_from)
+    assert max(chunked) >= newton.CHUNKS_PER_THREAD * 2  # the threads' route
+    np.testing.assert_array_equal(threads.te_arcsec, one.te_arcsec)
+    plain = te_curve(design, errors, 0.0, 144, forces=False)
+    np.testing.assert_array_equal(threads.te_arcsec[[0, 9]], plain.te_arcsec[[0, 9]])
+
+
+def test_law_after_names_other_pairs_that_start_from_their_kinematic_pose():
+    from rvfmu.core.statics.solver import _law_after
+
+    np.testing.assert_array_equal(_law_after([-1, 0, 0, -3], 4), [-1, 0, 0, -1])
+    assert _law_after(None, 4) is None
+    for bad in ([-1, 1, -1], [-1, 3, -1], [-1, 0, 1], [-1, 0], [-1.0, 0.0, 0.0]):
+        with pytest.raises(ValueError, match="law_after"):
+            _law_after(np.array(bad), 3)
+
+
 def test_a_start_from_itself_or_out_of_range_is_refused_and_a_chained_one_dropped():
     design, errors = _study_errors("rv40e_121_sobol.toml", [0, 1, 2])
     for bad in ([0, -1, -1], [-1, 3, -1], [-1, 0]):

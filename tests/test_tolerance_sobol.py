@@ -37,6 +37,42 @@ def ishigami_run():
     return n, X, y, sobol.analyze(ISHIGAMI, y[:, None], ["y"], resamples=300, seed=3)["y"]
 
 
+@pytest.mark.parametrize(
+    "problem",
+    [
+        ISHIGAMI,
+        {
+            "num_vars": 6,
+            "names": [f"x{k}" for k in range(6)],
+            "bounds": [[0.0, 1.0]] * 4 + [[-2.0, 3.0]] * 2,
+            "groups": ["b", "a", "b", "c", "a", "a"],
+        },
+    ],
+    ids=["variables", "groups"],
+)
+@pytest.mark.parametrize("second_order", [False, True])
+def test_the_saltelli_design_is_salibs_to_the_bit(problem, second_order):
+    """`sobol.sample` builds SALib's design (`SALib.sample.sobol.sample`, the reference) with
+    whole-array copies: the same matrix, to the bit, with groups out of order and without."""
+    import warnings
+
+    from SALib.sample import sobol as salib_sample
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        reference = salib_sample.sample(problem, 32, calc_second_order=second_order, scramble=True, seed=7)
+    np.testing.assert_array_equal(sobol.sample(problem, 32, second_order, seed=7), reference)
+
+
+def test_one_group_is_crossed_whole():
+    """SALib drops a single group and crosses its variables one by one; the grouped design
+    crosses the group whole: per base sample A, A_B = B, B."""
+    one = dict(ISHIGAMI, groups=["g"] * 3)
+    X = sobol.sample(one, 8, False, seed=2).reshape(8, 3, 3)
+    np.testing.assert_array_equal(X[:, 1], X[:, 2])
+    assert not np.any(X[:, 0] == X[:, 2])
+
+
 def test_ishigami_analytic_indices_lie_within_the_bootstrap_intervals(ishigami_run):
     n, X, y, result = ishigami_run
     S1, ST = ishigami_indices()

@@ -155,8 +155,8 @@ def equilibria(
     windup test).
     start_from: (S,) int, optional: for each reducer, another (>= 0) whose solutions start its
     no-load solves with the roller law at the same load and angle (`solver.solve_pairs`,
-    law_from), or -1.  Those reducers are solved after the others; one whose own start is
-    another's is started as usual.  The equilibria are the same within the Newton
+    law_after), or -1.  Those reducers' solves wait for the ones they start from; one whose own
+    start is another's is started as usual.  The equilibria are the same within the Newton
     tolerance: for reducers whose errors are nearly the same (Saltelli's rows that differ
     from another in one group, `tolerance.evaluate.related_rows`), in fewer steps.  Loaded
     pairs are solved as without it, to the bit.
@@ -184,34 +184,32 @@ def equilibria(
             continue
         model = equivalent_model(design, theta_in, flank)
         s, t, a = (g.ravel() for g in np.meshgrid(np.arange(S), loads, np.arange(A), indexing="ij"))
-        later = (started[s] >= 0) & (tau_load[t] == 0.0)  # the starts serve the no-load solves
-        solved = np.full((S, T, A, model.n_dof), np.nan) if later.any() else None
-        passes = ((~later, False), (later, True)) if later.any() else ((slice(None), False),)
-        for part, from_base in passes:  # the related reducers after the ones they start from
-            ps, pt, pa = s[part], t[part], a[part]
-            if ps.size == 0:
-                continue
-            eq = solve_pairs(
-                model,
-                errors,
-                ps,
-                pa,
-                tau_load[pt],
-                no_load_probe=probe,
-                progress=progress,
-                zero_side=zero_side,
-                forces=forces,
-                law_from=solved[started[ps], pt, pa] if from_base else None,
-            )
-            if solved is not None and not from_base:
-                solved[ps, pt, pa] = eq.q
-            # The output flange: the carrier's crank seats' rotation plus the series windup.
-            out["te"][ps, pt, pa] = model.output_angle(eq.q, tau_load[pt])
-            if forces:
-                # Mesh force on the sun acts along -w at the sun's base circle.
-                out["tau_in"][ps, pt, pa] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
-                out["pin_force_max"][ps, pt, pa] = eq.pin_force.max(axis=(1, 2))
-            ok[ps, pt, pa] = eq.converged
+        # the starts serve the no-load solves: the pair of the same load and angle of the
+        # reducer started from (pairs are numbered reducer by reducer, load by load)
+        later = (started[s] >= 0) & (tau_load[t] == 0.0)
+        law_after = None
+        if later.any():
+            law_after = np.full(s.size, -1)
+            law_after[later] = np.flatnonzero(later) + (started[s[later]] - s[later]) * loads.size * A
+        eq = solve_pairs(
+            model,
+            errors,
+            s,
+            a,
+            tau_load[t],
+            no_load_probe=probe,
+            progress=progress,
+            zero_side=zero_side,
+            forces=forces,
+            law_after=law_after,
+        )
+        # The output flange: the carrier's crank seats' rotation plus the series windup.
+        out["te"][s, t, a] = model.output_angle(eq.q, tau_load[t])
+        if forces:
+            # Mesh force on the sun acts along -w at the sun's base circle.
+            out["tau_in"][s, t, a] = -flank * design.sun_base_radius * eq.mesh_force.sum(axis=1)
+            out["pin_force_max"][s, t, a] = eq.pin_force.max(axis=(1, 2))
+        ok[s, t, a] = eq.converged
     return Equilibria(out["te"], out.get("tau_in"), out.get("pin_force_max"), ok)
 
 

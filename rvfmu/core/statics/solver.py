@@ -32,6 +32,7 @@ Speed comes from structure, not from approximations:
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -734,7 +735,7 @@ def solve_pairs(
     law_start: str = "kinematic",
     law_release: str = "step",
     forces: bool = True,
-    law_from=None,
+    law_after=None,
 ) -> Equilibrium:
     """Equilibria of many (reducer, angle) pairs, in chunks.
 
@@ -754,11 +755,14 @@ def solve_pairs(
     (`ReducedSystem._release`, the reference).
     forces: False leaves the pins' and meshes' forces out (pin_force and mesh_force None),
     for callers that read only the unknowns (the TE, the windup): the same q to the bit.
-    law_from: (B, n_dof), optional: where the roller law's no-load solve of each pair starts
-    instead of its kinematic pose (a row of NaN: the kinematic pose), e.g. the solution of a
-    reducer with nearly the same errors at the same angle.  The energy is convex, so its
-    minimiser is the same (within the Newton tolerance); a start closer to it takes fewer
-    steps (`quasistatic.equilibria`, start_from).  Other routes ignore it.
+    law_after: (B,) int, optional: for each pair, another pair of this call (>= 0) whose
+    solution by the roller law at no load starts its own instead of its kinematic pose, or -1,
+    e.g. the same angle of a reducer with nearly the same errors.  The energy is convex, so
+    the minimiser is the same (within the Newton tolerance); a start closer to it takes fewer
+    steps (`quasistatic.equilibria`, start_from).  A pair named as a start must itself start
+    from its kinematic pose.  The starting pairs are solved first and the chunks of the others
+    wait, each for the chunks that hold its starts, so both cores stay busy.  Other routes
+    ignore it.
     """
     if law_start not in LAW_STARTS:
         raise ValueError(f"law_start {law_start!r}: must be one of {LAW_STARTS}")
@@ -770,6 +774,7 @@ def solve_pairs(
     half = model.clearance_halves(errors)
     clearance = np.any(half > 0, axis=0)
     B = sample.size
+    law_after = _law_after(law_after, B)
     q = np.empty((B, model.n_dof))
     pin_force = np.empty((B, 2, model.design.z_p)) if forces else None
     mesh_force = np.empty((B, model.design.n_c)) if forces else None
@@ -779,9 +784,14 @@ def solve_pairs(
         system = reduced_system(model, nonlinear, rollers)
         law = reduced_system(model, model.bearing_law_a > 0.0, True) if then_law else None
         count, toward = _nominal_guess(system, errors, sample[pairs], angle[pairs], tau_load[pairs], probe)
+        starts = None
+        if law is not None and law_after is not None:  # the starting pairs first
+            starts = _LawStarts(pairs, law_after, model.n_dof)
+            pairs = pairs[starts.order]
+            count = None if count is None else count[starts.order]
+            toward = None if toward is None else toward[starts.order]
 
-        def chunk(start, pairs=pairs, system=system, law=law, count=count, toward=toward):
-            part = slice(start, min(start + CHUNK, pairs.size))
+        def chunk(part, pairs=pairs, system=system, law=law, count=count, toward=toward, starts=starts):
             at = pairs[part]
             offsets = model.offsets(errors, sample[at], angle[at])  # the two solves' both
             eq = system.solve(
@@ -799,29 +809,30 @@ def solve_pairs(
             )
             if law is not None:
                 # the kinematic limit with the stated stiffnesses is within a fraction of an
-                # arcsec of that with the roller law, which starts there (or where law_from says)
-                start = eq.q
-                if law_from is not None:
-                    given = law_from[at]
-                    near = np.isfinite(given).all(axis=1)
-                    if near.any():
-                        start = start.copy()
-                        start[near] = given[near]
-                eq = law.solve(
-                    errors,
-                    sample[at],
-                    angle[at],
-                    tau_load[at],
-                    half,
-                    probe,
-                    start=start,
-                    release_step=law_release == "step",
-                    offsets=offsets,
-                    forces=forces,
-                )
+                # arcsec of that with the roller law, which starts there (or where law_after says)
+                start = eq.q if starts is None else starts.starts(part, eq.q)
+                solution = None
+                try:
+                    eq = law.solve(
+                        errors,
+                        sample[at],
+                        angle[at],
+                        tau_load[at],
+                        half,
+                        probe,
+                        start=start,
+                        release_step=law_release == "step",
+                        offsets=offsets,
+                        forces=forces,
+                    )
+                    solution = eq.q
+                finally:  # the chunks waiting for these solutions go on (from their own starts on a failure)
+                    if starts is not None:
+                        starts.solved(part, solution)
             return at, eq
 
-        for at, eq in map_chunks(chunk, range(0, pairs.size, CHUNK)):
+        parts = _chunks(pairs.size) if starts is None else starts.parts
+        for at, eq in map_chunks(chunk, parts):
             q[at], converged[at] = eq.q, eq.converged
             if forces:
                 pin_force[at], mesh_force[at] = eq.pin_force, eq.mesh_force
@@ -829,6 +840,80 @@ def solve_pairs(
             if progress is not None:
                 progress(at.size)
     return Equilibrium(q, pin_force, mesh_force, converged, iterations)
+
+
+def _law_after(law_after, pairs: int) -> np.ndarray | None:
+    """`solve_pairs`' law_after checked: (B,) int, -1 where a pair starts from its kinematic pose."""
+    if law_after is None:
+        return None
+    after = np.asarray(law_after)
+    index = np.arange(pairs)
+    if (
+        after.shape != (pairs,)
+        or not np.issubdtype(after.dtype, np.integer)
+        or np.any(after >= pairs)
+        or np.any(after == index)
+        or np.any((after >= 0) & (after[np.maximum(after, 0)] >= 0))
+    ):
+        raise ValueError(
+            f"law_after: must be {pairs} indices of other pairs, each of which starts from its "
+            "kinematic pose (-1), or -1"
+        )
+    return np.where(after < 0, -1, after)
+
+
+class _LawStarts:
+    """Which pairs of a route start their roller law's solve from another pair's solution
+    (`solve_pairs`, law_after), in the route's order with the starting pairs first (`order`),
+    and those solutions as the chunks find them: a chunk waits for the chunks that hold its
+    starts (`starts`), and tells the ones waiting for its own when it has them (`solved`).
+    A chunk only waits for chunks before it, which the threads of `newton.map_chunks` took
+    up before it (in order), so the waits end."""
+
+    def __init__(self, pairs: np.ndarray, law_after: np.ndarray, n_dof: int):
+        B = law_after.size
+        position = np.full(B, -1)
+        position[pairs] = np.arange(pairs.size)
+        after = law_after[pairs]
+        source = np.where(after >= 0, after, -1)
+        source[position[np.maximum(source, 0)] < 0] = -1  # a start outside this route: none
+        self.order = np.argsort(source >= 0, kind="stable")
+        self.pairs = pairs[self.order]
+        self.source = source[self.order]
+        # chunks of the starting pairs, then of the others: none holds both
+        first = int(np.count_nonzero(self.source < 0))
+        self.parts = _chunks(first) + _chunks(pairs.size - first, first)
+        position[self.pairs] = np.arange(pairs.size)
+        begins = np.array([part.start for part in self.parts])
+        self.source_chunk = np.searchsorted(begins, position[np.maximum(self.source, 0)], side="right") - 1
+        self.solutions = np.full((B, n_dof), np.nan)
+        self.ready = [threading.Event() for _ in self.parts]
+
+    def starts(self, part: slice, kinematic: np.ndarray) -> np.ndarray:
+        """The starts of the chunk `part` of the route: its kinematic poses (C, n_dof), where
+        given the solutions of the pairs named (waited for)."""
+        source = self.source[part]
+        given = source >= 0
+        if not given.any():
+            return kinematic
+        for c in np.unique(self.source_chunk[part][given]):
+            self.ready[c].wait()
+        start = kinematic.copy()
+        found = self.solutions[source[given]]
+        near = np.isfinite(found).all(axis=1)
+        start[np.flatnonzero(given)[near]] = found[near]
+        return start
+
+    def solved(self, part: slice, q: np.ndarray | None) -> None:
+        """The chunk `part` is done: its solutions q (C, n_dof), or None where its solve failed."""
+        if q is not None:
+            self.solutions[self.pairs[part]] = q
+        self.ready[self.parts.index(part)].set()
+
+
+def _chunks(size: int, begin: int = 0) -> list[slice]:
+    """The chunks of CHUNK pairs (the last one shorter) of the pairs begin ... begin + size - 1."""
+    return [slice(start, min(start + CHUNK, begin + size)) for start in range(begin, begin + size, CHUNK)]
 
 
 def reduced_system(model: EquivalentModel, nonlinear, rollers: bool) -> ReducedSystem:
