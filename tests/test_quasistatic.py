@@ -656,6 +656,43 @@ def test_the_started_reducers_chunks_wait_for_their_starts_on_threads_to_the_sam
     np.testing.assert_array_equal(threads.te_arcsec[[0, 9]], plain.te_arcsec[[0, 9]])
 
 
+def test_a_failed_chunk_lets_the_chunks_waiting_for_its_starts_go_on(monkeypatch):
+    """A chunk whose solve raises still tells the chunks waiting for its solutions that it is
+    done (they start from their own kinematic poses): the call raises, it does not hang."""
+    import threading
+    import time
+
+    from rvfmu.core.statics import solver
+
+    design, errors = _study_errors("rv40e_121_sobol.toml", list(range(10)))
+    monkeypatch.setenv("RVTE_THREADS", "2")
+    monkeypatch.setattr(solver, "CHUNK", 64)
+    solve, failed = solver.ReducedSystem.solve, []
+
+    def failing(self, *arguments, **options):
+        # the law's solve of the chunk that holds both A's (0) and B's (9) last pairs, after the
+        # other thread has gone on to the chunks that wait for it
+        if options.get("start") is not None and 0 in arguments[1] and 9 in arguments[1]:
+            time.sleep(1.0)
+            failed.append(True)
+            raise np.linalg.LinAlgError("a singular Hessian")
+        return solve(self, *arguments, **options)
+
+    monkeypatch.setattr(solver.ReducedSystem, "solve", failing)
+    raised = []
+
+    def run():
+        try:
+            te_curve(design, errors, 0.0, 144, forces=False, start_from=np.array([-1] + [0] * 8 + [-1]))
+        except np.linalg.LinAlgError as error:
+            raised.append(error)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(300)
+    assert not thread.is_alive() and failed and raised
+
+
 def test_law_after_names_other_pairs_that_start_from_their_kinematic_pose():
     from rvfmu.core.statics.solver import _law_after
 

@@ -791,7 +791,7 @@ def solve_pairs(
             count = None if count is None else count[starts.order]
             toward = None if toward is None else toward[starts.order]
 
-        def chunk(part, pairs=pairs, system=system, law=law, count=count, toward=toward, starts=starts):
+        def solve_chunk(part, pairs=pairs, system=system, law=law, count=count, toward=toward, starts=starts):
             at = pairs[part]
             offsets = model.offsets(errors, sample[at], angle[at])  # the two solves' both
             eq = system.solve(
@@ -811,25 +811,30 @@ def solve_pairs(
                 # the kinematic limit with the stated stiffnesses is within a fraction of an
                 # arcsec of that with the roller law, which starts there (or where law_after says)
                 start = eq.q if starts is None else starts.starts(part, eq.q)
-                solution = None
-                try:
-                    eq = law.solve(
-                        errors,
-                        sample[at],
-                        angle[at],
-                        tau_load[at],
-                        half,
-                        probe,
-                        start=start,
-                        release_step=law_release == "step",
-                        offsets=offsets,
-                        forces=forces,
-                    )
-                    solution = eq.q
-                finally:  # the chunks waiting for these solutions go on (from their own starts on a failure)
-                    if starts is not None:
-                        starts.solved(part, solution)
+                eq = law.solve(
+                    errors,
+                    sample[at],
+                    angle[at],
+                    tau_load[at],
+                    half,
+                    probe,
+                    start=start,
+                    release_step=law_release == "step",
+                    offsets=offsets,
+                    forces=forces,
+                )
             return at, eq
+
+        def chunk(part, solve_chunk=solve_chunk, starts=starts):
+            if starts is None:
+                return solve_chunk(part)
+            solution = None
+            try:
+                at, eq = solve_chunk(part)
+                solution = eq.q
+                return at, eq
+            finally:  # the chunks waiting for these solutions go on, from their own starts on a failure
+                starts.solved(part, solution)
 
         parts = _chunks(pairs.size) if starts is None else starts.parts
         for at, eq in map_chunks(chunk, parts):
