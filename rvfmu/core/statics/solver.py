@@ -879,8 +879,7 @@ class _LawStarts:
         B = law_after.size
         position = np.full(B, -1)
         position[pairs] = np.arange(pairs.size)
-        after = law_after[pairs]
-        source = np.where(after >= 0, after, -1)
+        source = law_after[pairs]  # a copy (fancy indexing)
         source[position[np.maximum(source, 0)] < 0] = -1  # a start outside this route: none
         self.order = np.argsort(source >= 0, kind="stable")
         self.pairs = pairs[self.order]
@@ -892,7 +891,7 @@ class _LawStarts:
         begins = np.array([part.start for part in self.parts])
         self.source_chunk = np.searchsorted(begins, position[np.maximum(self.source, 0)], side="right") - 1
         self.solutions = np.full((B, n_dof), np.nan)
-        self.ready = [threading.Event() for _ in self.parts]
+        self.ready = {part.start: threading.Event() for part in self.parts}
 
     def starts(self, part: slice, kinematic: np.ndarray) -> np.ndarray:
         """The starts of the chunk `part` of the route: its kinematic poses (C, n_dof), where
@@ -902,7 +901,7 @@ class _LawStarts:
         if not given.any():
             return kinematic
         for c in np.unique(self.source_chunk[part][given]):
-            self.ready[c].wait()
+            self.ready[self.parts[c].start].wait()
         start = kinematic.copy()
         found = self.solutions[source[given]]
         near = np.isfinite(found).all(axis=1)
@@ -913,7 +912,7 @@ class _LawStarts:
         """The chunk `part` is done: its solutions q (C, n_dof), or None where its solve failed."""
         if q is not None:
             self.solutions[self.pairs[part]] = q
-        self.ready[self.parts.index(part)].set()
+        self.ready[part.start].set()
 
 
 def _chunks(size: int, begin: int = 0) -> list[slice]:
