@@ -712,3 +712,58 @@ def test_a_start_from_itself_or_out_of_range_is_refused_and_a_chained_one_droppe
     from rvfmu.core.statics.quasistatic import _started_from
 
     np.testing.assert_array_equal(_started_from([-1, 0, 1], 3), [-1, 0, -1])
+
+
+@pytest.mark.parametrize("threads", ["1", "2"])
+def test_chunks_are_even_whole_chains_and_on_threads_a_multiple_of_them(monkeypatch, threads):
+    """`solver._chunks`: the pairs cut into chunks of at most CHUNK, each but the last a whole
+    number of warm-start chains (the results then do not depend on the chunks), as even as
+    that allows; on two threads, where the chunks run on the threads, an even number of them."""
+    from rvfmu.core.statics import newton, solver
+
+    monkeypatch.setenv("RVTE_THREADS", threads)
+    for size, begin in ((46080, 0), (4096 * 11 + 1024, 7), (5000, 3), (31, 0), (4096, 0), (0, 0)):
+        parts = solver._chunks(size, begin)
+        covered = np.concatenate([np.arange(p.start, p.stop) for p in parts] + [np.arange(0)])
+        np.testing.assert_array_equal(covered, np.arange(begin, begin + size))
+        lengths = [p.stop - p.start for p in parts]
+        assert all(0 < n <= solver.CHUNK for n in lengths)
+        assert all(n % newton.CHAIN_LENGTH == 0 for n in lengths[:-1])
+        assert len(parts) == -(-size // solver.CHUNK) or threads == "2"
+        if threads == "2" and len(parts) >= newton.CHUNKS_PER_THREAD * 2:
+            assert len(parts) % 2 == 0
+            assert max(lengths) - min(lengths) < 2 * newton.CHAIN_LENGTH
+    monkeypatch.setenv("RVTE_THREADS", "2")
+    assert [p.stop - p.start for p in solver._chunks(46080)] == [3840] * 12  # a batch of quick_mc
+
+
+@pytest.mark.parametrize("name", ["quick_mc.toml", "rv40e_121_full.toml"])
+def test_the_reduced_system_made_by_blocks_of_angles_is_that_of_one_pass_to_the_bit(monkeypatch, name):
+    """`ReducedSystem` makes its arrays in blocks of ANGLE_BLOCK angles, on threads where there
+    are several: every array equals that of one pass over all the angles, to the bit, without
+    bearing clearance (the kinematic and the roller law's systems) and with it."""
+    from rvfmu.core.statics import solver
+    from tolerance.study import load_study
+
+    design = load_study(ROOT / "studies" / name).design
+    model = EquivalentModel(design, input_angles(design, 150), flank=1)
+    systems = {
+        "kinematic": (np.zeros(model.bearing_k.size, dtype=bool), False),
+        "roller law": (model.bearing_law_a > 0.0, True),
+        "clearances": (np.ones(model.bearing_k.size, dtype=bool), False),
+    }
+    for label, (nonlinear, rollers) in systems.items():
+        monkeypatch.setattr(solver, "ANGLE_BLOCK", 10**9)
+        one = vars(solver.ReducedSystem(model, nonlinear, rollers))
+        for threads, block in (("1", 16), ("2", 37)):
+            monkeypatch.setenv("RVTE_THREADS", threads)
+            monkeypatch.setattr(solver, "ANGLE_BLOCK", block)
+            blocks = vars(solver.ReducedSystem(model, nonlinear, rollers))
+            assert blocks.keys() == one.keys()
+            for key, value in one.items():
+                if isinstance(value, dict):
+                    for k in value:
+                        np.testing.assert_array_equal(blocks[key][k], value[k], err_msg=f"{label} {key}")
+                elif isinstance(value, np.ndarray):
+                    assert blocks[key].shape == value.shape and blocks[key].dtype == value.dtype
+                    np.testing.assert_array_equal(blocks[key], value, err_msg=f"{label} {key}")
