@@ -19,7 +19,6 @@ from rvfmu.core.statics.quasistatic import (
     metric_torques,
     te_curve,
     windup,
-    windup_positions,
 )
 from rvfmu.core.statics.reference import no_load_limit_bracket, te_reference
 from rvfmu.core.statics.solver import solve_pairs
@@ -768,34 +767,3 @@ def test_the_reduced_system_made_by_blocks_of_angles_is_that_of_one_pass_to_the_
                 elif isinstance(value, np.ndarray):
                     assert blocks[key].shape == value.shape and blocks[key].dtype == value.dtype
                     np.testing.assert_array_equal(blocks[key], value, err_msg=f"{label} {key}")
-
-
-def test_the_roller_laws_no_load_solves_on_a_dense_grid_start_from_their_neighbours(monkeypatch):
-    """On a grid of at least CHAIN_LAW_PER_PIN_PASS angles per pin-passing period
-    (`solver._dense`) the roller law's no-load solves start from the solutions at their
-    neighbouring angles (`newton.chain_links`) instead of each angle's kinematic pose, the
-    reference (kept below that density, and here by an infinite threshold).  The energy is
-    convex: the same curves within the Newton tolerance (newton.STEP_TOLERANCE at R_p), in a
-    third fewer Newton steps at the default 8 points a period; at 720 points nothing changes."""
-    from rvfmu.core.statics import newton, solver
-
-    design, errors = _study_errors("quick_mc.toml", [0, 1])
-    period = design.z_p * design.z_c
-    dense = {
-        points: solver._dense(EquivalentModel(design, input_angles(design, points), flank=1))
-        for points in (720, 2 * period - 8, 2 * period, default_points(design))
-    }
-    assert dense == {720: False, 2 * period - 8: False, 2 * period: True, default_points(design): True}
-    assert not solver._dense(EquivalentModel(design, windup_positions(design, 8), flank=1))
-    points = default_points(design)
-    chained, fewer = _newton_steps(lambda: te_curve(design, errors, 0.0, points, forces=False))
-    coarse = te_curve(design, errors, 0.0, 720, forces=False)
-    monkeypatch.setattr(solver, "CHAIN_LAW_PER_PIN_PASS", np.inf)
-    plain, steps = _newton_steps(lambda: te_curve(design, errors, 0.0, points, forces=False))
-    assert chained.converged.all() and plain.converged.all()
-    bound = 2.0 * newton.STEP_TOLERANCE / design.R_p / ARCSEC
-    assert np.abs(chained.te_arcsec - plain.te_arcsec).max() <= bound
-    assert fewer < 0.75 * steps, (fewer, steps)
-    np.testing.assert_array_equal(
-        te_curve(design, errors, 0.0, 720, forces=False).te_arcsec, coarse.te_arcsec
-    )

@@ -73,11 +73,6 @@ CONTINUATION = (1e1, 1.0)  # no load with bearing clearance: probe multiples, la
 LAW_PROBE = 1e-3  # no load, no clearance, the roller law: one solve at this x probe, from the
 # limit with the stated stiffnesses; the law's windup left there (it goes
 # as load^0.9) is below 1e-3 arcsec on the RV-40E-121
-CHAIN_LAW_PER_PIN_PASS = 2.0  # no load, no clearance, the roller law: its solves start from
-# the solutions at the neighbouring angles (`newton.chain_links`) where the grid has at least this
-# many angles per pin-passing period (quick_mc's reducers: 12 480 points, 8 a period, 5.71 ->
-# 3.66 Newton steps a pair; 3200, 2.05 a period, 5.66 -> 4.34; at 720, 0.46 a period, 5.72 ->
-# 5.95: there the kinematic pose at the angle itself is the nearer start)
 LAW_RELEASE_ROUNDS = 1  # ... and after the one solve of the roller law at no load (a second and
 # third move quick_mc's no-load TE by less than 1e-5 arcsec, none by 0.0012)
 RELEASE_ROUNDS = 3  # no load with bearing clearance: solves with the weak springs re-centred
@@ -298,7 +293,6 @@ class ReducedSystem:
         release_step=True,
         offsets=None,
         forces=True,
-        chain_start=False,
     ) -> Equilibrium:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
@@ -328,10 +322,6 @@ class ReducedSystem:
         offsets: `model.offsets(errors, sample, angle)` when the caller has them already.
         forces: False leaves the pins' and meshes' forces out (None): a solve whose unknowns
         only start the next one.
-        chain_start: the no-load pairs started from `start` start instead from the solutions
-        of the pairs before them at the neighbouring angles, or from the line through two
-        (`newton.chain_links`; the compiled iteration, `newton.newton`): on a dense grid a
-        nearer start than `start`, and the same minimiser.
         """
         model = self.model
         B = len(angle)
@@ -387,7 +377,7 @@ class ReducedSystem:
                         first_count if cold else None,
                         bearing_direction if cold else None,
                         q_start,
-                        chain=chain if cold or chain_start else None,
+                        chain=chain if cold else None,
                         every_pin=bool(self.nl_bearings.size),
                         release=step_release,
                     )
@@ -819,9 +809,7 @@ def solve_pairs(
     steps (`quasistatic.equilibria`, start_from).  A pair named as a start must itself start
     from its kinematic pose.  The starting pairs are solved first and the chunks of the others
     wait, each for the chunks that hold its starts, so both cores stay busy.  Other routes
-    ignore it.  Without it, where the model's angles are a grid of at least
-    CHAIN_LAW_PER_PIN_PASS angles per pin-passing period (`_dense`), the roller law's no-load
-    solves start from the solutions at their neighbouring angles (`newton.chain_links`).
+    ignore it.
     """
     if law_start not in LAW_STARTS:
         raise ValueError(f"law_start {law_start!r}: must be one of {LAW_STARTS}")
@@ -844,24 +832,13 @@ def solve_pairs(
         law = reduced_system(model, model.bearing_law_a > 0.0, True) if then_law else None
         count, toward = _nominal_guess(system, errors, sample[pairs], angle[pairs], tau_load[pairs], probe)
         starts = None
-        # the law's solves along a dense grid start from their neighbours' (not with law_after)
-        chained = law is not None and law_after is None and _dense(model)
         if law is not None and law_after is not None:  # the starting pairs first
             starts = _LawStarts(pairs, law_after, model.n_dof)
             pairs = pairs[starts.order]
             count = None if count is None else count[starts.order]
             toward = None if toward is None else toward[starts.order]
 
-        def solve_chunk(
-            part,
-            pairs=pairs,
-            system=system,
-            law=law,
-            count=count,
-            toward=toward,
-            starts=starts,
-            chained=chained,
-        ):
+        def solve_chunk(part, pairs=pairs, system=system, law=law, count=count, toward=toward, starts=starts):
             at = pairs[part]
             offsets = model.offsets(errors, sample[at], angle[at])  # the two solves' both
             eq = system.solve(
@@ -892,7 +869,6 @@ def solve_pairs(
                     release_step=law_release == "step",
                     offsets=offsets,
                     forces=forces,
-                    chain_start=chained,
                 )
             return at, eq
 
@@ -984,18 +960,6 @@ class _LawStarts:
         if q is not None:
             self.solutions[self.pairs[part]] = q
         self.ready[part.start].set()
-
-
-def _dense(model: EquivalentModel) -> bool:
-    """Whether the model's angles are a grid of at least CHAIN_LAW_PER_PIN_PASS angles per
-    pin-passing period (1 / (z_p z_c) of an output revolution, `ratio` input turns)."""
-    theta = model.pose.theta_in
-    if theta.size < 2:
-        return False
-    step = float(np.median(np.abs(np.diff(theta))))
-    d = model.design
-    period = 2.0 * np.pi * d.ratio / (d.z_p * d.z_c)
-    return step > 0.0 and period >= CHAIN_LAW_PER_PIN_PASS * step
 
 
 def _chunks(size: int, begin: int = 0) -> list[slice]:
