@@ -12,10 +12,10 @@ process:
   multiple of the threads in number: 12 of 3840.
 - **Angle blocks** (`solver.ReducedSystem`, ANGLE_BLOCK).  The reduced system's arrays
   (condensed stiffness, load rows, mechanism mode, candidate pins ... per angle) were made
-  in one pass of numpy over all the angles.  At the 12 480 angles of a full-resolution
-  curve its temporaries outgrow the caches; made in blocks of 512 angles, on the threads,
-  they cost a third.  This serves every call at a study's or a curve's first angles: the
-  aliasing check of `rvte mc` (16 reducers at 12 480 points) and `rvte te`.
+  in one pass of numpy over all the angles, on one thread; made in blocks of 512 angles on
+  the threads (numpy's stacked solves and products release Python's lock) they cost about
+  half at the 12 480 angles of a full-resolution curve.  This is paid once per model: by
+  the aliasing check of `rvte mc` (16 reducers at 12 480 points) and by `rvte te`.
 
 Printed, on the calibrated RV-40E-121 of studies/quick_mc.toml:
 1. the reduced systems of the no-load route (the kinematic one and the roller law's) at 720,
