@@ -755,7 +755,7 @@ def test_the_reduced_system_made_by_blocks_of_angles_is_that_of_one_pass_to_the_
     for label, (nonlinear, rollers) in systems.items():
         monkeypatch.setattr(solver, "ANGLE_BLOCK", 10**9)
         one = vars(solver.ReducedSystem(model, nonlinear, rollers))
-        for threads, block in (("1", 16), ("2", 37)):
+        for threads, block in (("1", 16), ("2", 37), ("2", 100)):  # alone, 5 blocks on threads, 2 alone
             monkeypatch.setenv("RVTE_THREADS", threads)
             monkeypatch.setattr(solver, "ANGLE_BLOCK", block)
             blocks = vars(solver.ReducedSystem(model, nonlinear, rollers))
