@@ -739,9 +739,9 @@ def test_chunks_are_even_whole_chains_and_on_threads_a_multiple_of_them(monkeypa
 
 @pytest.mark.parametrize("name", ["quick_mc.toml", "rv40e_121_full.toml"])
 def test_the_reduced_system_made_by_blocks_of_angles_is_that_of_one_pass_to_the_bit(monkeypatch, name):
-    """`ReducedSystem` makes its arrays in blocks of ANGLE_BLOCK angles, on threads where there
-    are several: every array equals that of one pass over all the angles, to the bit, without
-    bearing clearance (the kinematic and the roller law's systems) and with it."""
+    """`ReducedSystem` makes its arrays in blocks of ANGLE_BLOCK angles, on the threads where there
+    are enough blocks: every array equals that of one pass over all the angles, to the bit,
+    without bearing clearance (the kinematic and the roller law's systems) and with it."""
     from rvfmu.core.statics import solver
     from tolerance.study import load_study
 
@@ -755,7 +755,8 @@ def test_the_reduced_system_made_by_blocks_of_angles_is_that_of_one_pass_to_the_
     for label, (nonlinear, rollers) in systems.items():
         monkeypatch.setattr(solver, "ANGLE_BLOCK", 10**9)
         one = vars(solver.ReducedSystem(model, nonlinear, rollers))
-        for threads, block in (("1", 16), ("2", 37), ("2", 100)):  # alone, 5 blocks on threads, 2 alone
+        # 10 blocks alone, 10 on the threads (`newton.map_chunks`), 5 blocks on one of two threads
+        for threads, block in (("1", 16), ("2", 16), ("2", 37)):
             monkeypatch.setenv("RVTE_THREADS", threads)
             monkeypatch.setattr(solver, "ANGLE_BLOCK", block)
             blocks = vars(solver.ReducedSystem(model, nonlinear, rollers))

@@ -56,8 +56,6 @@ from .newton import (
 
 CHUNK = 4096  # pairs per chunk: ~40 MB of work arrays
 ANGLE_BLOCK = 512  # angles per block of `ReducedSystem`'s arrays
-ANGLE_BLOCKS_ON_THREADS = 4  # ... on the threads from this many blocks (720 angles, two blocks:
-# 0.040 s on one thread, 0.053 s on two; 3200 angles: 0.180 and 0.164 s; bench_chunks.py)
 REGULARISATION = 1e-6  # relative to the softest element (`weak_stiffness`): keeps floating
 # parts determinate
 # The sun support holds the sun, always condensed out; the reduced unknowns feel it only where
@@ -166,19 +164,13 @@ class ReducedSystem:
         self.brg_law_compliance = model.bearing_law_compliance[self.nl_bearings]
         self.reg = weak_stiffness(model)
 
-        # Every array below is made angle by angle, in blocks of ANGLE_BLOCK angles (on the
-        # threads from ANGLE_BLOCKS_ON_THREADS blocks): the same numbers as one pass over all
-        # angles, to the bit, in about half the time on two threads (12 480 angles: 0.71 s in
-        # one pass, 0.64 s in blocks on one thread, 0.36 s on two; bench_chunks.py).
+        # Every array below is made angle by angle, in blocks of ANGLE_BLOCK angles, on the
+        # threads where there are enough blocks (`newton.map_chunks`): the same numbers as one
+        # pass over all angles, to the bit, in about half the time on two threads (12 480
+        # angles: 0.71 s in one pass, 0.64 s in blocks on one thread, 0.36 s on two;
+        # bench_chunks.py).
         blocks = [slice(a, min(a + ANGLE_BLOCK, A)) for a in range(0, A, ANGLE_BLOCK)] or [slice(0, 0)]
-        threads = min(kernel_threads(), len(blocks))
-        if threads > 1 and len(blocks) >= ANGLE_BLOCKS_ON_THREADS:
-            from concurrent.futures import ThreadPoolExecutor
-
-            with ThreadPoolExecutor(threads) as pool:
-                parts = list(pool.map(self._angle_arrays, blocks))
-        else:
-            parts = [self._angle_arrays(block) for block in blocks]
+        parts = list(map_chunks(self._angle_arrays, blocks))
         for name, first in parts[0].items():
             if isinstance(first, dict):
                 joined = {key: np.concatenate([part[name][key] for part in parts]) for key in first}
