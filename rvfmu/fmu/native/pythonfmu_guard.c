@@ -40,7 +40,14 @@
  * nothing is wrong.  So right after loading pythonfmu's library, this library registers an
  * exit handler, which runs before the static's destructor (handlers run in the reverse order
  * of their registration) and calls finalizePythonInterpreter once: it empties `pyState` before
- * it releases it, and the two later releases then find it empty.
+ * it releases it, and the two later releases then find it empty.  That handler must still be
+ * there at exit when the host unloaded this library before (fmpy's simulate_fmu frees it after
+ * every run): pythonfmu's library holds C++ objects of unique binding, so the dynamic loader
+ * never unloads it, and its double release comes at exit all the same (valgrind: a host that
+ * runs simulate_fmu twice).  This library would be gone by then, its handler run at the dlclose
+ * with nothing to release (a handler must not end the interpreter there: a native host may load
+ * the FMU again).  So this library stays loaded as pythonfmu's does (RTLD_NODELETE), and its
+ * handler runs at exit.
  *
  * The instances' records are kept in a list under a mutex (hosts may step instances in
  * threads); pythonfmu's component is the host's handle, unchanged.  POSIX only: on Windows the
@@ -124,7 +131,13 @@ static void open_library(void) {
     }
     /* registered after pythonfmu's library registered its static destructors: runs before them */
     release_python = (void (*)(void))dlsym(library, "finalizePythonInterpreter");
-    if (release_python) atexit(release_at_exit);
+    if (!release_python) return;
+    /* kept loaded to the exit, as pythonfmu's library is (module doc): the handler with it */
+    if (!dlopen(self.dli_fname, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE)) {
+        release_python = NULL;   /* without the handler, pythonfmu's exit as it is */
+        return;
+    }
+    atexit(release_at_exit);
 }
 
 __attribute__((destructor)) static void close_library(void) {
