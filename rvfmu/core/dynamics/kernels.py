@@ -180,7 +180,7 @@ def forces_into(el, g, a, q, v, f, K, C, work):
     return forces_only(el, g, a, q, v, f, K, C, work, True)
 
 
-@kernel
+@kernel(inline=True)
 def forces_only(el, g, a, q, v, f, K, C, work, tangent):
     """`forces_into`, K and C only where `tangent` is True: else they are left as they are
     and the forces f and the powers are those it gives, to the bit (a residual whose
@@ -419,7 +419,7 @@ def _newmark_residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma, ma
     )
 
 
-@kernel
+@kernel(inline=True)
 def _residual(el, g, k, q, v, a, q_old, v_old, a_old, h, beta, gamma, mass, f, K, C, residual, work, tangent):
     """`_newmark_residual`, with K and C only where `tangent` is True (`forces_only`)."""
     for i in range(q.size):
