@@ -454,3 +454,32 @@ def test_the_laws_no_load_release_by_one_step_is_the_release_solved():
     np.testing.assert_allclose(in_numpy, stepped, rtol=0, atol=1e-6)
     with pytest.raises(ValueError, match="law_release"):
         solver.solve_pairs(model, errors, s, a, zero, no_load_probe=probe, law_release="twice")
+
+
+def test_the_corrected_deflections_power_by_its_series_is_the_power_to_round_off():
+    """roller_law_direct takes u^(n-1) at the corrected u from the start's by the binomial
+    series of (1 - x)^(n-1) to x^3 where |x| < SERIES_POWER_BELOW: against the power itself
+    over that range (x^4's term is below 3e-18 there), and the law against the law with every
+    power taken (`_rollers`), to round-off."""
+    from rvfmu.core.laws import roller_law as law
+
+    x = np.linspace(-law.SERIES_POWER_BELOW, law.SERIES_POWER_BELOW, 2001)
+    series = 1.0 - x * (law.POWER_1 - x * (law.POWER_2 - x * law.POWER_3))
+    exact = (1.0 - x) ** (law.N - 1.0)
+    assert np.max(np.abs(series - exact)) <= 4e-16
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        c = rng.choice([0.0, rng.uniform(0.0, 5e-6)])
+        s = c + 10.0 ** rng.uniform(-9.0, -5.0)
+        a, compliance = 10.0 ** rng.uniform(8.5, 9.5), 10.0 ** rng.uniform(-11.0, -9.0)
+        direct = law.roller_law_direct(law.TABLE_E, law.TABLE_DE, s, c, a, compliance)
+        u = law._start(s, c, a, compliance)
+        _, force, stiffness = law._rollers(law.TABLE_E, law.TABLE_DE, u, c, a)
+        u -= (u + compliance * force - s) / (1.0 + compliance * stiffness)
+        energy, force, stiffness = law._rollers(law.TABLE_E, law.TABLE_DE, u, c, a)
+        powers = (
+            energy + 0.5 * compliance * force * force,
+            force,
+            stiffness / (1.0 + compliance * stiffness),
+        )
+        np.testing.assert_allclose(direct, powers, rtol=1e-14, atol=0.0)
