@@ -39,6 +39,7 @@ from ..laws.roller_law import roller_law
 
 LINE_SEARCH_HALVINGS = 8  # a Newton update is halved at most this often (to 1/256)
 REUSE_BELOW = 1e-8  # [m] a Newton update this small: the next from its factors
+EXP_ZERO = 746.0  # exp(-x) is 0.0 in double precision from x = 745.14 on (below 2^-1075)
 
 Elements = namedtuple(
     "Elements",
@@ -145,7 +146,9 @@ def stribeck(w, factor, speed):
     if factor == 1.0:
         return 1.0, 0.0
     x = w / speed
-    bump = (factor - 1.0) * np.exp(-x * x)
+    # beyond EXP_ZERO the exponential is 0.0 in double precision: not called there (a fast slip's
+    # usual case), the same numbers to the bit
+    bump = (factor - 1.0) * (np.exp(-x * x) if x * x < EXP_ZERO else 0.0)
     return 1.0 + bump, -2.0 * x / speed * bump
 
 
