@@ -483,3 +483,32 @@ def test_the_corrected_deflections_power_by_its_series_is_the_power_to_round_off
             stiffness / (1.0 + compliance * stiffness),
         )
         np.testing.assert_allclose(direct, powers, rtol=1e-14, atol=0.0)
+
+
+def test_a_bearing_without_play_takes_the_general_laws_numbers_to_the_bit():
+    """roller_law_direct writes the law out for c = 0 (`_tight`): the general path's start
+    table and Hermite interpolant at rho = 0, taken by their pieces here, give the same
+    energy, force and stiffness to the last bit."""
+    from rvfmu.core.laws import roller_law as law
+
+    rng = np.random.default_rng(11)
+    for _ in range(2000):
+        s = 10.0 ** rng.uniform(-10.0, -4.0)
+        a, compliance = 10.0 ** rng.uniform(8.0, 10.0), 10.0 ** rng.uniform(-12.0, -8.0)
+        u = law._start(s, 0.0, a, compliance)
+        un1 = u ** (law.N - 1.0)
+        _, force, stiffness = law._rollers_at(law.TABLE_E, law.TABLE_DE, u, 0.0, a, un1)
+        step = (u + compliance * force - s) / (1.0 + compliance * stiffness)
+        x = step / u
+        u -= step
+        if abs(x) < law.SERIES_POWER_BELOW:
+            un1 *= 1.0 - x * (law.POWER_1 - x * (law.POWER_2 - x * law.POWER_3))
+        else:
+            un1 = u ** (law.N - 1.0)
+        energy, force, stiffness = law._rollers_at(law.TABLE_E, law.TABLE_DE, u, 0.0, a, un1)
+        general = (
+            energy + 0.5 * compliance * force * force,
+            force,
+            stiffness / (1.0 + compliance * stiffness),
+        )
+        assert law.roller_law_direct(law.TABLE_E, law.TABLE_DE, s, 0.0, a, compliance) == general
