@@ -318,7 +318,7 @@ def _tight(table_e, s, a, compliance):
     """`roller_law_direct` of a bearing without play (c = 0), written out: rho = 0 everywhere,
     so the start table's cell holds row t = 0 alone (at x = -1 its weights across the rows are
     1, 0, -0, 0) and the Hermite interpolant gives E(0) = table_e[0] with every term in rho
-    zero.  The same numbers as the general path to the bit, at four fifths of its time: the
+    zero.  The same numbers as the general path to the bit, at seven tenths of its time: the
     crank bearings of a study without clearances."""
     kappa = compliance * a * s ** (N - 1.0)
     y = kappa / (1.0 + kappa) * START_TAU_INTERVALS
