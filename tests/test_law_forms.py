@@ -498,13 +498,7 @@ def test_a_bearing_without_play_takes_the_general_laws_numbers_to_the_bit():
         u = law._start(s, 0.0, a, compliance)
         un1 = u ** (law.N - 1.0)
         _, force, stiffness = law._rollers_at(law.TABLE_E, law.TABLE_DE, u, 0.0, a, un1)
-        step = (u + compliance * force - s) / (1.0 + compliance * stiffness)
-        x = step / u
-        u -= step
-        if abs(x) < law.SERIES_POWER_BELOW:
-            un1 *= 1.0 - x * (law.POWER_1 - x * (law.POWER_2 - x * law.POWER_3))
-        else:
-            un1 = u ** (law.N - 1.0)
+        u, un1 = law._corrected(u, un1, (u + compliance * force - s) / (1.0 + compliance * stiffness))
         energy, force, stiffness = law._rollers_at(law.TABLE_E, law.TABLE_DE, u, 0.0, a, un1)
         general = (
             energy + 0.5 * compliance * force * force,

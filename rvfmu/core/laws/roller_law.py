@@ -314,6 +314,18 @@ def _start(s, c, a, compliance):
 
 
 @kernel
+def _corrected(u, un1, step):
+    """(u - step, its power (u - step)^(n-1)) from u and its power un1: the binomial series of
+    (1 - x)^(n-1) to x^3, x = step / u, where x is below SERIES_POWER_BELOW (within round-off),
+    else the power itself."""
+    x = step / u
+    u -= step
+    if abs(x) < SERIES_POWER_BELOW:
+        return u, un1 * (1.0 - x * (POWER_1 - x * (POWER_2 - x * POWER_3)))
+    return u, u ** (N - 1.0)
+
+
+@kernel
 def _tight(table_e, s, a, compliance):
     """`roller_law_direct` of a bearing without play (c = 0), written out: rho = 0 everywhere,
     so the start table's cell holds row t = 0 alone (at x = -1 its weights across the rows are
@@ -332,13 +344,7 @@ def _tight(table_e, s, a, compliance):
     if u > 0.0:
         asn1 = a * un1
         force, stiffness = asn1 * u * e, max(asn1 * (N * e), 0.0)
-    step = (u + compliance * force - s) / (1.0 + compliance * stiffness)
-    x = step / u
-    u -= step
-    if abs(x) < SERIES_POWER_BELOW:
-        un1 *= 1.0 - x * (POWER_1 - x * (POWER_2 - x * POWER_3))
-    else:
-        un1 = u ** (N - 1.0)
+    u, un1 = _corrected(u, un1, (u + compliance * force - s) / (1.0 + compliance * stiffness))
     if u <= 0.0:
         return 0.0, 0.0, 0.0
     asn1 = a * un1
@@ -362,13 +368,7 @@ def roller_law_direct(table_e, table_de, s, c, a, compliance):
     force, stiffness = 0.0, 0.0
     if u > c:
         _, force, stiffness = _rollers_at(table_e, table_de, u, c, a, un1)
-    step = (u + compliance * force - s) / (1.0 + compliance * stiffness)
-    x = step / u
-    u -= step
-    if abs(x) < SERIES_POWER_BELOW:  # u^(n-1) (1 - x)^(n-1), the binomial series to x^3
-        un1 *= 1.0 - x * (POWER_1 - x * (POWER_2 - x * POWER_3))
-    else:
-        un1 = u ** (N - 1.0)
+    u, un1 = _corrected(u, un1, (u + compliance * force - s) / (1.0 + compliance * stiffness))
     if u <= c:
         return 0.0, 0.0, 0.0
     energy, force, stiffness = _rollers_at(table_e, table_de, u, c, a, un1)
