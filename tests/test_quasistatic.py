@@ -353,6 +353,72 @@ def test_no_load_limit_of_ordinary_reducers_of_the_complete_study_is_the_rigid_l
             assert low - 0.1 * ARCSEC <= te[s, a] <= high + 0.1 * ARCSEC, (s, a)
 
 
+def _release_routes(study_file, reducers, points):
+    """No-load TE [arcsec] (reducers, points) of a study's first Monte Carlo reducers by
+    solve_pairs(clearance_release=...) with RELEASE_ROUNDS solves, and the count of solves
+    (`ReducedSystem._solve_group` calls) each route made."""
+    from unittest import mock
+
+    from rvfmu.core.statics import solver
+    from tolerance.montecarlo import sample
+    from tolerance.sampling import errors_from_unit
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / study_file)
+    errors = errors_from_unit(study, sample(study, reducers))
+    model = EquivalentModel(study.design, input_angles(study.design, points), flank=1)
+    s, a = (g.ravel() for g in np.meshgrid(np.arange(reducers), np.arange(points), indexing="ij"))
+    zero = np.zeros(s.size)
+    probe = NO_LOAD_PROBE * study.design.rated_torque
+    solve_group = solver.ReducedSystem._solve_group
+
+    def route(release, rounds=solver.RELEASE_ROUNDS):
+        calls = []
+
+        def counted(self, *args, **kwargs):
+            calls.append(1)
+            return solve_group(self, *args, **kwargs)
+
+        with (
+            mock.patch.object(solver, "RELEASE_ROUNDS", rounds),
+            mock.patch.object(solver.ReducedSystem, "_solve_group", counted),
+        ):
+            eq = solve_pairs(model, errors, s, a, zero, no_load_probe=probe, clearance_release=release)
+        assert eq.converged.all()
+        return (model.output_angle(eq.q, zero) / ARCSEC).reshape(reducers, points), len(calls)
+
+    return route
+
+
+def test_with_clearances_the_weak_springs_let_go_at_the_probe_alone_as_at_both_loads():
+    """docs/model.md section 5: with bearing clearances the weak springs let go by solves
+    re-centred on the last solution, at the probe alone (`clearance_release="probe"`, the
+    default: five solves a point); the solve at 10 probes only starts the probe's and anchors
+    the chord back to zero.  The reference lets go at both loads (eight solves).  On reducers of
+    the complete study the two agree within a few 1e-4 arcsec, and the default is as close as
+    the reference to a release taken much further (12 solves at each load)."""
+    route = _release_routes("rv40e_121_full.toml", 8, 400)
+    route("probe")  # the error-free reducer's first guesses, solved once and kept for the others
+    probe_alone, probe_solves = route("probe")
+    both, both_solves = route("every")
+    further, _ = route("every", 12)
+    assert np.abs(probe_alone - both).max() <= 0.005
+    assert np.abs(np.ptp(probe_alone, axis=1) - np.ptp(both, axis=1)).max() <= 0.002
+    assert np.abs(probe_alone - further).max() <= np.abs(both - further).max() + 0.005
+    assert probe_solves * 8 == both_solves * 5  # per chunk: 2 + 3 solves against 2 + 3 + 3
+    # the clearances are there: the curves are tens of arcsec, the releases far from idle
+    assert np.ptp(both, axis=1).min() > 10.0 and np.abs(both - further).max() > 1e-3
+
+
+def test_without_clearances_where_the_weak_springs_let_go_changes_nothing():
+    route = _release_routes("quick_mc.toml", 2, 200)
+    probe_alone, _ = route("probe")
+    both, _ = route("every")
+    np.testing.assert_array_equal(probe_alone, both)
+    with pytest.raises(ValueError, match="clearance_release 'twice'"):
+        route("twice")
+
+
 def test_no_load_te_of_a_tight_needle_reducer_has_no_spike():
     """Reducer 16594 of the complete study: needle clearance 4 um, preloaded at no load at
     some angles.  Near input angle 1199 of 3200 the tangent at the probe was nearly singular

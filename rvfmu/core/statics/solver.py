@@ -75,7 +75,9 @@ LAW_PROBE = 1e-3  # no load, no clearance, the roller law: one solve at this x p
 # as load^0.9) is below 1e-3 arcsec on the RV-40E-121
 LAW_RELEASE_ROUNDS = 1  # ... and after the one solve of the roller law at no load (a second and
 # third move quick_mc's no-load TE by less than 1e-5 arcsec, none by 0.0012)
-RELEASE_ROUNDS = 3  # no load with bearing clearance: solves with the weak springs re-centred
+RELEASE_ROUNDS = 3  # no load with bearing clearance: solves with the weak springs re-centred,
+# at the probe (CLEARANCE_RELEASES "probe"), or at each of the last two probe loads (the
+# reference, "every")
 RELEASE_BELOW = 100.0  # loads up to this many probe torques get the same release
 TANGENT_AGREEMENT = 3.0  # with bearing clearance: back to zero load along the tangent unless it turns
 # the carrier this many times further than the chord through the last two
@@ -287,6 +289,7 @@ class ReducedSystem:
         release_step=True,
         offsets=None,
         forces=True,
+        clearance_release="probe",
     ) -> Equilibrium:
         """Equilibrium of the pairs (sample[b], angle[b]) under tau_load[b] [N*m].
 
@@ -316,6 +319,10 @@ class ReducedSystem:
         offsets: `model.offsets(errors, sample, angle)` when the caller has them already.
         forces: False leaves the pins' and meshes' forces out (None): a solve whose unknowns
         only start the next one.
+        clearance_release: with bearing clearance, where the weak springs let go, by
+        RELEASE_ROUNDS solves with them re-centred (`_release`): "probe", at the probe alone
+        (the solve at 10 probes only starts the probe's and anchors the chord back to zero
+        load); "every", at each of the two probe loads (the reference; docs/model.md section 5).
         """
         model = self.model
         B = len(angle)
@@ -357,9 +364,16 @@ class ReducedSystem:
                 for k, scale in enumerate(steps):
                     loads = np.full(group.size, probe * scale)
                     cold = q_start is None
-                    # the roller law's solve lets go of the weak springs by one Newton step
-                    # at its end (`newton.newton`, release)
-                    step_release = start is not None and release_step
+                    # the roller law's solve lets go of the weak springs by one Newton step at
+                    # its end (`newton.newton`, release); rounds: solves with the springs
+                    # re-centred after it
+                    if start is not None:
+                        step_release = release_step
+                        rounds = 0 if release_step else LAW_RELEASE_ROUNDS
+                    else:
+                        step_release = False
+                        releasing = 1 if clearance_release == "probe" else 2  # the last loads
+                        rounds = RELEASE_ROUNDS if k >= len(steps) - releasing else 0
                     q_start, conv, its = self._solve_group(
                         group,
                         angle,
@@ -376,17 +390,9 @@ class ReducedSystem:
                         release=step_release,
                     )
                     iterations += its
-                    if self.nl_bearings.size and k >= len(steps) - 2 and not step_release:
+                    if self.nl_bearings.size and rounds:
                         q_start, released, its = self._release(
-                            group,
-                            angle,
-                            f0,
-                            pin_b,
-                            brg_off,
-                            c_half,
-                            loads,
-                            q_start,
-                            LAW_RELEASE_ROUNDS if start is not None else RELEASE_ROUNDS,
+                            group, angle, f0, pin_b, brg_off, c_half, loads, q_start, rounds
                         )
                         conv = conv & released
                         iterations += its
@@ -762,6 +768,7 @@ def pin_forces(delta, law):
 
 LAW_STARTS = ("kinematic", "elastic")
 LAW_RELEASES = ("step", "solve")
+CLEARANCE_RELEASES = ("probe", "every")
 
 
 def solve_pairs(
@@ -777,6 +784,7 @@ def solve_pairs(
     law_release: str = "step",
     forces: bool = True,
     law_after=None,
+    clearance_release: str = "probe",
 ) -> Equilibrium:
     """Equilibria of many (reducer, angle) pairs, in chunks.
 
@@ -804,7 +812,11 @@ def solve_pairs(
     from its kinematic pose.  The starting pairs are solved first and the chunks of the others
     wait, each for the chunks that hold its starts, so both cores stay busy.  Other routes
     ignore it.
+    clearance_release: with bearing clearance at no load, where the weak springs let go:
+    "probe" (the default) or "every" (the reference), `ReducedSystem.solve`.
     """
+    if clearance_release not in CLEARANCE_RELEASES:
+        raise ValueError(f"clearance_release {clearance_release!r}: must be one of {CLEARANCE_RELEASES}")
     if law_start not in LAW_STARTS:
         raise ValueError(f"law_start {law_start!r}: must be one of {LAW_STARTS}")
     if law_release not in LAW_RELEASES:
@@ -847,6 +859,7 @@ def solve_pairs(
                 start_only=law is not None and law_start == "kinematic",
                 offsets=offsets,
                 forces=forces and law is None,  # with the law, only its solve's forces are the answer's
+                clearance_release=clearance_release,
             )
             if law is not None:
                 # the kinematic limit with the stated stiffnesses is within a fraction of an

@@ -1,0 +1,127 @@
+"""The no-load limit with bearing clearances: where its weak springs let go.
+
+With bearing clearances the no-load TE is reached by continuation: a solve at 10 probe
+torques, one at the probe, and the step back to zero load along the tangent (or the chord
+through the two; docs/model.md section 5).  Weak springs hold the parts that float in their
+clearances; solves with the springs re-centred on the last solution let them go.  The
+reference route (`solve_pairs(clearance_release="every")`) takes three such solves at each of
+the two probe loads: eight solves a point.  The default (`clearance_release="probe"`) lets go
+at the probe alone, by the same three solves (five a point): the solve at 10 probes only
+starts the probe's and anchors the chord.
+
+Both run here, in this process on every core, on the same `--reducers` reducers of
+studies/rv40e_121_full.toml (the calibrated RV-40E-121, its 15 tolerances with the three
+bearing clearances, no load, 3200 points), and so does a yardstick that neither route is: the
+reference's continuation with RELEASE_ROUNDS = `--converged` solves at each load, where the
+springs have let go further than either route takes them.  Each time is the best of
+`--repeats` runs after one that compiles.  Printed: the time, the throughput, the Newton steps
+of all solves, the ratio to the reference, and each route's largest, 99.9th-percentile and
+median difference of the TE and the largest of te_pp from the reference and from the
+yardstick.
+
+    python studies/benchmarks/bench_clearance_release.py [--reducers 32] [--repeats 2] [--converged 12]
+"""
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--reducers", type=int, default=32)
+    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--converged", type=int, default=12, help="release solves of the yardstick")
+    args = parser.parse_args()
+    if args.reducers < 1 or args.repeats < 1 or args.converged < 4:
+        parser.error("--reducers and --repeats must be >= 1, --converged >= 4")
+
+    from bench_jobs import machine
+
+    from rvfmu.core.base.units import ARCSEC
+    from rvfmu.core.statics import newton_kernel, solver
+    from rvfmu.core.statics.equivalent import EquivalentModel
+    from rvfmu.core.statics.quasistatic import NO_LOAD_PROBE, input_angles
+    from tolerance.montecarlo import sample
+    from tolerance.sampling import errors_from_unit
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / "rv40e_121_full.toml")
+    design, points = study.design, study.points
+    errors = errors_from_unit(study, sample(study, args.reducers))
+    model = EquivalentModel(design, input_angles(design, points), flank=1)
+    s, a = (g.ravel() for g in np.meshgrid(np.arange(errors.samples), np.arange(points), indexing="ij"))
+    zero = np.zeros(s.size)
+    probe = NO_LOAD_PROBE * design.rated_torque
+
+    steps = []
+    kernel = newton_kernel.newton_pairs
+
+    def counted(*arguments):
+        kernel(*arguments)
+        steps.append(int(arguments[-1].sum()))  # the kernel's iterations (B,), filled in
+
+    def run(release, rounds):
+        kept = solver.RELEASE_ROUNDS
+        solver.RELEASE_ROUNDS = rounds
+        steps.clear()
+        try:
+            began = time.perf_counter()
+            eq = solver.solve_pairs(model, errors, s, a, zero, no_load_probe=probe, clearance_release=release)
+            return time.perf_counter() - began, eq, sum(steps)
+        finally:
+            solver.RELEASE_ROUNDS = kept
+
+    rounds = solver.RELEASE_ROUNDS
+    routes = (
+        (("every", rounds), f"{rounds} release solves at 10 probes and at the probe (reference)"),
+        (("probe", rounds), f"{rounds} release solves at the probe alone"),
+        (("every", args.converged), f"yardstick: {args.converged} release solves at each load"),
+    )
+    newton_kernel.newton_pairs = counted
+    try:
+        results = {}
+        for route, _ in routes:
+            run(*route)  # compiles
+            results[route] = min((run(*route) for _ in range(args.repeats)), key=lambda r: r[0])
+    finally:
+        newton_kernel.newton_pairs = kernel
+
+    te = {
+        k: (model.output_angle(eq.q, zero) / ARCSEC).reshape(args.reducers, points)
+        for k, (_, eq, _) in results.items()
+    }
+    reference, yardstick = routes[0][0], routes[2][0]
+
+    def differences(route, against):
+        d = np.abs(te[route] - te[against])
+        d_pp = np.abs(np.ptp(te[route], axis=1) - np.ptp(te[against], axis=1))
+        return f"{d.max():>9.2e} {np.quantile(d, 0.999):>9.2e} {np.median(d):>9.1e} {d_pp.max():>9.2e}"
+
+    print(f"machine: {machine()}")
+    print(
+        f"differences [arcsec]: TE max, 99.9 %, median, te_pp max; the reference's TE spans "
+        f"{np.ptp(te[reference]):.2f} arcsec, its te_pp {np.ptp(te[reference], axis=1).min():.1f} to "
+        f"{np.ptp(te[reference], axis=1).max():.1f}"
+    )
+    print(
+        f"{'route':<58} {'size':>16} {'time [s]':>9} {'throughput':>16} {'Newton steps':>13} "
+        f"{'ratio':>6}  {'from the reference':>39}  {'from the yardstick':>39}"
+    )
+    for route, label in routes:
+        seconds, eq, count = results[route]
+        assert eq.converged.all(), f"{label}: not every pair converged"
+        print(
+            f"{label:<58} {f'{args.reducers} x {points} pts':>16} {seconds:>9.3f} "
+            f"{args.reducers / seconds:>9.2f} red./s {count:>13d} "
+            f"{seconds / results[reference][0]:>6.2f}  {differences(route, reference)}  "
+            f"{differences(route, yardstick)}"
+        )
+
+
+if __name__ == "__main__":
+    main()
