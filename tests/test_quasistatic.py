@@ -419,6 +419,30 @@ def test_without_clearances_where_the_weak_springs_let_go_changes_nothing():
         route("twice")
 
 
+def test_the_roller_laws_no_load_route_from_the_kinematic_pose_solves_no_error_free_reducer(monkeypatch):
+    """The error-free reducer's first guesses (`solver._nominal_guess`) start elastic solves from
+    cold; the roller law's no-load route from the kinematic pose has none, so it must not pay
+    for them (an elastic solve of the error-free reducer at every angle), while the reference
+    route that starts with an elastic solve still takes them."""
+    from rvfmu.core.statics import solver
+    from tolerance.montecarlo import sample
+    from tolerance.sampling import errors_from_unit
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / "quick_mc.toml")
+    errors = errors_from_unit(study, sample(study, solver.NOMINAL_GUESS_MIN_SAMPLES))
+    model = EquivalentModel(study.design, input_angles(study.design, 40), flank=1)
+    s, a = (g.ravel() for g in np.meshgrid(np.arange(errors.samples), np.arange(40), indexing="ij"))
+    probe = NO_LOAD_PROBE * study.design.rated_torque
+    calls = []
+    solve_guess = solver._solve_nominal_guess
+    monkeypatch.setattr(solver, "_solve_nominal_guess", lambda *args: calls.append(1) or solve_guess(*args))
+    for start, expected in (("kinematic", 0), ("elastic", 1)):
+        calls.clear()
+        eq = solve_pairs(model, errors, s, a, np.zeros(s.size), no_load_probe=probe, law_start=start)
+        assert eq.converged.all() and len(calls) == expected, start
+
+
 def test_no_load_te_of_a_tight_needle_reducer_has_no_spike():
     """Reducer 16594 of the complete study: needle clearance 4 um, preloaded at no load at
     some angles.  Near input angle 1199 of 3200 the tangent at the probe was nearly singular

@@ -836,7 +836,14 @@ def solve_pairs(
     for pairs, nonlinear, rollers, then_law in _routes(model, clearance, tau_load):
         system = reduced_system(model, nonlinear, rollers)
         law = reduced_system(model, model.bearing_law_a > 0.0, True) if then_law else None
-        count, toward = _nominal_guess(system, errors, sample[pairs], angle[pairs], tau_load[pairs], probe)
+        # the error-free reducer's first guesses serve elastic solves from a cold start, which the
+        # roller law's no-load route from the kinematic pose has none of
+        kinematic = law is not None and law_start == "kinematic"
+        count, toward = (
+            (None, None)
+            if kinematic
+            else _nominal_guess(system, errors, sample[pairs], angle[pairs], tau_load[pairs], probe)
+        )
         starts = None
         if law is not None and law_after is not None:  # the starting pairs first
             starts = _LawStarts(pairs, law_after, model.n_dof)
@@ -856,7 +863,7 @@ def solve_pairs(
                 probe,
                 None if count is None else count[part],
                 None if toward is None else toward[part],
-                start_only=law is not None and law_start == "kinematic",
+                start_only=kinematic,
                 offsets=offsets,
                 forces=forces and law is None,  # with the law, only its solve's forces are the answer's
                 clearance_release=clearance_release,
