@@ -41,29 +41,14 @@ def main() -> None:
         parser.error("--reducers and --repeats must be >= 1, --converged >= 4")
 
     from bench_jobs import machine
+    from bench_no_load_start import counted_steps, no_load_pairs, route_cells, route_columns
 
     from rvfmu.core.base.units import ARCSEC
-    from rvfmu.core.statics import newton_kernel, solver
-    from rvfmu.core.statics.equivalent import EquivalentModel
-    from rvfmu.core.statics.quasistatic import NO_LOAD_PROBE, input_angles
-    from tolerance.montecarlo import sample
-    from tolerance.sampling import errors_from_unit
+    from rvfmu.core.statics import solver
     from tolerance.study import load_study
 
-    study = load_study(ROOT / "studies" / "rv40e_121_full.toml")
-    design, points = study.design, study.points
-    errors = errors_from_unit(study, sample(study, args.reducers))
-    model = EquivalentModel(design, input_angles(design, points), flank=1)
-    s, a = (g.ravel() for g in np.meshgrid(np.arange(errors.samples), np.arange(points), indexing="ij"))
-    zero = np.zeros(s.size)
-    probe = NO_LOAD_PROBE * design.rated_torque
-
-    steps = []
-    kernel = newton_kernel.newton_pairs
-
-    def counted(*arguments):
-        kernel(*arguments)
-        steps.append(int(arguments[-1].sum()))  # the kernel's iterations (B,), filled in
+    points = load_study(ROOT / "studies" / "rv40e_121_full.toml").points
+    model, errors, s, a, zero, probe = no_load_pairs("rv40e_121_full.toml", args.reducers, points)
 
     def run(release, rounds):
         kept = solver.RELEASE_ROUNDS
@@ -82,14 +67,11 @@ def main() -> None:
         (("probe", rounds), f"{rounds} release solves at the probe alone"),
         (("every", args.converged), f"yardstick: {args.converged} release solves at each load"),
     )
-    newton_kernel.newton_pairs = counted
-    try:
+    with counted_steps() as steps:
         results = {}
         for route, _ in routes:
             run(*route)  # compiles
             results[route] = min((run(*route) for _ in range(args.repeats)), key=lambda r: r[0])
-    finally:
-        newton_kernel.newton_pairs = kernel
 
     te = {
         k: (model.output_angle(eq.q, zero) / ARCSEC).reshape(args.reducers, points)
@@ -108,19 +90,20 @@ def main() -> None:
         f"{np.ptp(te[reference]):.2f} arcsec, its te_pp {np.ptp(te[reference], axis=1).min():.1f} to "
         f"{np.ptp(te[reference], axis=1).max():.1f}"
     )
-    print(
-        f"{'route':<58} {'size':>16} {'time [s]':>9} {'throughput':>16} {'Newton steps':>13} "
-        f"{'ratio':>6}  {'from the reference':>39}  {'from the yardstick':>39}"
-    )
+    print(f"{route_columns(58)}  {'from the reference':>39}  {'from the yardstick':>39}")
     for route, label in routes:
         seconds, eq, count = results[route]
-        assert eq.converged.all(), f"{label}: not every pair converged"
-        print(
-            f"{label:<58} {f'{args.reducers} x {points} pts':>16} {seconds:>9.3f} "
-            f"{args.reducers / seconds:>9.2f} red./s {count:>13d} "
-            f"{seconds / results[reference][0]:>6.2f}  {differences(route, reference)}  "
-            f"{differences(route, yardstick)}"
+        cells = route_cells(
+            label,
+            58,
+            f"{args.reducers} x {points} pts",
+            seconds,
+            args.reducers,
+            count,
+            results[reference][0],
+            eq,
         )
+        print(f"{cells}  {differences(route, reference)}  {differences(route, yardstick)}")
 
 
 if __name__ == "__main__":

@@ -24,6 +24,7 @@ te_pp from the reference's.
 """
 
 import argparse
+import contextlib
 import time
 from pathlib import Path
 
@@ -31,6 +32,62 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 POINTS = 720
+
+
+def no_load_pairs(study_file: str, reducers: int, points: int):
+    """(model, errors, sample, angle, zero, probe): every (reducer, angle) pair of the first
+    `reducers` Monte Carlo reducers of studies/<study_file> at `points` per revolution, at no
+    load, with the probe torque the solver takes there."""
+    from rvfmu.core.statics.equivalent import EquivalentModel
+    from rvfmu.core.statics.quasistatic import NO_LOAD_PROBE, input_angles
+    from tolerance.montecarlo import sample
+    from tolerance.sampling import errors_from_unit
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / study_file)
+    design = study.design
+    errors = errors_from_unit(study, sample(study, reducers))
+    model = EquivalentModel(design, input_angles(design, points), flank=1)
+    s, a = (g.ravel() for g in np.meshgrid(np.arange(errors.samples), np.arange(points), indexing="ij"))
+    return model, errors, s, a, np.zeros(s.size), NO_LOAD_PROBE * design.rated_torque
+
+
+@contextlib.contextmanager
+def counted_steps():
+    """A list that receives the Newton steps of every call of the compiled iteration
+    (`newton_kernel.newton_pairs`) while the block runs."""
+    from rvfmu.core.statics import newton_kernel
+
+    steps = []
+    kernel = newton_kernel.newton_pairs
+
+    def counted(*arguments):
+        kernel(*arguments)
+        steps.append(int(arguments[-1].sum()))  # the kernel's iterations (B,), filled in
+
+    newton_kernel.newton_pairs = counted
+    try:
+        yield steps
+    finally:
+        newton_kernel.newton_pairs = kernel
+
+
+def route_columns(width: int) -> str:
+    """The header of a route's leading columns (`route_cells`), its label `width` wide."""
+    return (
+        f"{'route':<{width}} {'size':>16} {'time [s]':>9} {'throughput':>16} {'Newton steps':>13} "
+        f"{'ratio':>6}"
+    )
+
+
+def route_cells(label, width, size, seconds, reducers, steps, reference_seconds, eq) -> str:
+    """A route's leading columns: label, size, time, reducers per second, Newton steps, and the
+    ratio to the reference's time; every pair of the route must have converged."""
+    assert eq.converged.all(), f"{label}: not every pair converged"
+    return (
+        f"{label:<{width}} {size:>16} {seconds:>9.3f} {reducers / seconds:>9.2f} red./s {steps:>13d} "
+        f"{seconds / reference_seconds:>6.2f}"
+    )
 
 
 def main() -> None:
@@ -42,27 +99,9 @@ def main() -> None:
     from bench_jobs import machine
 
     from rvfmu.core.base.units import ARCSEC
-    from rvfmu.core.statics import newton_kernel, solver
-    from rvfmu.core.statics.equivalent import EquivalentModel
-    from rvfmu.core.statics.quasistatic import NO_LOAD_PROBE, input_angles
-    from tolerance.montecarlo import sample
-    from tolerance.sampling import errors_from_unit
-    from tolerance.study import load_study
+    from rvfmu.core.statics import solver
 
-    study = load_study(ROOT / "studies" / "quick_mc.toml")
-    design = study.design
-    errors = errors_from_unit(study, sample(study, args.reducers))
-    model = EquivalentModel(design, input_angles(design, POINTS), flank=1)
-    s, a = (g.ravel() for g in np.meshgrid(np.arange(errors.samples), np.arange(POINTS), indexing="ij"))
-    zero = np.zeros(s.size)
-    probe = NO_LOAD_PROBE * design.rated_torque
-
-    steps = []
-    solve_pairs_kernel = newton_kernel.newton_pairs
-
-    def counted(*arguments):
-        solve_pairs_kernel(*arguments)
-        steps.append(int(arguments[-1].sum()))  # the kernel's iterations (B,), filled in
+    model, errors, s, a, zero, probe = no_load_pairs("quick_mc.toml", args.reducers, POINTS)
 
     def run(route):
         steps.clear()
@@ -77,14 +116,11 @@ def main() -> None:
         (("kinematic", "solve"), "kinematic start, release solved"),
         (("kinematic", "step"), "kinematic start, release by one step"),
     )
-    newton_kernel.newton_pairs = counted
-    try:
+    with counted_steps() as steps:
         results = {}
         for route, _ in routes:  # the reference first
             run(route)
             results[route] = min((run(route) for _ in range(args.repeats)), key=lambda r: r[0])
-    finally:
-        newton_kernel.newton_pairs = solve_pairs_kernel
 
     te = {
         k: (model.output_angle(eq.q, zero) / ARCSEC).reshape(args.reducers, POINTS)
@@ -92,20 +128,22 @@ def main() -> None:
     }
     reference = routes[0][0]
     print(f"machine: {machine()}")
-    print(
-        f"{'route':<44} {'size':>16} {'time [s]':>9} {'throughput':>16} {'Newton steps':>13} "
-        f"{'ratio':>6} {'max |dTE| [arcsec]':>19} {'max |d te_pp|':>14}"
-    )
+    print(f"{route_columns(44)} {'max |dTE| [arcsec]':>19} {'max |d te_pp|':>14}")
     for route, label in routes:
         seconds, eq, count = results[route]
-        assert eq.converged.all(), f"{label}: not every pair converged"
         d_te = np.max(np.abs(te[route] - te[reference]))
         d_pp = np.max(np.abs(np.ptp(te[route], axis=1) - np.ptp(te[reference], axis=1)))
-        print(
-            f"{label:<44} {f'{args.reducers} x {POINTS} pts':>16} {seconds:>9.3f} "
-            f"{args.reducers / seconds:>9.1f} red./s {count:>13d} "
-            f"{seconds / results[reference][0]:>6.2f} {d_te:>19.2e} {d_pp:>14.2e}"
+        cells = route_cells(
+            label,
+            44,
+            f"{args.reducers} x {POINTS} pts",
+            seconds,
+            args.reducers,
+            count,
+            results[reference][0],
+            eq,
         )
+        print(f"{cells} {d_te:>19.2e} {d_pp:>14.2e}")
     print(f"(the reference's TE spans {np.ptp(te[reference]):.2f} arcsec)")
 
 
