@@ -301,8 +301,8 @@ class ReducedSystem:
         torque `probe` (negative: a resisting load, docs/model.md section 5; positive: a
         driving one); where it needs an elastic solve (interference, bearing
         clearance) the equilibrium under `probe` (with bearing clearance reached
-        by continuation over CONTINUATION x probe, the weak springs released at
-        the last two loads) is taken back to zero load (`_to_zero_load`).
+        by continuation over CONTINUATION x probe, the weak springs released as
+        `clearance_release` says) is taken back to zero load (`_to_zero_load`).
         first_count: (B, 2) int, optional: how many pins of each disc probably touch
         (from the error-free reducer, at the load of the pair's first elastic solve:
         its own, or the first probe torque); the first guess takes that many, those
