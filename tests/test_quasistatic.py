@@ -463,7 +463,9 @@ def _creeping_point(row, angle):
     a, zero = np.arange(4), np.zeros(4)
     solve_group = solver.ReducedSystem._solve_group
 
-    def solve(max_iterations=newton.MAX_ITERATIONS, retries=solver.RELEASE_RETRIES):
+    def solve(
+        max_iterations=newton.MAX_ITERATIONS, retries=solver.RELEASE_RETRIES, stall=solver.RETRY_STALL_STEPS
+    ):
         left = []
 
         def watched(self, group, *args, centre=None, **kwargs):
@@ -474,6 +476,7 @@ def _creeping_point(row, angle):
         with (
             mock.patch.object(newton, "MAX_ITERATIONS", max_iterations),
             mock.patch.object(solver, "RELEASE_RETRIES", retries),
+            mock.patch.object(solver, "RETRY_STALL_STEPS", stall),
             mock.patch.object(solver.ReducedSystem, "_solve_group", watched),
         ):
             eq = solve_pairs(
@@ -516,6 +519,25 @@ def test_a_release_solve_that_creeps_converges_when_started_again():
     reference, converged, left = solve(max_iterations=40_000)
     assert converged.all() and left == []
     np.testing.assert_allclose(te, reference, rtol=0, atol=1e-4)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "numpy"])
+def test_a_retried_release_solve_ends_where_its_steps_stall(compiled, monkeypatch):
+    """Row 16398 at angle 2261: a stiff main bearing sits exactly on its clearance circle and
+    the release solve alternates between its two sides in steps of 1.3e-14 m, just above the
+    step tolerance, however often it is started again.  The retries end where ten steps in a
+    row stall (`solver.RETRY_STALL_STEPS`), and the TE is that of the point's last iterate to
+    round-off: the two sides are 1.3e-14 m apart.  The compiled and numpy iterations alike."""
+    from rvfmu.core.statics import newton_kernel
+
+    monkeypatch.setattr(newton_kernel, "COMPILED", compiled and newton_kernel.COMPILED)
+    solve = _creeping_point(16398, 2261)
+    unended, converged, left = solve(stall=0)
+    assert list(converged) == [True, True, False, True]
+    assert left == [("release", [2])] * 3  # the last release solve and both retries
+    te, converged, left = solve()
+    assert converged.all() and left == [("release", [2])]
+    np.testing.assert_allclose(te, unended, rtol=0, atol=1e-9)  # 5e-12 arcsec measured
 
 
 def test_no_load_te_of_a_tight_needle_reducer_has_no_spike():
@@ -757,10 +779,11 @@ def _newton_steps(run):
     from rvfmu.core.statics import newton_kernel
 
     kernel, steps = newton_kernel.newton_pairs, []
+    iterations = newton_kernel.newton_pairs_argument("iterations")
 
     def counted(*arguments):
         kernel(*arguments)
-        steps.append(int(arguments[-1].sum()))  # the kernel's iterations (B,), filled in
+        steps.append(int(arguments[iterations].sum()))  # the kernel's iterations (B,), filled in
 
     with mock.patch.object(newton_kernel, "newton_pairs", counted):
         return run(), sum(steps)

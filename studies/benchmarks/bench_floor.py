@@ -92,7 +92,7 @@ class StageCounter:
             start = time.perf_counter()
             result = kernel(*args)
             seconds = time.perf_counter() - start
-            iterations = args[-1]
+            iterations = args[newton_kernel.newton_pairs_argument("iterations")]
             row = counter.stats[getattr(counter.local, "stage", "other")]
             row[0] += iterations.size
             row[1] += int(iterations.sum())

@@ -108,7 +108,8 @@ def captured_solve(study, reducers):
         )
     interference = np.concatenate(starts[0::2])
     chunks = starts[1::2]
-    steps = np.concatenate([arguments[-1] for arguments, _ in chunks])
+    at = newton_kernel.newton_pairs_argument("iterations")
+    steps = np.concatenate([arguments[at] for arguments, _ in chunks])
     return chunks, steps, interference
 
 

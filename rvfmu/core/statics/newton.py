@@ -24,6 +24,7 @@ import numpy as np
 from ..laws.pin_law import contacts
 from ..laws.roller_law import TABLE_DE, TABLE_E, radial_law
 from . import newton_kernel
+from .newton_kernel import STALL_STEP
 
 MAX_ITERATIONS = 400
 STEP_TOLERANCE = 1e-14  # m: converged when a Newton step moves less (1e-8 um)
@@ -32,7 +33,7 @@ SHRINK_FRACTION = 0.25  # drop converged pairs from the work arrays once a quart
 MIN_PAIRS_PER_THREAD = 64  # a thread of the compiled iteration gets at least this many pairs
 
 
-def newton(work, first_active, q0=None, chain=None, release=False):
+def newton(work, first_active, q0=None, chain=None, release=False, stall=0):
     """Active-set Newton on the reduced energy; returns (q (B, nN), converged (B,), iterations).
 
     Compiled one pair at a time (`newton_kernel`) when numba is there, otherwise
@@ -43,11 +44,12 @@ def newton(work, first_active, q0=None, chain=None, release=False):
     so is its minimiser, and the numpy iteration, which solves the pairs together,
     ignores it.  release: the converged pairs then let go of the weak springs by one Newton
     step (`release_step`), in the compiled kernel from the Hessian it
-    has factored there, in numpy from the Hessian at the solution.
+    has factored there, in numpy from the Hessian at the solution.  stall > 0: that many
+    stalled steps in a row (`newton_kernel.STALL_STEP`) also end a pair as converged.
     """
     if newton_kernel.COMPILED:
-        return newton_compiled(work, first_active, q0, chain, release)
-    q, converged, iterations = newton_batched(work, first_active, q0)
+        return newton_compiled(work, first_active, q0, chain, release, stall)
+    q, converged, iterations = newton_batched(work, first_active, q0, stall)
     if release:
         q = release_step(work, q)
     return q, converged, iterations
@@ -147,7 +149,7 @@ def kernel_threads() -> int:
     return os.cpu_count() or 1
 
 
-def newton_compiled(work, first_active, q0=None, chain=None, release=False):
+def newton_compiled(work, first_active, q0=None, chain=None, release=False, stall=0):
     """`newton` by the compiled kernel (`newton_kernel.newton_pairs`), the pairs split over
     `kernel_threads` threads (the kernel releases the GIL) in batches of at least
     MIN_PAIRS_PER_THREAD, each a whole number of warm-start chains (`chain_links`)."""
@@ -188,6 +190,7 @@ def newton_compiled(work, first_active, q0=None, chain=None, release=False):
             GAP_TOLERANCE,
             converged[lo:hi],
             iterations[lo:hi],
+            int(stall),
         )
 
     threads = min(kernel_threads(), B // MIN_PAIRS_PER_THREAD)
@@ -258,7 +261,7 @@ def compiled_hessians(work, q):
     return out
 
 
-def newton_batched(work, first_active, q0=None):
+def newton_batched(work, first_active, q0=None, stall=0):
     """`newton` in numpy, every pair of the chunk iterated together.
 
     The first step solves the linear system with the guessed pins in contact at
@@ -276,6 +279,7 @@ def newton_batched(work, first_active, q0=None):
     energy, _ = work.energy(q)
     # piecewise quadratic (linear pins, no bearing with clearance): a consistent active set is exact
     smooth = work.brg_rows is None and work.system.model.pin_law[1] == 0.0
+    stalls = np.zeros(B, dtype=int)  # stalled steps in a row (with `stall`)
     iterations = 0
     for iterations in range(1, MAX_ITERATIONS + 1):
         first = iterations == 1 and not warm
@@ -297,6 +301,7 @@ def newton_batched(work, first_active, q0=None):
         move = alpha[:, None] * step
         move[converged[ids]] = 0.0  # pairs already done but still in the arrays stay put
         q = q + move
+        before = energy
         energy = trial if np.all(full) else np.where(full, trial, work.energy(q)[0])
         result[ids] = q
         # Done when a full step landed where exactly the pins it assumed touch (the
@@ -305,6 +310,11 @@ def newton_batched(work, first_active, q0=None):
         if first:
             # A guessed step that does not go downhill says nothing about convergence.
             done[:] = False
+        elif stall:
+            stalled = full & (np.max(np.abs(move), axis=1) <= STALL_STEP)
+            stalled &= np.abs(trial - before) <= 1e-13 * np.abs(before)
+            stalls = np.where(stalled & ~done, stalls + 1, 0)
+            done |= stalls >= stall
         if smooth:
             consistent = np.where(used, delta >= -GAP_TOLERANCE, delta <= GAP_TOLERANCE)
             done |= full & np.all(consistent, axis=(1, 2))
@@ -314,7 +324,7 @@ def newton_batched(work, first_active, q0=None):
             break
         if np.count_nonzero(done) > SHRINK_FRACTION * len(done):
             keep = np.flatnonzero(~done)
-            work, q, ids, energy = work.subset(keep), q[keep], ids[keep], energy[keep]
+            work, q, ids, energy, stalls = work.subset(keep), q[keep], ids[keep], energy[keep], stalls[keep]
     return result, converged, iterations
 
 

@@ -34,11 +34,22 @@ by the solution.
 
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 
 from ..base.compiled import COMPILED, kernel  # noqa: F401 (COMPILED: whether the iteration runs compiled)
 from ..laws.pin_law import contact
 from ..laws.roller_law import roller_law
+
+STALL_STEP = 1e-12  # m: a full step at most this long that changes the energy by no more than its
+# round-off (the 1e-13 |E| the full step's test allows) is a stalled one; `stall_steps` of them
+# in a row end a pair as converged where the caller asks for it (`solver.ReducedSystem._release`,
+# its retries).  Where a stiff bearing sits exactly on its clearance circle the steps can
+# alternate between its two sides just above the step tolerance (1.3e-14 m seen) to the
+# iteration's limit.  Not the default: many pairs take ten and more such steps before one
+# falls below the tolerance (the weak springs make the Hessians' condition about 1e9), and a
+# test so near round-off would turn it into differences of up to 6e-5 arcsec.
 
 
 @kernel
@@ -467,6 +478,7 @@ def newton_pairs(
     gap_tolerance,
     converged,
     iterations,
+    stall_steps,
 ):
     """Solve every pair; q (B, nN) holds the starts and receives the solutions, converged (B,)
     bool whether each pair converged, iterations (B,) how many Newton steps it took.
@@ -479,7 +491,8 @@ def newton_pairs(
     quadratic (`smooth`).  release > 0: each converged pair then lets go of the weak springs
     of stiffness `release` about it (`solver.ReducedSystem.reg_matrix`, their direction
     across the unit mode mode_unit (A, n) at its angle): one Newton step, q += H^-1 R q,
-    with the Hessian H already factored at the solution (`newton.release_step`)."""
+    with the Hessian H already factored at the solution (`newton.release_step`).  stall_steps >
+    0: that many stalled steps in a row (STALL_STEP) also end a pair as converged."""
     B, n = q.shape
     p = brg_rows.shape[1]
     Kp = rows.shape[2]
@@ -542,6 +555,7 @@ def newton_pairs(
                 Ks, fs, rs, bs, pin_local, pin_law, Bs, brg_cols, os_, cs, brg_law, table, qs, delta, d
             )
         done = False
+        stalls = 0  # stalled steps in a row (STALL_STEP)
         it = 0
         while it < max_iterations:
             it += 1
@@ -651,6 +665,10 @@ def newton_pairs(
             # Done when a step no longer moves (a guessed first step says nothing of that), or,
             # piecewise quadratic, when a full step landed where exactly the pins it assumed touch.
             done = (not first) and largest_move <= step_tolerance + 1e-12 * largest_q
+            if stall_steps > 0 and not done:
+                stalled = full and (not first) and largest_move <= STALL_STEP
+                stalls = stalls + 1 if stalled and abs(trial - energy) <= 1e-13 * abs(energy) else 0
+                done = stalls >= stall_steps
             if smooth and full and not done:
                 consistent = True
                 for j in range(2):
@@ -765,3 +783,13 @@ def hessians(
             delta,
             d,
         )
+
+
+_NEWTON_PAIRS_PARAMETERS = tuple(inspect.signature(getattr(newton_pairs, "py_func", newton_pairs)).parameters)
+
+
+def newton_pairs_argument(name: str) -> int:
+    """Position of `newton_pairs`' argument `name`, for wrappers that read its arrays (the
+    benchmarks' and tests' step counts read `iterations` after the call); taken from the
+    kernel as defined, so a wrapper in its place does not change it."""
+    return _NEWTON_PAIRS_PARAMETERS.index(name)

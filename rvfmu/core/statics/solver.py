@@ -81,7 +81,10 @@ RELEASE_ROUNDS = 3  # no load with bearing clearance: solves with the weak sprin
 RELEASE_RETRIES = 2  # ... and up to this many more where the last of them did not converge: a
 # solve that creeps to the iteration's limit where parts barely touch their clearance circles
 # converges when started again from where it stopped (5 of the 6 such last solves among the
-# complete study's 17 408 reducers, the sixth in neither; studies/rv40e_121_full/README.md)
+# complete study's 17 408 reducers; studies/rv40e_121_full/README.md) ...
+RETRY_STALL_STEPS = 10  # ... and a retry also ends where its steps have stalled this many times
+# in a row (`newton_kernel.STALL_STEP`: the sixth, whose steps alternate across a stiff bearing's
+# clearance circle 1.3e-14 m apart)
 RELEASE_BELOW = 100.0  # loads up to this many probe torques get the same release
 TANGENT_AGREEMENT = 3.0  # with bearing clearance: back to zero load along the tangent unless it turns
 # the carrier this many times further than the chord through the last two
@@ -472,6 +475,7 @@ class ReducedSystem:
         chain=None,
         every_pin=False,
         release=False,
+        stall=0,
     ):
         a = angle[group]
         f = f0[group] - loads[:, None] * self.g_red[a]
@@ -494,6 +498,7 @@ class ReducedSystem:
             chain=chain,
             every_pin=every_pin,
             release=release,
+            stall=stall,
         )
 
     def reg_pull(self, angle, centre):
@@ -507,7 +512,8 @@ class ReducedSystem:
         """The weak springs let go of the floating parts: `rounds` solves of the pairs
         `group` under `loads`, each from the last with the springs centred on it (at
         convergence they pull on nothing); a pair whose last solve did not converge gets
-        up to RELEASE_RETRIES more, re-centred on where it stopped.  Each solve is a whole
+        up to RELEASE_RETRIES more, re-centred on where it stopped, which also end where
+        their steps have stalled (RETRY_STALL_STEPS).  Each solve is a whole
         equilibrium problem, so a pair is converged when its last solve is.  Returns (q_N,
         converged, iterations)."""
         iterations = 0
@@ -533,6 +539,7 @@ class ReducedSystem:
                 None,
                 q[again],
                 centre=q[again],
+                stall=RETRY_STALL_STEPS,
             )
             iterations += its
         return q, converged, iterations
@@ -625,10 +632,12 @@ class ReducedSystem:
         chain=None,
         every_pin=False,
         release=False,
+        stall=0,
     ):
         """Newton solve of the pairs on their candidate pins, then on all pins where needed (on
         all pins at once with `every_pin` or a start q0); chain (B,) bool: the pairs the
-        compiled iteration starts from the pair before's solution (`newton.newton`).
+        compiled iteration starts from the pair before's solution (`newton.newton`); stall:
+        as `newton.newton`'s.
 
         The first guess of the touching pins: the `count` pins of each disc that the
         turning carrier reaches first, their gaps measured once the linear parts have
@@ -649,7 +658,7 @@ class ReducedSystem:
                 else self._guess(angle, rows, pin_b, self.pin_rate[angle], direction, count, f_errors)
             )
             work = Work(self, angle, f, rows, pin_b, brg_off, c_half, bearing_direction)
-            return newton(work, guess, q0, chain, release)
+            return newton(work, guess, q0, chain, release, stall)
         forward = direction > 0
         cand = self.candidates[-1.0][angle]  # (B, 2, Kc)
         rows = self.candidate_rows[-1.0][angle]  # (B, 2, Kc, 3)
@@ -667,7 +676,7 @@ class ReducedSystem:
             f_errors,
         )
         work = Work(self, angle, f, rows, pb, brg_off, c_half, bearing_direction)
-        q, converged, iterations = newton(work, guess, q0, chain)
+        q, converged, iterations = newton(work, guess, q0, chain, stall=stall)
         # Any pin left out that touches at the solution: solve those pairs on all pins.
         outside = np.ones(pin_b.shape, dtype=bool)
         np.put_along_axis(outside, cand, False, axis=2)
@@ -685,7 +694,9 @@ class ReducedSystem:
                 bearing_direction=None if bearing_direction is None else bearing_direction[redo],
             )
             first = (self.pin_rate[angle[redo]] * direction[redo, None, None]) > 0
-            q[redo], converged[redo], more = newton(full, first, None if q0 is None else q0[redo])
+            q[redo], converged[redo], more = newton(
+                full, first, None if q0 is None else q0[redo], stall=stall
+            )
             iterations = max(iterations, more)
         return q, converged, iterations
 
