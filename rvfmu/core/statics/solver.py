@@ -526,7 +526,6 @@ class ReducedSystem:
             again = np.flatnonzero(~converged)
             if again.size == 0:
                 break
-            q, converged = q.copy(), converged.copy()
             q[again], converged[again], its = self._solve_group(
                 group[again],
                 angle,
