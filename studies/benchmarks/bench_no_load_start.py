@@ -60,10 +60,11 @@ def counted_steps():
 
     steps = []
     kernel = newton_kernel.newton_pairs
+    at = newton_kernel.newton_pairs_argument("iterations")
 
     def counted(*arguments):
         kernel(*arguments)
-        steps.append(int(arguments[-1].sum()))  # the kernel's iterations (B,), filled in
+        steps.append(int(arguments[at].sum()))  # the kernel's iterations (B,), filled in
 
     newton_kernel.newton_pairs = counted
     try:

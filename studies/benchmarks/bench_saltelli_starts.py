@@ -51,11 +51,12 @@ def main() -> None:
     X = sobol.sample(problem, max(args.base, 1), False, seed=study.seed)[: args.base * per]
     batches = [X[k : k + study.batch_size] for k in range(0, X.shape[0], study.batch_size)]
     kernel = newton_kernel.newton_pairs
+    at = newton_kernel.newton_pairs_argument("iterations")
     steps = []
 
     def counted(*arguments):
         kernel(*arguments)
-        steps.append(int(arguments[-1].sum()))  # the kernel's iterations (B,), filled in
+        steps.append(int(arguments[at].sum()))  # the kernel's iterations (B,), filled in
 
     share = evaluate_module.RELATED_SHARE
     routes = (("kinematic starts (reference)", 2.0), ("A_B^(i) from A", share))
