@@ -301,7 +301,8 @@ def main() -> None:
     angle, K, Kh, brg_rows, brg_cols, f, rows, pin_b, pin_local, pin_law, brg_off, c_half, law, table = (
         arguments[:14]
     )
-    gap, iterations = arguments[24], arguments[26]  # newton_pairs' gap_tolerance and its steps
+    position = newton_kernel.newton_pairs_argument
+    gap, iterations = arguments[position("gap_tolerance")], arguments[position("iterations")]
     B = angle.size
     evaluate, energy, pins, bearings, cholesky, copies = part_loops()
     shared = (brg_cols, f, rows, pin_b, pin_local, pin_law, brg_off, c_half, law, table)
@@ -344,7 +345,8 @@ def main() -> None:
 
     def whole():
         again = list(arguments)
-        again[17], again[25] = q_start.copy(), arguments[25].copy()  # the starts, `converged`
+        again[position("q")] = q_start.copy()  # the starts, which the kernel overwrites
+        again[position("converged")] = arguments[position("converged")].copy()
         newton_kernel.newton_pairs(*again)
 
     seconds = best_of(args.repeats, whole)
