@@ -1,12 +1,14 @@
 """Wall time of the jobs a newcomer runs first, end to end, as the README runs them.
 
-What it measures, in this process, through the public functions behind the
-commands (files written to a temporary folder):
+What it measures: each command run as a process of its own, as a newcomer types it
+(the `rvte` installed beside this interpreter; files written to a temporary folder), so
+each time holds the interpreter's start, the imports, loading the cached compiled code and
+building the models it needs:
 - `rvte te RV-40E-121 --errors studies/seed002_errors.toml --plot ...`
   (the default 8 points per pin-passing period, lost motion and rigidity, the figure),
 - `rvte mc studies/quick_mc.toml` (2000 reducers, computed in-process as 2048 in whole
   batches of 64, the count the table shows; with its aliasing check, figures and
-  files; a fresh output folder, so nothing is reused),
+  files; a fresh output folder (`-o`), so nothing is reused),
 - `rvte fmu build RV-40E-121 --errors studies/seed002_errors.toml` (the TE map at
   the default points, the FMU written).
 The ratio column is each job's time over the TE curve's, the baseline.  The
@@ -17,6 +19,8 @@ Run:  python studies/benchmarks/bench_jobs.py
 
 import os
 import platform
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -46,47 +50,55 @@ def timed(job):
     return time.perf_counter() - start, result
 
 
-def main() -> None:
-    from rvfmu import api
-    from rvfmu.fmu.api import fmu_build
-    from tolerance import run_mc
+def rvte(*arguments: str) -> None:
+    """Run `rvte arguments...` as a command of its own, as a newcomer types it: the `rvte`
+    installed beside this interpreter, its output discarded; a failure stops the benchmark."""
+    script = Path(sys.executable).with_name("rvte")
+    command = [str(script) if script.exists() else "rvte", *arguments]
+    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(command)} failed:\n{done.stderr}")
 
+
+def main() -> None:
+    from rvfmu.core.statics.quasistatic import default_points
+    from rvfmu.core.steppers.te_map import TORQUE_FRACTIONS
+    from tolerance.study import load_study
+
+    study = load_study(ROOT / "studies" / "quick_mc.toml")  # its design is the RV-40E-121's preset
+    points = default_points(study.design)
+    reducers = -(-study.mc_n // study.batch_size) * study.batch_size
+    poses = 2 * len(TORQUE_FRACTIONS) * points
     print(f"machine: {machine()}")
     rows = []
     with tempfile.TemporaryDirectory(prefix="rvte_bench_jobs_") as tmp:
         tmp = Path(tmp)
-        seconds, report = timed(lambda: api.te("RV-40E-121", ERRORS, plot_path=tmp / "te.png"))
-        points = report.curve.points
-        rows.append(
+        jobs = (
             (
                 "rvte te RV-40E-121 --errors seed002 --plot",
+                ("te", "RV-40E-121", "--errors", str(ERRORS), "--plot", str(tmp / "te.png")),
                 f"{points} points",
-                seconds,
-                f"{points / seconds:.0f} points/s",
-            )
-        )
-        seconds, result = timed(lambda: run_mc(ROOT / "studies" / "quick_mc.toml", output=tmp / "quick_mc"))
-        reducers = result.computed.Y.shape[0]
-        rows.append(
+                points,
+                "points/s",
+            ),
             (
                 "rvte mc studies/quick_mc.toml",
+                ("mc", "studies/quick_mc.toml", "-o", str(tmp / "quick_mc")),
                 f"{reducers} reducers",
-                seconds,
-                f"{reducers / seconds:.0f} reducers/s",
-            )
-        )
-        seconds, _ = timed(lambda: fmu_build("RV-40E-121", ERRORS, tmp / "RVReducer.fmu"))
-        from rvfmu.core.steppers.te_map import TORQUE_FRACTIONS
-
-        poses = 2 * len(TORQUE_FRACTIONS) * points
-        rows.append(
+                reducers,
+                "reducers/s",
+            ),
             (
                 "rvte fmu build RV-40E-121 --errors seed002",
+                ("fmu", "build", "RV-40E-121", "--errors", str(ERRORS), "-o", str(tmp / "RVReducer.fmu")),
                 f"{poses} poses",
-                seconds,
-                f"{poses / seconds:.0f} poses/s",
-            )
+                poses,
+                "poses/s",
+            ),
         )
+        for what, arguments, size, count, unit in jobs:
+            seconds, _ = timed(lambda arguments=arguments: rvte(*arguments))
+            rows.append((what, size, seconds, f"{count / seconds:.0f} {unit}"))
     baseline = rows[0][2]
     print(f"{'what':<46} {'size':>16} {'time [s]':>9} {'throughput':>18} {'ratio':>7}")
     for what, size, seconds, rate in rows:
