@@ -10,10 +10,10 @@ at the probe alone, by the same three solves (five a point): the solve at 10 pro
 starts the probe's and anchors the chord.
 
 A third route leaves the solve at 10 probes out (`ReducedSystem._probe_steps` made the probe
-alone): its probe equilibrium is the same, unique with the weak springs centred at zero
-(printed: the largest difference of the probe's released equilibrium from the default's, solved
-on one thread so that the chunks come in order), but without a second probe load there is no
-chord back to zero load, and the tangent alone is followed everywhere.
+alone).  The probe's solve has one minimiser, the weak springs being centred at zero (printed:
+the largest difference of the probe's released equilibrium from the default's, each route
+solved again on one thread so that the chunks come in order); but without a second probe load
+there is no chord back to zero load, and the tangent alone is followed everywhere.
 
 The routes run here, in this process on every core, on the same `--reducers` reducers of
 studies/rv40e_121_full.toml (the calibrated RV-40E-121, its 15 tolerances with the three
@@ -78,13 +78,13 @@ def main() -> None:
         found = []
         back = solver.ReducedSystem._back_to_zero
 
-        def kept(self, group, angle, f0, pin_b, brg_off, c_half, path, depth=0):
+        def recorded(self, group, angle, f0, pin_b, brg_off, c_half, path, depth=0):
             found.append(path[-1][1])
             return back(self, group, angle, f0, pin_b, brg_off, c_half, path, depth)
 
         threads = os.environ.get("RVTE_THREADS")
         os.environ["RVTE_THREADS"] = "1"
-        solver.ReducedSystem._back_to_zero = kept
+        solver.ReducedSystem._back_to_zero = recorded
         try:
             run(*route)
         finally:
