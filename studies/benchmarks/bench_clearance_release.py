@@ -32,6 +32,7 @@ import argparse
 import os
 import time
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 
@@ -82,17 +83,11 @@ def main() -> None:
             found.append(path[-1][1])
             return back(self, group, angle, f0, pin_b, brg_off, c_half, path, depth)
 
-        threads = os.environ.get("RVTE_THREADS")
-        os.environ["RVTE_THREADS"] = "1"
-        solver.ReducedSystem._back_to_zero = recorded
-        try:
+        with (
+            mock.patch.dict(os.environ, {"RVTE_THREADS": "1"}),
+            mock.patch.object(solver.ReducedSystem, "_back_to_zero", recorded),
+        ):
             run(*route)
-        finally:
-            solver.ReducedSystem._back_to_zero = back
-            if threads is None:
-                del os.environ["RVTE_THREADS"]
-            else:
-                os.environ["RVTE_THREADS"] = threads
         return np.concatenate(found)
 
     rounds = solver.RELEASE_ROUNDS

@@ -36,8 +36,7 @@ def main() -> None:
     args = parser.parse_args()
 
     from bench_jobs import machine
-
-    from rvfmu.core.statics import newton_kernel
+    from bench_no_load_start import counted_steps
 
     evaluate_module = importlib.import_module(
         "tolerance.evaluate"
@@ -50,14 +49,6 @@ def main() -> None:
     per = sobol.rows_per_base_sample(problem, False)
     X = sobol.sample(problem, max(args.base, 1), False, seed=study.seed)[: args.base * per]
     batches = [X[k : k + study.batch_size] for k in range(0, X.shape[0], study.batch_size)]
-    kernel = newton_kernel.newton_pairs
-    at = newton_kernel.newton_pairs_argument("iterations")
-    steps = []
-
-    def counted(*arguments):
-        kernel(*arguments)
-        steps.append(int(arguments[at].sum()))  # the kernel's iterations (B,), filled in
-
     share = evaluate_module.RELATED_SHARE
     routes = (("kinematic starts (reference)", 2.0), ("A_B^(i) from A", share))
 
@@ -68,17 +59,16 @@ def main() -> None:
         Y = np.vstack([evaluate_module.evaluate(study, batch)[0] for batch in batches])
         return time.perf_counter() - began, sum(steps), Y
 
-    newton_kernel.newton_pairs = counted
     try:
-        run(share)  # compiled, the model's matrices made
-        best = {}
-        for _ in range(args.repeats):
-            for label, related in routes:
-                result = run(related)
-                if label not in best or result[0] < best[label][0]:
-                    best[label] = result
+        with counted_steps() as steps:
+            run(share)  # compiled, the model's matrices made
+            best = {}
+            for _ in range(args.repeats):
+                for label, related in routes:
+                    result = run(related)
+                    if label not in best or result[0] < best[label][0]:
+                        best[label] = result
     finally:
-        newton_kernel.newton_pairs = kernel
         evaluate_module.RELATED_SHARE = share
 
     reference = best[routes[0][0]]
